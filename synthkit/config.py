@@ -1,0 +1,207 @@
+"""YAML configs validated into strict pydantic schemas.
+
+A config file is a YAML mapping with a ``method:`` key naming the subcommand and the method's
+parameters. Every method schema derives from :class:`RunConfig`, itself a :class:`StrictModel`
+(unknown keys are errors). File fields use :data:`InputFile`: relative paths resolve against
+the config file's folder and the file must exist.
+
+Errors come out as one :class:`~synthkit.errors.ConfigError` line that names the file, the
+dotted key path and the value, with a "did you mean" for misspelt keys.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from pathlib import Path
+from typing import Annotated, Any
+
+import yaml
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo
+
+from synthkit.errors import ConfigError
+
+__all__ = [
+    "StrictModel",
+    "RunConfig",
+    "InputFile",
+    "load_yaml",
+    "apply_overrides",
+    "validate_config",
+]
+
+
+class StrictModel(BaseModel):
+    """A pydantic model that refuses unknown keys and re-validates on assignment."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
+    """Resolve ``value`` against the config's folder (``context['base_dir']``); it must exist."""
+    context = info.context or {}
+    base_dir = context.get("base_dir")
+    path = Path(value).expanduser()
+    if not path.is_absolute() and base_dir is not None:
+        path = Path(base_dir) / path
+    path = path.resolve()
+    if context.get("check_files", True) and not path.is_file():
+        raise ValueError(f"file not found: {path}")
+    inputs = context.get("inputs")
+    if inputs is not None:
+        inputs.append(path)
+    return path
+
+
+InputFile = Annotated[Path, AfterValidator(_resolve_input_file)]
+"""A path to an existing input file, relative to the config file's folder."""
+
+
+class RunConfig(StrictModel):
+    """Keys every method config has."""
+
+    method: str = Field(description="Subcommand this config is for (e.g. 'retarget').")
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of every random choice; --seed overrides.")
+
+
+def load_yaml(path: Path) -> dict[str, Any]:
+    """Read ``path`` as a YAML mapping; raise ConfigError for a missing, empty or malformed file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: config file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read config file: {exc}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path}: YAML syntax error{where}: {problem}") from None
+    if data is None:
+        raise ConfigError(f"{path}: config file is empty (expected a mapping with a 'method:' key)")
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{path}: top level must be a mapping of keys to values, not a {type(data).__name__}"
+        )
+    return data
+
+
+def apply_overrides(data: dict[str, Any], overrides: typing.Iterable[str]) -> dict[str, Any]:
+    """Return a copy of ``data`` with ``key.path=value`` overrides applied (values parsed as YAML).
+
+    Intermediate mappings are created as needed; validation of the result is left to the schema,
+    so an override goes through the same checks as a key in the file.
+    """
+    result = _deep_copy(data)
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key or any(not part for part in key.split(".")):
+            raise ConfigError(f"--set {item!r}: expected key.path=value")
+        try:
+            value = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError:
+            value = raw
+        node = result
+        parts = key.split(".")
+        for part in parts[:-1]:
+            child = node.get(part)
+            if not isinstance(child, dict):
+                child = {}
+                node[part] = child
+            node = child
+        node[parts[-1]] = value
+    return result
+
+
+def _deep_copy(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: _deep_copy(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_deep_copy(v) for v in data]
+    return data
+
+
+def validate_config(
+    model: type[RunConfig],
+    data: dict[str, Any],
+    *,
+    source: Path | str,
+    base_dir: Path | None = None,
+    check_files: bool = True,
+    inputs: list[Path] | None = None,
+) -> RunConfig:
+    """Validate ``data`` into ``model``; raise one ConfigError line naming ``source`` and the key.
+
+    ``inputs``, when given, collects the resolved paths of every :data:`InputFile` field.
+    """
+    context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs}
+    try:
+        return model.model_validate(data, context=context)
+    except ValidationError as exc:
+        raise ConfigError(f"{source}: {_describe(exc, model, data)}") from None
+
+
+def _describe(exc: ValidationError, model: type[BaseModel], data: dict[str, Any]) -> str:
+    """The first validation error as 'key.path: problem (got value)'."""
+    err = exc.errors(include_url=False)[0]
+    loc = tuple(err["loc"])
+    dotted = ".".join(str(p) for p in loc) or "(top level)"
+    if err["type"] == "extra_forbidden":
+        known = _field_names(model, loc[:-1])
+        hint = difflib.get_close_matches(str(loc[-1]), known, n=1, cutoff=0.6)
+        msg = f"unknown key '{dotted}'"
+        if hint:
+            parent = ".".join(str(p) for p in loc[:-1])
+            msg += f" (did you mean '{parent + '.' if parent else ''}{hint[0]}'?)"
+        elif known:
+            msg += f" (known keys: {', '.join(sorted(known))})"
+        return msg
+    if err["type"] == "missing":
+        return f"missing required key '{dotted}'"
+    text = err["msg"]
+    text = text.removeprefix("Value error, ")
+    value = err.get("input")
+    shown = "" if isinstance(value, dict) else f" (got {value!r})"
+    return f"{dotted}: {text}{shown}"
+
+
+def _unwrap(annotation: Any) -> list[Any]:
+    """Candidate model classes inside an annotation (Optional, Union, list, dict, Annotated)."""
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _unwrap(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType, list, tuple, dict):
+        found = []
+        for arg in typing.get_args(annotation):
+            found.extend(_unwrap(arg))
+        return found
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return []
+
+
+def _field_names(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names (and aliases) of the sub-model reached by ``loc`` from ``model``."""
+    candidates: list[type[BaseModel]] = [model]
+    for part in loc:
+        if not isinstance(part, str):
+            continue
+        nxt: list[type[BaseModel]] = []
+        for cls in candidates:
+            field = cls.model_fields.get(part)
+            if field is not None:
+                nxt.extend(_unwrap(field.annotation))
+        if not nxt:
+            # a discriminated-union tag or list index: keep the current candidates
+            continue
+        candidates = nxt
+    names: list[str] = []
+    for cls in candidates:
+        for name, field in cls.model_fields.items():
+            names.append(field.alias or name)
+    return names

@@ -1,0 +1,25 @@
+"""Errors a user can fix, each with its own exit code.
+
+``ConfigError`` (exit 2) is a problem with the command line or a config file: an unknown key,
+a value out of range, a missing referenced file. ``InputError`` (exit 3) is a problem with input
+data: a mesh or image that cannot be read or is degenerate. Any other exception is a bug or an
+environment problem and exits with 1.
+"""
+
+
+class SynthkitError(Exception):
+    """Base class for errors reported to the user as one line, without a traceback."""
+
+    exit_code = 1
+
+
+class ConfigError(SynthkitError):
+    """A usage or configuration error: bad option, bad config key or value (exit code 2)."""
+
+    exit_code = 2
+
+
+class InputError(SynthkitError):
+    """Input data that is missing, unreadable or degenerate (exit code 3)."""
+
+    exit_code = 3

@@ -1,0 +1,220 @@
+"""Running one method on one config: validation, timing, progress, atomic output, report.json.
+
+The output folder is built in a hidden staging folder beside it and renamed into place only when
+the run succeeded, so an output folder is always complete or absent. An existing output folder is
+replaced only with ``overwrite=True``, and never when it holds an input of the run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import shutil
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from synthkit import __version__
+from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
+from synthkit.errors import ConfigError, SynthkitError
+from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
+
+log = logging.getLogger("synthkit")
+
+
+class RunContext:
+    """What a pipeline gets besides its config: where to write, randomness, timing, progress.
+
+    Attributes
+    ----------
+    out_dir : Path
+        Staging folder; every output goes here (through :meth:`path`).
+    seed : int
+        The run's seed. ``rng`` is ``np.random.default_rng(seed)``; pass it down, never reseed.
+    metrics : dict
+        Filled by the pipeline; written to ``report.json`` under ``metrics``.
+    timings : dict[str, float]
+        Seconds per stage, accumulated by :meth:`stage`.
+    outputs : dict[str, str]
+        Output key -> file name relative to the output folder, registered by :meth:`path`.
+    """
+
+    def __init__(self, out_dir: Path, *, seed: int, show_progress: bool = True):
+        self.out_dir = Path(out_dir)
+        self.seed = int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.show_progress = show_progress
+        self.metrics: dict[str, Any] = {}
+        self.timings: dict[str, float] = {}
+        self.outputs: dict[str, str] = {}
+
+    @contextlib.contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        """Time the enclosed block; seconds are added to ``timings[name]``."""
+        log.info("stage %s ...", name)
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            elapsed = time.perf_counter() - start
+            self.timings[name] = self.timings.get(name, 0.0) + elapsed
+            log.info("stage %s done in %.3f s", name, elapsed)
+
+    def progress(self, iterable: Iterable | None = None, *, total: int | None = None, desc: str = ""):
+        """A tqdm progress bar on stderr, silent with --no-progress or when stderr is no TTY."""
+        from tqdm import tqdm
+
+        enabled = self.show_progress and sys.stderr.isatty()
+        return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not enabled, leave=False)
+
+    def path(self, key: str, filename: str) -> Path:
+        """Register output ``key`` as ``filename`` and return the path to write it to."""
+        if Path(filename).is_absolute() or ".." in Path(filename).parts:
+            raise ValueError(f"output file name must be relative to the output folder: {filename}")
+        self.outputs[key] = filename
+        target = self.out_dir / filename
+        target.parent.mkdir(parents=True, exist_ok=True)
+        return target
+
+
+def load_method_config(
+    config_path: Path,
+    *,
+    method: str | None = None,
+    overrides: Iterable[str] = (),
+    seed: int | None = None,
+    check_files: bool = True,
+) -> tuple[str, RunConfig, list[Path]]:
+    """Load and validate a config file; return (method name, config, resolved input files).
+
+    ``method`` None dispatches on the file's ``method:`` key; otherwise the key must agree (or be
+    absent). ``overrides`` are ``key.path=value`` strings; ``seed`` replaces the config's seed.
+    """
+    config_path = Path(config_path)
+    data = load_yaml(config_path)
+    data = apply_overrides(data, overrides)
+    declared = data.get("method")
+    if method is None:
+        if declared is None:
+            raise ConfigError(f"{config_path}: missing required key 'method' (one of {', '.join(METHODS)})")
+        method = declared
+    elif declared is not None and declared != method:
+        raise ConfigError(f"{config_path}: method: {declared!r} does not match the subcommand {method!r}")
+    if method not in METHODS:
+        raise ConfigError(f"{config_path}: method: unknown method {method!r} (one of {', '.join(METHODS)})")
+    if method not in available_methods():
+        raise ConfigError(f"{config_path}: method: {method!r} is not implemented in this version")
+    data["method"] = method
+    if seed is not None:
+        data["seed"] = seed
+    inputs: list[Path] = []
+    model = config_module(method).CONFIG
+    cfg = validate_config(
+        model,
+        data,
+        source=config_path,
+        base_dir=config_path.resolve().parent,
+        check_files=check_files,
+        inputs=inputs,
+    )
+    return method, cfg, inputs
+
+
+def default_out_dir(config_path: Path) -> Path:
+    """``out/<config file stem>`` under the current folder."""
+    return Path("out") / Path(config_path).stem
+
+
+def run_config(
+    config_path: Path,
+    *,
+    method: str | None = None,
+    out_dir: Path | None = None,
+    seed: int | None = None,
+    overrides: Iterable[str] = (),
+    overwrite: bool = False,
+    show_progress: bool = True,
+) -> dict[str, Any]:
+    """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report."""
+    method, cfg, inputs = load_method_config(config_path, method=method, overrides=overrides, seed=seed)
+    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
+    out_abs = out_dir.resolve()
+    for item in [*inputs, Path(config_path).resolve()]:
+        if item == out_abs or out_abs in item.parents:
+            raise ConfigError(f"--out {out_dir}: output folder holds the input {item}; choose another folder")
+    if out_abs.exists() and not overwrite:
+        raise ConfigError(f"--out {out_dir}: output folder exists; pass --overwrite to replace it")
+    if out_abs.exists() and not out_abs.is_dir():
+        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
+
+    out_abs.parent.mkdir(parents=True, exist_ok=True)
+    staging = out_abs.parent / f".{out_abs.name}.partial-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress)
+    start = time.perf_counter()
+    try:
+        pipeline_module(method).run(cfg, ctx)
+        ctx.timings["total"] = time.perf_counter() - start
+        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
+            raise RuntimeError(f"method {method} wrote no PNG preview")
+        report = {
+            "method": method,
+            "version": __version__,
+            "seed": cfg.seed,
+            "config": cfg.model_dump(mode="json"),
+            "config_file": str(Path(config_path).resolve()),
+            "timings": ctx.timings,
+            "metrics": ctx.metrics,
+            "outputs": {**ctx.outputs, "report": "report.json"},
+        }
+        write_json(staging / "report.json", report)
+        _replace_dir(staging, out_abs)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
+    return report
+
+
+def _replace_dir(staging: Path, target: Path) -> None:
+    """Move ``staging`` to ``target``, replacing an existing folder only after the move is ready."""
+    if target.exists():
+        old = target.parent / f".{target.name}.old-{os.getpid()}"
+        os.replace(target, old)
+        os.replace(staging, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(staging, target)
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def to_jsonable(obj: Any) -> Any:
+    """``obj`` with numpy scalars/arrays and paths turned into plain JSON values."""
+    return json.loads(json.dumps(obj, default=_json_default))
+
+
+def write_json(path: Path, obj: Any) -> None:
+    """Write ``obj`` as indented JSON (numpy values converted), atomically."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=2, default=_json_default, allow_nan=False) + "\n")
+    os.replace(tmp, path)
+
+
+__all__ = ["RunContext", "run_config", "load_method_config", "default_out_dir", "write_json", "SynthkitError"]

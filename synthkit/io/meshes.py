@@ -1,0 +1,145 @@
+"""Reading and writing meshes through trimesh: the only place meshes touch files.
+
+``load_mesh`` returns one ``trimesh.Trimesh`` (a scene of several geometries is merged with its
+transforms applied) and refuses missing, unreadable or degenerate input with an
+:class:`~synthkit.errors.InputError` naming the file. ``save_mesh`` writes by suffix (.obj, .ply,
+.glb, .off, .stl), optionally with an int32 per-face ``label`` property in PLY.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from synthkit.errors import InputError
+
+MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".off", ".stl")
+
+
+def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
+    """Load a triangle mesh from ``path``.
+
+    Parameters
+    ----------
+    path : path to an OBJ, PLY, GLB/glTF, OFF or STL file.
+    process : let trimesh merge duplicate vertices (False keeps the file's vertex order).
+
+    Returns
+    -------
+    mesh : trimesh.Trimesh with ``vertices (#V, 3) float64`` and ``faces (#F, 3) int64``. Scenes
+        are merged into one mesh in world coordinates (UVs and textures are kept only for a single
+        geometry).
+
+    Raises
+    ------
+    InputError : the file is missing, unreadable, has no triangles, or has non-finite vertices.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: mesh file not found")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise InputError(f"{path}: unsupported mesh format {path.suffix!r} (use {', '.join(MESH_SUFFIXES)})")
+    try:
+        loaded = trimesh.load(path, process=process)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    if isinstance(loaded, trimesh.Scene):
+        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        if not geoms:
+            raise InputError(f"{path}: file holds no triangle mesh")
+        mesh = geoms[0] if len(geoms) == 1 else trimesh.util.concatenate(geoms)
+    elif isinstance(loaded, trimesh.Trimesh):
+        mesh = loaded
+    else:
+        raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
+    check_mesh(mesh.vertices, mesh.faces, source=path)
+    return mesh
+
+
+def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> None:
+    """Raise InputError unless ``V (#V, 3)`` is finite and ``F (#F, 3)`` indexes it with >= 1 face."""
+    V = np.asarray(V)
+    F = np.asarray(F)
+    if F.ndim != 2 or F.shape[0] == 0:
+        raise InputError(f"{source}: mesh has no faces")
+    if F.shape[1] != 3:
+        raise InputError(f"{source}: faces have {F.shape[1]} corners; only triangles are supported")
+    if V.ndim != 2 or V.shape[1] != 3 or V.shape[0] == 0:
+        raise InputError(f"{source}: mesh has no 3-D vertices")
+    if not np.isfinite(V).all():
+        bad = int((~np.isfinite(V)).any(axis=1).sum())
+        raise InputError(f"{source}: {bad} vertices have NaN or infinite coordinates")
+    if F.min() < 0 or F.max() >= V.shape[0]:
+        raise InputError(f"{source}: face indices out of range [0, {V.shape[0]})")
+
+
+def save_mesh(mesh: trimesh.Trimesh, path: Path | str, *, face_labels: np.ndarray | None = None) -> None:
+    """Write ``mesh`` to ``path`` (format by suffix), atomically.
+
+    ``face_labels (#F,) int`` is stored as an int32 per-face ``label`` property (PLY only; for
+    other formats it raises ValueError).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise ValueError(f"unsupported mesh format {suffix!r}")
+    tmp = path.with_name(path.name + ".tmp" + suffix)
+    if face_labels is not None:
+        if suffix != ".ply":
+            raise ValueError("face labels are stored in PLY files only")
+        labels = np.asarray(face_labels)
+        if labels.shape != (len(mesh.faces),):
+            raise ValueError(f"face_labels has shape {labels.shape}, expected ({len(mesh.faces)},)")
+        data = _ply_with_face_labels(mesh, labels.astype(np.int32))
+        tmp.write_bytes(data)
+    else:
+        mesh.export(tmp, file_type=suffix.lstrip("."))
+    os.replace(tmp, path)
+
+
+def load_face_labels(path: Path | str) -> np.ndarray:
+    """Per-face ``label`` property of a PLY written by :func:`save_mesh`, as ``(#F,) int32``."""
+    path = Path(path)
+    with open(path, "rb") as fh:
+        header = []
+        while True:
+            line = fh.readline()
+            if not line:
+                raise InputError(f"{path}: truncated PLY header")
+            header.append(line.decode("ascii", "replace").strip())
+            if header[-1] == "end_header":
+                break
+        body = fh.read()
+    n_vertices = n_faces = 0
+    for line in header:
+        if line.startswith("element vertex"):
+            n_vertices = int(line.split()[-1])
+        elif line.startswith("element face"):
+            n_faces = int(line.split()[-1])
+    if "property int label" not in header:
+        raise InputError(f"{path}: PLY has no per-face 'label' property")
+    vertex_bytes = n_vertices * 3 * 4
+    face_dtype = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")])
+    faces = np.frombuffer(body, dtype=face_dtype, count=n_faces, offset=vertex_bytes)
+    return faces["label"].astype(np.int32)
+
+
+def _ply_with_face_labels(mesh: trimesh.Trimesh, labels: np.ndarray) -> bytes:
+    """Binary little-endian PLY: float32 xyz, triangles with an int32 ``label`` per face."""
+    V = np.asarray(mesh.vertices, dtype="<f4")
+    F = np.asarray(mesh.faces)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int label\n"
+        "end_header\n"
+    ).encode("ascii")
+    face_dtype = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")])
+    faces = np.empty(len(F), dtype=face_dtype)
+    faces["n"] = 3
+    faces["idx"] = F
+    faces["label"] = labels
+    return header + V.tobytes() + faces.tobytes()

@@ -30,11 +30,13 @@ METHODS: dict[str, str] = {
 
 def available_methods() -> list[str]:
     """Subcommand names whose method package is present, in registry order."""
-    return [
-        name
-        for name, pkg in METHODS.items()
-        if importlib.util.find_spec(f"synthkit.methods.{pkg}.pipeline") is not None
-    ]
+    found = []
+    for name, pkg in METHODS.items():
+        if importlib.util.find_spec(f"synthkit.methods.{pkg}") is None:
+            continue
+        if importlib.util.find_spec(f"synthkit.methods.{pkg}.pipeline") is not None:
+            found.append(name)
+    return found
 
 
 def config_module(name: str) -> ModuleType:

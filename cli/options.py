@@ -1,0 +1,136 @@
+"""Options shared by the subcommands, the error handling wrapper and the method command factory."""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+import sys
+import traceback
+from collections.abc import Callable
+
+import click
+
+SET_HELP = "Override a config key, e.g. --set graphcut.max_cycles=5 (repeatable; values are YAML)."
+
+config_argument = click.argument("config", type=click.Path(dir_okay=False, path_type=str))
+seed_option = click.option(
+    "--seed", type=click.IntRange(0, 2**32 - 1), default=None, help="Seed (overrides the config's seed)."
+)
+set_option = click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help=SET_HELP)
+overwrite_option = click.option("--overwrite", is_flag=True, help="Replace an existing output folder.")
+progress_option = click.option("--no-progress", is_flag=True, help="Do not show progress bars.")
+json_option = click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
+
+
+def verbosity(ctx: click.Context) -> int:
+    """-1 quiet, 0 normal, 1 verbose (from the group's -v/-q)."""
+    root = ctx.find_root()
+    return int(root.obj.get("verbosity", 0)) if root.obj else 0
+
+
+def report_errors(fn: Callable) -> Callable:
+    """Turn exceptions into one line on stderr and the documented exit code (traceback with -v)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        ctx = click.get_current_context()
+        try:
+            return fn(*args, **kwargs)
+        except click.exceptions.Exit:
+            raise
+        except click.ClickException:
+            raise
+        except KeyboardInterrupt:
+            click.echo("error: interrupted", err=True)
+            ctx.exit(130)
+        except Exception as exc:
+            code, line = describe_exception(exc)
+            if verbosity(ctx) > 0:
+                traceback.print_exc(file=sys.stderr)
+            click.echo(f"error: {line}", err=True)
+            ctx.exit(code)
+
+    return wrapper
+
+
+def describe_exception(exc: BaseException) -> tuple[int, str]:
+    """(exit code, one-line message) for an exception raised by a run."""
+    from synthkit.errors import SynthkitError
+
+    if isinstance(exc, SynthkitError):
+        return exc.exit_code, str(exc)
+    if isinstance(exc, MemoryError):
+        return 1, "out of memory"
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return 1, f"internal error: {type(exc).__name__}: {text} (run with -v for the traceback)"
+
+
+def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
+    """One line per run on stderr (unless -q): method, folder, seconds, headline metrics."""
+    if verbosity(ctx) < 0:
+        return
+    metrics = report.get("metrics", {})
+    headline = ", ".join(
+        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+        for k, v in list(metrics.items())[:4]
+        if isinstance(v, (int, float, str))
+    )
+    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline})", err=True)
+
+
+def method_command(name: str, help_text: str, *, flags: dict[str, tuple[str, str]] | None = None) -> click.Command:
+    """Build the click command for method ``name``.
+
+    ``flags`` maps an extra boolean option name (e.g. ``--analyze-only``) to ``(override, help)``:
+    giving the flag adds the ``--set`` override ``override`` (e.g. ``analyze_only=true``).
+    """
+    flags = flags or {}
+
+    @click.command(name=name, help=help_text)
+    @config_argument
+    @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=str), default=None,
+                  help="Output folder (default: out/<config name>).")
+    @seed_option
+    @set_option
+    @overwrite_option
+    @progress_option
+    @json_option
+    @report_errors
+    def command(config, out_dir, seed, overrides, overwrite, no_progress, as_json, **extra):
+        from synthkit.runner import default_out_dir, run_config
+
+        ctx = click.get_current_context()
+        extra_sets = [flags[_flag_name(k)][0] for k, on in extra.items() if on]
+        out = out_dir or str(default_out_dir(config))
+        report = run_config(
+            config,
+            method=name,
+            out_dir=out,
+            seed=seed,
+            overrides=[*extra_sets, *overrides],
+            overwrite=overwrite,
+            show_progress=not no_progress and verbosity(ctx) >= 0,
+        )
+        if as_json:
+            click.echo(json.dumps(report, indent=2))
+        print_summary(ctx, report, out)
+
+    for flag, (_override, flag_help) in flags.items():
+        command = click.option(flag, is_flag=True, help=flag_help)(command)
+    return command
+
+
+def _flag_name(param: str) -> str:
+    return "--" + param.replace("_", "-")
+
+
+def configure_logging(verbosity_level: int) -> None:
+    """Log to stderr: warnings by default, info with -v, errors only with -q."""
+    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(verbosity_level, logging.DEBUG)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    root = logging.getLogger("synthkit")
+    root.handlers[:] = [handler]
+    root.setLevel(level)
+    root.propagate = False

@@ -1,0 +1,462 @@
+"""Functions over indexed triangle meshes in ``V (#V, 3) float64``, ``F (#F, 3) int64`` form.
+
+Pure numpy/scipy (plus pymeshlab for decimation): no files. Conventions:
+
+- ``V`` vertex positions, ``F`` triangle corner indices; other integer index arrays are int64.
+- A face's normal follows the right-hand rule on ``(F[:, 0], F[:, 1], F[:, 2])``.
+- ``TOL`` is the one relative tolerance used to decide "on the plane" when clipping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+__all__ = [
+    "TOL",
+    "as_mesh_arrays",
+    "normalize_unit",
+    "face_normals",
+    "face_areas",
+    "vertex_areas",
+    "edge_lengths",
+    "vertex_graph_edges",
+    "face_adjacency",
+    "dihedral_angles",
+    "poisson_disk_sample",
+    "simplify",
+    "clip_by_planes",
+    "clip_by_box",
+    "split_by_planes",
+    "weld",
+    "remove_unreferenced",
+]
+
+TOL = 1e-12
+"""Relative tolerance (times the bounding-box diagonal) for a vertex to count as on a clipping plane."""
+
+
+def as_mesh_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """Validate and convert ``V (#V, 3)`` to float64 and ``F (#F, 3)`` to int64.
+
+    Raises ValueError for wrong shapes, non-finite positions or out-of-range indices.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise ValueError(f"V must have shape (n, 3), got {V.shape}")
+    if F.size == 0:
+        F = F.reshape(0, 3)
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise ValueError(f"F must have shape (m, 3), got {F.shape}")
+    if not np.issubdtype(F.dtype, np.integer):
+        raise ValueError(f"F must hold integer indices, got dtype {F.dtype}")
+    F = F.astype(np.int64, copy=False)
+    if not np.all(np.isfinite(V)):
+        raise ValueError("V holds NaN or infinite coordinates")
+    if F.size and (F.min() < 0 or F.max() >= len(V)):
+        raise ValueError(f"F indices must lie in [0, {len(V) - 1}], got [{F.min()}, {F.max()}]")
+    return V, F
+
+
+def normalize_unit(V) -> tuple[np.ndarray, np.ndarray, float]:
+    """Translate and scale ``V (n, 3)`` so that its longest bounding-box side spans [-1, 1].
+
+    Returns ``(Vn (n, 3), center (3,), scale)`` with ``Vn = (V - center) / scale``; ``center`` is the
+    bounding-box centre and ``scale`` half the longest side. Raises ValueError for an empty or
+    zero-extent point set.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
+        raise ValueError(f"V must have shape (n, 3) with n > 0, got {V.shape}")
+    if not np.all(np.isfinite(V)):
+        raise ValueError("V holds NaN or infinite coordinates")
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    scale = float((hi - lo).max()) / 2.0
+    if scale <= 0.0:
+        raise ValueError("V has zero extent: cannot normalize a single point")
+    center = (lo + hi) / 2.0
+    return (V - center) / scale, center, scale
+
+
+def face_normals(V, F) -> np.ndarray:
+    """Unit normals ``(#F, 3)``; a degenerate (zero-area) face gets the zero vector."""
+    V, F = as_mesh_arrays(V, F)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def face_areas(V, F) -> np.ndarray:
+    """Triangle areas ``(#F,)``."""
+    V, F = as_mesh_arrays(V, F)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    return 0.5 * np.linalg.norm(n, axis=1)
+
+
+def vertex_areas(V, F) -> np.ndarray:
+    """Barycentric vertex areas ``(#V,)``: one third of the area of every incident face.
+
+    They sum to the total surface area; unreferenced vertices get 0.
+    """
+    V, F = as_mesh_arrays(V, F)
+    a = face_areas(V, F) / 3.0
+    return np.bincount(F.ravel(), weights=np.repeat(a, 3), minlength=len(V))
+
+
+def edge_lengths(V, F) -> np.ndarray:
+    """Per-face edge lengths ``(#F, 3)`` (libigl order): column c is the edge opposite corner c,
+    i.e. ``[|v1 - v2|, |v2 - v0|, |v0 - v1|]``."""
+    V, F = as_mesh_arrays(V, F)
+    P = V[F]
+    return np.stack(
+        [
+            np.linalg.norm(P[:, 1] - P[:, 2], axis=1),
+            np.linalg.norm(P[:, 2] - P[:, 0], axis=1),
+            np.linalg.norm(P[:, 0] - P[:, 1], axis=1),
+        ],
+        axis=1,
+    )
+
+
+def vertex_graph_edges(F) -> np.ndarray:
+    """Unique undirected edges ``(E, 2)`` int64 of the triangles ``F``, each with ``i < j``, sorted."""
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    E = np.sort(E, axis=1)
+    E = E[E[:, 0] != E[:, 1]]
+    return np.unique(E, axis=0)
+
+
+def face_adjacency(F) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of faces sharing an edge.
+
+    Returns ``(pairs (k, 2) int64, edges (k, 2) int64)``: ``pairs[r] = (f, g)`` with ``f < g`` share the
+    undirected edge ``edges[r] = (i, j)``, ``i < j``. At a non-manifold edge (more than two faces) every
+    pair of its faces is listed. Rows are sorted by edge, then by face pair.
+    """
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    m = len(F)
+    if m == 0:
+        return np.zeros((0, 2), np.int64), np.zeros((0, 2), np.int64)
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    fid = np.tile(np.arange(m, dtype=np.int64), 3)
+    order = np.lexsort((fid, E[:, 1], E[:, 0]))
+    E, fid = E[order], fid[order]
+    new = np.ones(len(E), bool)
+    new[1:] = np.any(E[1:] != E[:-1], axis=1)
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, len(E)))
+    pairs, edges = [], []
+    for c in np.unique(counts[counts >= 2]):
+        s = starts[counts == c]
+        iu, ju = np.triu_indices(c, k=1)
+        pairs.append(np.stack([fid[s[:, None] + iu], fid[s[:, None] + ju]], axis=-1).reshape(-1, 2))
+        edges.append(np.repeat(E[s], len(iu), axis=0))
+    if not pairs:
+        return np.zeros((0, 2), np.int64), np.zeros((0, 2), np.int64)
+    pairs = np.sort(np.concatenate(pairs), axis=1)
+    edges = np.concatenate(edges)
+    order = np.lexsort((pairs[:, 1], pairs[:, 0], edges[:, 1], edges[:, 0]))
+    return pairs[order], edges[order]
+
+
+def dihedral_angles(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """Signed bending angle at every interior edge.
+
+    Returns ``(pairs (k, 2), angles (k,))`` with ``pairs`` as in :func:`face_adjacency`. The angle is
+    the one between the two face normals (``pi`` minus the interior dihedral angle), in [-pi, pi]:
+    0 for coplanar faces, positive where the surface is convex (the second face's far vertex lies
+    below the first face's plane), negative where concave. Degenerate faces give 0.
+    """
+    V, F = as_mesh_arrays(V, F)
+    pairs, edges = face_adjacency(F)
+    N = face_normals(V, F)
+    n0, n1 = N[pairs[:, 0]], N[pairs[:, 1]]
+    cos = np.clip(np.sum(n0 * n1, axis=1), -1.0, 1.0)
+    sin = np.linalg.norm(np.cross(n0, n1), axis=1)
+    ang = np.arctan2(sin, cos)
+    # far vertex of the second face: the corner not on the shared edge
+    G = F[pairs[:, 1]]
+    far = np.where(
+        (G[:, 0] != edges[:, 0]) & (G[:, 0] != edges[:, 1]),
+        G[:, 0],
+        np.where((G[:, 1] != edges[:, 0]) & (G[:, 1] != edges[:, 1]), G[:, 1], G[:, 2]),
+    )
+    side = np.sum(n0 * (V[far] - V[edges[:, 0]]), axis=1)
+    return pairs, np.where(side > 0, -ang, ang)
+
+
+def poisson_disk_sample(V, F, radius: float, *, seed: int = 0, oversample: int = 10):
+    """Poisson-disk samples on the surface, no two closer than ``radius`` (Euclidean distance).
+
+    Returns ``(P (n, 3), N (n, 3))``: sample positions and the unit normals of the faces they lie on.
+
+    Method (the one of MeshLab's ``generate_sampling_poisson_disk``: a Monte Carlo pool pruned to a
+    Poisson-disk set): a pool of ``oversample`` points per disk of radius ``radius / 2`` of surface
+    area, drawn area-uniformly with ``np.random.default_rng(seed)``, then the greedy maximal subset in
+    random priority order whose points are pairwise at least ``radius`` apart. Written here rather
+    than calling pymeshlab because pymeshlab's sampler draws from a process-wide generator with no
+    seed parameter, so two calls in one process return different sets; this one is deterministic for
+    a seed. Distances are Euclidean, not geodesic.
+    """
+    V, F = as_mesh_arrays(V, F)
+    if not radius > 0:
+        raise ValueError(f"radius must be > 0, got {radius}")
+    areas = face_areas(V, F)
+    total = float(areas.sum())
+    if total <= 0:
+        raise ValueError("mesh has zero surface area")
+    rng = np.random.default_rng(seed)
+    n_pool = int(min(max(oversample * total / (np.pi * (radius / 2) ** 2), 16), 4_000_000))
+    face = rng.choice(len(F), size=n_pool, p=areas / total)
+    u, v = rng.random(n_pool), rng.random(n_pool)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    tri = V[F[face]]
+    pool = tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
+    keep = _greedy_independent_set(pool, radius, rng.permutation(n_pool))
+    normals = face_normals(V, F)[face[keep]]
+    return pool[keep], normals
+
+
+def _greedy_independent_set(points: np.ndarray, radius: float, priority: np.ndarray) -> np.ndarray:
+    """Indices (sorted by priority) of the greedy maximal set of points pairwise >= ``radius`` apart.
+
+    Visiting points by increasing ``priority`` and keeping those with no kept point closer than
+    ``radius`` equals the fixed point of "keep every undecided point whose priority is the lowest among
+    its undecided neighbours; drop their neighbours", which is computed here with sparse products.
+    """
+    n = len(points)
+    pairs = cKDTree(points).query_pairs(radius * (1 - 1e-12), output_type="ndarray")
+    if len(pairs) == 0:
+        return np.argsort(priority)
+    A = sp.coo_matrix(
+        (np.ones(2 * len(pairs)), (np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]])), shape=(n, n)
+    ).tocsr()
+    state = np.zeros(n, np.int8)  # 0 undecided, 1 kept, -1 dropped
+    prio = priority.astype(np.float64)
+    indptr, indices = A.indptr, A.indices
+    row = np.repeat(np.arange(n), np.diff(indptr))
+    while True:
+        und = state == 0
+        if not und.any():
+            break
+        # lowest priority among undecided neighbours
+        nb_prio = np.where(und[indices], prio[indices], np.inf)
+        low = np.full(n, np.inf)
+        np.minimum.at(low, row, nb_prio)
+        win = und & (prio < low)
+        state[win] = 1
+        hit = np.zeros(n, bool)
+        hit[indices[win[row]]] = True
+        state[hit & (state == 0)] = -1
+    kept = np.flatnonzero(state == 1)
+    return kept[np.argsort(priority[kept])]
+
+
+def simplify(V, F, n_faces: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Decimate to about ``n_faces`` triangles and map every fine vertex to a coarse one.
+
+    Uses pymeshlab's quadric edge collapse (``meshing_decimation_quadric_edge_collapse`` with
+    ``preservetopology`` and ``optimalplacement`` on), then maps each fine vertex to its nearest
+    coarse vertex (Euclidean). Returns ``(Vc (#Vc, 3), Fc (#Fc, 3), fine_to_coarse (#V,) int64)``.
+    When ``n_faces >= #F`` the mesh is returned unchanged with the identity map.
+    """
+    import pymeshlab
+
+    V, F = as_mesh_arrays(V, F)
+    if n_faces < 4:
+        raise ValueError(f"n_faces must be >= 4, got {n_faces}")
+    if len(F) == 0:
+        raise ValueError("cannot simplify a mesh without faces")
+    if n_faces >= len(F):
+        return V.copy(), F.copy(), np.arange(len(V), dtype=np.int64)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=V, face_matrix=F.astype(np.int32)))
+    ms.meshing_decimation_quadric_edge_collapse(
+        targetfacenum=int(n_faces), preservetopology=True, optimalplacement=True, autoclean=True
+    )
+    m = ms.current_mesh()
+    Vc = np.asarray(m.vertex_matrix(), dtype=np.float64)
+    Fc = np.asarray(m.face_matrix(), dtype=np.int64)
+    Vc, Fc = remove_unreferenced(Vc, Fc)[:2]
+    _, f2c = cKDTree(Vc).query(V)
+    return Vc, Fc, f2c.astype(np.int64)
+
+
+def remove_unreferenced(V, F) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop vertices no face uses. Returns ``(V2, F2, old_index (#V2,))``."""
+    V = np.asarray(V)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    used = np.zeros(len(V), bool)
+    used[F.ravel()] = True
+    old = np.flatnonzero(used)
+    remap = np.full(len(V), -1, np.int64)
+    remap[old] = np.arange(len(old))
+    return V[old], remap[F], old
+
+
+def clip_by_planes(V, F, normals, offsets, *, src_face=None):
+    """Keep the part of the mesh on the side ``n . x <= d`` of every plane, splitting triangles exactly.
+
+    Parameters
+    ----------
+    V : (#V, 3) float, F : (#F, 3) int
+    normals : (k, 3) float plane normals (need not be unit; the test is ``n . x <= d``)
+    offsets : (k,) float plane offsets ``d``
+    src_face : (#F,) int, optional; source index carried along (defaults to ``arange(#F)``)
+
+    Returns
+    -------
+    V2 (#V2, 3), F2 (#F2, 3), src_face (#F2,) int64: the index of the input face each output face came
+    from. Cut faces are left open (no caps). Points where an edge crosses a plane are computed once
+    per edge from its endpoints in a fixed order, so faces that shared an edge still share the new
+    vertex and two clips that cut the same edge by the same plane give bitwise-equal points. A vertex
+    within ``TOL`` x (bbox diagonal) of a plane counts as on it (kept, never split), so no sliver
+    triangles appear; unused vertices are dropped, faces with repeated corners removed.
+    """
+    V, F, normals, offsets, src, eps = _plane_args(V, F, normals, offsets, src_face)
+    for n, d in zip(normals, offsets, strict=True):
+        if len(F) == 0:
+            break
+        V, F, src = _split_one(V, F, src, n, d, eps * np.linalg.norm(n))[:3]
+    V, F, _ = remove_unreferenced(V, F)
+    return V, F, src
+
+
+def _split_one(V, F, src, n, d, eps):
+    """Split every triangle by the plane ``n . x = d``.
+
+    Returns ``(V2, F_in, src_in, F_out, src_out)``: the faces on the ``n . x <= d`` side and on the
+    other side; crossing points are appended to ``V`` (shared by both sides).
+    """
+    s = V @ n - d
+    s[np.abs(s) <= eps] = 0.0
+    out = s > 0
+    n_out = out[F].sum(axis=1)
+    whole_in, whole_out = n_out == 0, n_out == 3
+    mixed = np.flatnonzero((n_out == 1) | (n_out == 2))
+    if len(mixed) == 0:
+        return V, F[whole_in], src[whole_in], F[whole_out], src[whole_out]
+    Fm = F[mixed]
+    om = out[Fm]
+    # rotate each mixed triangle so its odd vertex (the one alone on its side) is corner 0
+    odd_is_out = n_out[mixed] == 1
+    odd = np.where(odd_is_out[:, None], om, ~om)
+    first = np.argmax(odd, axis=1)
+    R = np.take_along_axis(Fm, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)
+    # crossed edges (a, b) and (a, c), a the odd vertex; an endpoint with s == 0 is reused as is
+    ekeys = np.sort(np.concatenate([R[:, [0, 1]], R[:, [0, 2]]]), axis=1)
+    uniq, inv = np.unique(ekeys, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    i, j = uniq[:, 0], uniq[:, 1]
+    si, sj = s[i], s[j]
+    on_i, on_j = si == 0, sj == 0
+    crossing = si * sj < 0
+    t = np.zeros(len(uniq))
+    t[crossing] = si[crossing] / (si[crossing] - sj[crossing])
+    pts = V[i] + t[:, None] * (V[j] - V[i])
+    new_idx = np.full(len(uniq), -1, np.int64)
+    new_idx[on_i] = i[on_i]
+    new_idx[on_j & ~on_i] = j[on_j & ~on_i]
+    new_idx[crossing] = len(V) + np.arange(int(crossing.sum()))
+    V2 = np.concatenate([V, pts[crossing]])
+    m = len(mixed)
+    ab, ac = new_idx[inv[:m]], new_idx[inv[m:]]
+    a, b, c = R[:, 0], R[:, 1], R[:, 2]
+    src_m = src[mixed]
+    tri = np.stack([a, ab, ac], axis=1)  # the odd vertex's side
+    quad1 = np.stack([ab, b, c], axis=1)  # the other side, as two triangles
+    quad2 = np.stack([ab, c, ac], axis=1)
+    ins = ~odd_is_out
+    F_in = np.concatenate([F[whole_in], tri[ins], quad1[odd_is_out], quad2[odd_is_out]])
+    S_in = np.concatenate([src[whole_in], src_m[ins], src_m[odd_is_out], src_m[odd_is_out]])
+    F_out = np.concatenate([F[whole_out], tri[odd_is_out], quad1[ins], quad2[ins]])
+    S_out = np.concatenate([src[whole_out], src_m[odd_is_out], src_m[ins], src_m[ins]])
+    gi, go = _nondegenerate(F_in), _nondegenerate(F_out)
+    return V2, F_in[gi], S_in[gi], F_out[go], S_out[go]
+
+
+def _nondegenerate(F: np.ndarray) -> np.ndarray:
+    return (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
+
+
+def split_by_planes(V, F, normals, offsets):
+    """Cut every triangle along every plane ``n . x = d``, keeping both sides.
+
+    Returns ``(V2, F2, src_face)``: a mesh with the same surface whose faces each lie on one side of
+    every plane (so they can be grouped into cells by their centroids); neighbouring groups share
+    the vertices along the cuts exactly. Same crossing-point rule and tolerance as
+    :func:`clip_by_planes`.
+    """
+    V, F, normals, offsets, src, eps = _plane_args(V, F, normals, offsets, None)
+    for n, d in zip(normals, offsets, strict=True):
+        V, Fi, Si, Fo, So = _split_one(V, F, src, n, d, eps * np.linalg.norm(n))
+        F, src = np.concatenate([Fi, Fo]), np.concatenate([Si, So])
+    V, F, _ = remove_unreferenced(V, F)
+    return V, F, src
+
+
+def _plane_args(V, F, normals, offsets, src_face):
+    V, F = as_mesh_arrays(V, F)
+    normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    offsets = np.asarray(offsets, dtype=np.float64).reshape(-1)
+    if len(normals) != len(offsets):
+        raise ValueError(f"got {len(normals)} normals but {len(offsets)} offsets")
+    if not (np.all(np.isfinite(normals)) and np.all(np.isfinite(offsets))):
+        raise ValueError("plane normals and offsets must be finite")
+    if np.any(np.linalg.norm(normals, axis=1) == 0):
+        raise ValueError("a plane normal is the zero vector")
+    src = np.arange(len(F), dtype=np.int64) if src_face is None else np.asarray(src_face, np.int64).copy()
+    if len(src) != len(F):
+        raise ValueError(f"src_face must have {len(F)} entries, got {len(src)}")
+    diag = float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
+    return V, F, normals, offsets, src, TOL * max(diag, 1.0)
+
+
+def clip_by_box(V, F, lo, hi):
+    """Keep the part of the mesh inside the axis-aligned box ``lo <= x <= hi`` (see :func:`clip_by_planes`).
+
+    Returns ``(V2, F2, src_face)``. Raises ValueError when ``lo > hi`` on some axis.
+    """
+    lo = np.asarray(lo, dtype=np.float64).reshape(3)
+    hi = np.asarray(hi, dtype=np.float64).reshape(3)
+    if np.any(lo > hi):
+        raise ValueError(f"box lo {lo.tolist()} exceeds hi {hi.tolist()}")
+    eye = np.eye(3)
+    normals = np.concatenate([eye, -eye])
+    offsets = np.concatenate([hi, -lo])
+    return clip_by_planes(V, F, normals, offsets)
+
+
+def weld(V, F, tol: float, *, return_index: bool = False):
+    """Merge vertices closer than ``tol`` (transitively) and drop faces that collapse.
+
+    Each cluster of vertices linked by distances ``<= tol`` becomes one vertex placed at the cluster's
+    lowest-index member. Returns ``(V2 (#V2, 3), F2 (#F2, 3))``, plus ``old_to_new (#V,)`` when
+    ``return_index``. Unreferenced vertices are kept (as their own clusters).
+    """
+    V, F = as_mesh_arrays(V, F)
+    if not tol >= 0:
+        raise ValueError(f"tol must be >= 0, got {tol}")
+    n = len(V)
+    pairs = cKDTree(V).query_pairs(tol, output_type="ndarray") if n else np.zeros((0, 2), np.int64)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    ncomp, comp = connected_components(G, directed=False)
+    # renumber clusters by their lowest member so the output order follows the input order
+    rep = np.full(ncomp, n, np.int64)
+    np.minimum.at(rep, comp, np.arange(n))
+    order = np.argsort(rep)
+    new_of_comp = np.empty(ncomp, np.int64)
+    new_of_comp[order] = np.arange(ncomp)
+    old_to_new = new_of_comp[comp]
+    V2 = V[rep[order]]
+    F2 = old_to_new[F]
+    good = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
+    F2 = F2[good]
+    if return_index:
+        return V2, F2, old_to_new
+    return V2, F2

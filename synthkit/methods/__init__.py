@@ -1,6 +1,6 @@
 """Registry of the methods: subcommand name -> package with ``config.CONFIG`` and ``pipeline.run``.
 
-Each method package ``synthkit.methods.<package>`` provides:
+Each method package provides:
 
 - ``config.py`` with the schema class bound to the module name ``CONFIG`` (a
   :class:`synthkit.config.RunConfig` subclass whose ``method`` is ``Literal['<name>']``);
@@ -8,7 +8,7 @@ Each method package ``synthkit.methods.<package>`` provides:
   through :mod:`synthkit.io`, times its stages with ``ctx.stage``, writes outputs through
   ``ctx.path`` and fills ``ctx.metrics``.
 
-A method is available when its package imports; modules are imported lazily so that
+A method is available when its package is present; modules are imported lazily so that
 ``synthkit --help`` stays fast.
 """
 
@@ -19,31 +19,33 @@ import importlib.util
 from types import ModuleType
 
 METHODS: dict[str, str] = {
-    "retarget": "retarget",
-    "surface-by-numbers": "surfacing",
-    "reshape": "reshape",
-    "petri-synth": "petri",
-    "symmetry-texture": "symtex",
+    "retarget": "synthkit.methods.retarget",
+    "surface-by-numbers": "synthkit.methods.surfacing",
+    "reshape": "synthkit.methods.reshape",
+    "petri-synth": "synthkit.methods.petri",
+    "symmetry-texture": "synthkit.methods.symtex",
 }
-"""Subcommand name -> package name under :mod:`synthkit.methods`."""
+"""Subcommand name -> method package."""
 
 
 def available_methods() -> list[str]:
-    """Subcommand names whose method package is present, in registry order."""
+    """Subcommand names whose method package has a pipeline module, in registry order."""
     found = []
-    for name, pkg in METHODS.items():
-        if importlib.util.find_spec(f"synthkit.methods.{pkg}") is None:
-            continue
-        if importlib.util.find_spec(f"synthkit.methods.{pkg}.pipeline") is not None:
+    for name, package in METHODS.items():
+        try:
+            present = importlib.util.find_spec(f"{package}.pipeline") is not None
+        except ModuleNotFoundError:
+            present = False
+        if present:
             found.append(name)
     return found
 
 
 def config_module(name: str) -> ModuleType:
     """The ``config`` module of method ``name``."""
-    return importlib.import_module(f"synthkit.methods.{METHODS[name]}.config")
+    return importlib.import_module(f"{METHODS[name]}.config")
 
 
 def pipeline_module(name: str) -> ModuleType:
     """The ``pipeline`` module of method ``name``."""
-    return importlib.import_module(f"synthkit.methods.{METHODS[name]}.pipeline")
+    return importlib.import_module(f"{METHODS[name]}.pipeline")

@@ -1,0 +1,48 @@
+# synthkit: make help lists the targets.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-dev
+BENCH_STAMP := $(VENV)/.installed-bench
+
+.DEFAULT_GOAL := help
+.PHONY: help install demo test test-fast bench samples samples-check lint clean
+
+help: ## List the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
+
+$(STAMP): pyproject.toml setup.py
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	touch $(STAMP)
+
+$(BENCH_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench]'
+	touch $(BENCH_STAMP)
+
+install: $(STAMP) ## Create .venv and install synthkit with its test tools
+
+demo: $(STAMP) ## Install, then run every bundled config in configs/ into out/
+	$(BIN)/synthkit run configs/*/*.yaml --out-root out --overwrite --no-progress
+
+test: $(STAMP) ## Install, then run the whole test suite (what CI runs)
+	$(BIN)/python -m pytest -q
+
+test-fast: $(STAMP) ## Run the tests not marked slow
+	$(BIN)/python -m pytest -q -m "not slow"
+
+bench: $(BENCH_STAMP) ## Run the benchmarks; figures go to bench-results/<area>.json
+	@set -e; for script in benchmarks/[a-z]*.py; do echo "== $$script"; $(BIN)/python $$script; done
+
+samples: $(STAMP) ## Regenerate data-samples/ and its SHA256SUMS
+	$(BIN)/python data-samples/generate.py
+
+samples-check: $(STAMP) ## Regenerate samples in a temporary folder and compare with SHA256SUMS
+	$(BIN)/python data-samples/generate.py --check
+
+lint: $(STAMP) ## Run ruff over the project
+	$(BIN)/ruff check .
+
+clean: ## Remove outputs, benchmark results and caches (keeps .venv)
+	rm -rf out bench-results .pytest_cache .ruff_cache build *.egg-info
+	find . -name __pycache__ -not -path './.venv/*' -prune -exec rm -rf {} +

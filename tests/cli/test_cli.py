@@ -1,0 +1,147 @@
+"""The click layer: help, version, exit codes, messages on stderr, JSON on stdout."""
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from synthkit import __version__
+from synthkit.cli.main import cli
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+def test_help_lists_commands(runner):
+    result = runner.invoke(cli, ["--help"])
+    assert result.exit_code == 0
+    assert "validate" in result.output and "run" in result.output
+    assert "Exit codes: 0 success, 2 usage or config error, 3 input data error" in result.output
+
+
+def test_version(runner):
+    result = runner.invoke(cli, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"synthkit, version {__version__}"
+
+
+def test_unknown_subcommand_is_usage_error(runner):
+    result = runner.invoke(cli, ["frobnicate"])
+    assert result.exit_code == 2 and "No such command 'frobnicate'" in result.stderr
+
+
+def test_validate_ok_and_bad(runner, echo_config, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("method: echo\nimage: in.png\nmod: copy\n")
+    result = runner.invoke(cli, ["validate", str(echo_config), str(bad)])
+    assert result.exit_code == 2
+    assert f"ok: {echo_config} (echo, 1 input file(s))" in result.stderr
+    assert "unknown key 'mod' (did you mean 'mode'?)" in result.stderr
+    assert result.stdout == ""
+
+
+def test_run_json_report_on_stdout(runner, echo_config, tmp_path):
+    root = tmp_path / "runs"
+    result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(root), "--json", "--seed", "3"])
+    assert result.exit_code == 0, result.stderr
+    payload = json.loads(result.stdout)
+    assert payload[0]["ok"] and payload[0]["report"]["seed"] == 3
+    assert (root / "echo" / "report.json").is_file()
+    assert "run: 1 succeeded, 0 failed" in result.stderr
+
+
+def _config(tmp_path, name, extra):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(f"method: echo\nimage: in.png\n{extra}")
+    return str(path)
+
+
+def test_run_continues_past_failures_and_exits_with_first_code(runner, echo_config, tmp_path):
+    configs = [
+        _config(tmp_path, "a_input", "fail: input\n"),
+        _config(tmp_path, "b_ok", ""),
+        _config(tmp_path, "c_config", "gain: 0\n"),
+        _config(tmp_path, "d_crash", "fail: crash\n"),
+    ]
+    result = runner.invoke(cli, ["run", *configs, "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 3
+    assert "run: 1 succeeded, 3 failed" in result.stderr
+    assert "deliberately refused" in result.stderr
+    assert "gain: Input should be greater than 0" in result.stderr
+    assert "internal error: ZeroDivisionError: deliberate crash (run with -v for the traceback)" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert (tmp_path / "o" / "b_ok" / "result.png").is_file()
+    assert not (tmp_path / "o" / "a_input").exists()
+
+
+def test_run_verbose_shows_traceback(runner, echo_config, tmp_path):
+    cfg = _config(tmp_path, "crash", "fail: crash\n")
+    result = runner.invoke(cli, ["-v", "run", cfg, "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 1 and "Traceback" in result.stderr
+
+
+def test_run_config_error_exit_2(runner, echo_config, tmp_path):
+    result = runner.invoke(cli, ["run", str(tmp_path / "missing.yaml"), "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "missing.yaml: config file not found" in result.stderr
+
+
+def test_run_rejects_clashing_names(runner, echo_config, tmp_path):
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    other = sub / "echo.yaml"
+    other.write_text(echo_config.read_text())
+    result = runner.invoke(cli, ["run", str(echo_config), str(other)])
+    assert result.exit_code == 2 and "share output names" in result.stderr
+
+
+def test_run_bad_set_syntax(runner, echo_config, tmp_path):
+    result = runner.invoke(cli, ["run", str(echo_config), "--set", "gain", "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "--set 'gain': expected key.path=value" in result.stderr
+
+
+def test_quiet_silences_summary(runner, echo_config, tmp_path):
+    result = runner.invoke(cli, ["-q", "run", str(echo_config), "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 0 and result.stderr == "" and result.stdout == ""
+
+
+@pytest.fixture
+def echo_command(echo_method):
+    from synthkit.cli.options import method_command
+
+    return method_command("echo", "Echo an image.", flags={"--dark": ("gain=0.5", "Halve the image.")})
+
+
+def test_method_command_success_json_and_flag(runner, echo_command, echo_config, tmp_path):
+    out = tmp_path / "o"
+    result = runner.invoke(echo_command, [str(echo_config), "--out", str(out), "--json", "--dark", "--no-progress"])
+    assert result.exit_code == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["config"]["gain"] == 0.5
+    assert report["metrics"]["mean"] == pytest.approx(0.25, abs=1e-6)
+    assert result.stderr.startswith(f"echo: wrote {out} in ")
+
+
+@pytest.mark.parametrize(
+    ("extra", "code", "message"),
+    [
+        (["--set", "gain=-1"], 2, "gain: Input should be greater than 0 (got -1)"),
+        (["--set", "fail=input"], 3, "deliberately refused"),
+        (["--set", "fail=crash"], 1, "internal error: ZeroDivisionError"),
+        (["--seed", "-4"], 2, "Invalid value for '--seed'"),
+    ],
+)
+def test_method_command_exit_codes(runner, echo_command, echo_config, tmp_path, extra, code, message):
+    result = runner.invoke(echo_command, [str(echo_config), "--out", str(tmp_path / "o"), *extra])
+    assert result.exit_code == code
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_method_command_existing_output(runner, echo_command, echo_config, tmp_path):
+    out = tmp_path / "o"
+    assert runner.invoke(echo_command, [str(echo_config), "--out", str(out)]).exit_code == 0
+    again = runner.invoke(echo_command, [str(echo_config), "--out", str(out)])
+    assert again.exit_code == 2 and "output folder exists; pass --overwrite" in again.stderr
+    assert runner.invoke(echo_command, [str(echo_config), "--out", str(out), "--overwrite"]).exit_code == 0

@@ -1,0 +1,1 @@
+"""A tiny method used only by the framework tests: copies or inverts an image."""

@@ -1,0 +1,20 @@
+import numpy as np
+
+from synthkit.errors import InputError
+from synthkit.io.images import load_image, save_image
+
+
+def run(cfg, ctx):
+    with ctx.stage("load"):
+        img = load_image(cfg.image, mode="gray")
+    if cfg.fail == "input":
+        raise InputError(f"{cfg.image}: deliberately refused")
+    if cfg.fail == "crash":
+        raise ZeroDivisionError("deliberate crash")
+    with ctx.stage("process"):
+        out = 1.0 - img if cfg.mode == "invert" else img
+        out = np.clip(out * cfg.gain, 0.0, 1.0)
+        noise = ctx.rng.integers(0, 1000)
+    save_image(ctx.path("image", "result.png"), out)
+    ctx.metrics["mean"] = float(out.mean())
+    ctx.metrics["noise"] = int(noise)

@@ -1,0 +1,61 @@
+"""Previews: the rasterizer covers what it should, nearest surface wins, heatmaps map min/max."""
+
+import numpy as np
+import pytest
+
+from synthkit.io.images import load_image
+from synthkit.preview import colorize, heatmap_png, montage_png, plot_curve_png, rasterize_mesh, view_rotation
+
+
+def _square(z, color_index=0):
+    V = np.array([[-1, -1, z], [1, -1, z], [1, 1, z], [-1, 1, z]], dtype=np.float64)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    return V, F
+
+
+def test_view_rotations_are_orthonormal():
+    for view in ("front", "top", "side", "iso"):
+        R = view_rotation(view)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(view_rotation("front"), np.eye(3))
+    np.testing.assert_allclose(view_rotation("top") @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+    with pytest.raises(ValueError, match="unknown view 'back'"):
+        view_rotation("back")
+
+
+def test_front_square_fills_the_frame_centre():
+    V, F = _square(0.0)
+    img = rasterize_mesh(V, F, view="front", size=64, face_colors=np.array([[1.0, 0.0, 0.0]] * 2))
+    assert img.shape == (64, 64, 3)
+    centre = img[32, 32]
+    assert centre[0] > 0.5 and centre[1] == 0.0 and centre[2] == 0.0
+    np.testing.assert_array_equal(img[0, 0], [1.0, 1.0, 1.0])
+    covered = (img != 1.0).any(axis=2)
+    assert 0.75 < covered.mean() < 0.85  # (1 - 2 * 0.06)^2 of the frame
+
+
+def test_nearest_surface_wins():
+    Va, F = _square(0.0)
+    Vb, _ = _square(1.0)
+    V = np.vstack([Va, Vb])
+    F2 = np.vstack([F, F + 4])
+    colors = np.array([[1.0, 0, 0], [1.0, 0, 0], [0, 0, 1.0], [0, 0, 1.0]])
+    img = rasterize_mesh(V, F2, view="front", size=32, face_colors=colors)
+    assert img[16, 16, 2] > 0 and img[16, 16, 0] == 0  # z = 1 is nearer the viewer (+z)
+
+
+def test_colorize_extremes_and_nan():
+    field = np.array([[0.0, 1.0], [np.nan, 0.5]])
+    rgb = colorize(field)
+    np.testing.assert_allclose(rgb[0, 0], [68 / 255, 1 / 255, 84 / 255], atol=2 / 255)  # viridis start
+    np.testing.assert_allclose(rgb[0, 1], [253 / 255, 231 / 255, 37 / 255], atol=2 / 255)  # viridis end
+    np.testing.assert_allclose(rgb[1, 0], [0.5, 0.5, 0.5])
+
+
+def test_png_writers(tmp_path):
+    heat = heatmap_png(tmp_path / "h.png", np.eye(8), title="S_T", min_size=64)
+    assert load_image(tmp_path / "h.png").shape == heat.shape == (24 + 64, 64, 3)
+    plot = plot_curve_png(tmp_path / "c.png", np.arange(5), np.arange(5) ** 2, title="t")
+    assert plot.shape == (360, 480, 3) and (plot < 1).any()
+    mont = montage_png(tmp_path / "m.png", [np.zeros((10, 20)), np.ones((5, 5, 3))], height=20)
+    assert mont.shape == (20, 40 + 6 + 20, 3)

@@ -1,0 +1,282 @@
+"""Image quilting (Efros and Freeman 2001) on a toroidal tile grid, with minimum-error boundary cuts.
+
+Images are ``(H, W, C) float32`` (a grey ``(H, W)`` image is treated as one channel). The output is
+a torus: a grid of ``patch x patch`` tiles whose origins ``ys (ny,)``, ``xs (nx,)`` step by at most
+``patch - overlap`` and wrap around, so the result tiles the plane seamlessly and has any size of
+at least one patch (steps are made as even as possible; overlaps are ``>= overlap``).
+
+Building blocks, used by :func:`quilt` and by the symmetry-guided walk:
+
+- :func:`tile_grid`: tile origins along one axis;
+- :func:`overlap_costs`: masked sum of squared differences between the canvas under a tile and
+  every source patch, for all source positions at once (``cv2.matchTemplate`` with a mask);
+- :func:`candidates`: source positions within ``(1 + tol)`` of the best overlap error (or the ``k``
+  best);
+- :func:`boundary_masks`: minimum-error boundary cuts by dynamic programming on each side where
+  the tile overlaps filled canvas, batched over candidate patches; the pixels a patch keeps are
+  those inside all of its cuts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "tile_grid",
+    "region_indices",
+    "overlap_costs",
+    "candidates",
+    "boundary_masks",
+    "paste",
+    "quilt",
+    "QuiltResult",
+]
+
+
+def tile_grid(size: int, patch: int, overlap: int) -> np.ndarray:
+    """Origins ``(n,) int64`` of toroidal tiles covering ``size`` pixels with ``patch``-wide tiles.
+
+    ``n = ceil(size / (patch - overlap))`` tiles at ``round(i * size / n)``: every step is at most
+    ``patch - overlap``, so neighbouring tiles (including the last and the first, across the wrap)
+    overlap by at least ``overlap`` pixels.
+    """
+    if patch < 2 or overlap < 0 or overlap >= patch:
+        raise ValueError(f"need patch >= 2 and 0 <= overlap < patch, got patch={patch}, overlap={overlap}")
+    if size < patch:
+        raise ValueError(f"output size {size} is smaller than one patch ({patch})")
+    step = patch - overlap
+    n = max(1, -(-size // step))
+    return np.round(np.arange(n) * size / n).astype(np.int64)
+
+
+def region_indices(y0: int, x0: int, patch: int, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column indices ``(patch,)`` of the tile at ``(y0, x0)`` on a torus of ``shape``."""
+    return (y0 + np.arange(patch)) % shape[0], (x0 + np.arange(patch)) % shape[1]
+
+
+def _as3(img: np.ndarray) -> np.ndarray:
+    img = np.asarray(img, dtype=np.float32)
+    return img[..., None] if img.ndim == 2 else img
+
+
+def overlap_costs(source: np.ndarray, target: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Weighted SSD ``(Hs - B + 1, Ws - B + 1)`` between ``target (B, B[, C])`` and every source patch.
+
+    ``cost[v, u] = sum_{p, c} weight[p] (source[v + p, u + p, c] - target[p, c])^2`` with ``weight
+    (B, B)`` in {0, 1} (the filled overlap band). All positions at once by ``cv2.matchTemplate``
+    (``TM_SQDIFF`` with a mask); tiny negative round-off is clipped to 0.
+    """
+    src = _as3(source)
+    tgt = _as3(target)
+    B = tgt.shape[0]
+    if tgt.shape[:2] != (B, B) or weight.shape != (B, B):
+        raise ValueError(f"target and weight must be (B, B), got {tgt.shape} and {weight.shape}")
+    if src.shape[0] < B or src.shape[1] < B:
+        raise ValueError(f"patch {B} is larger than the {src.shape[0]}x{src.shape[1]} source")
+    if not np.any(weight):
+        return np.zeros((src.shape[0] - B + 1, src.shape[1] - B + 1), dtype=np.float32)
+    mask = np.repeat(weight.astype(np.float32)[..., None], src.shape[2], axis=2)
+    cost = cv2.matchTemplate(src, np.ascontiguousarray(tgt), cv2.TM_SQDIFF, mask=mask)
+    return np.maximum(cost, 0.0)
+
+
+def candidates(
+    cost: np.ndarray,
+    *,
+    tol: float | None = 0.1,
+    k: int | None = None,
+) -> np.ndarray:
+    """Source positions ``(n, 2) int64`` (row, col) of good patches, best first.
+
+    With ``tol``: every position whose cost is at most ``(1 + tol)`` times the minimum (Efros and
+    Freeman's rule; a zero minimum admits costs up to ``1e-6`` times the mean cost). With ``k``: at
+    most the ``k`` cheapest of those (or of all positions when ``tol`` is None). Ties keep
+    row-major order, so the result is deterministic.
+    """
+    flat = cost.ravel().astype(np.float64)
+    if tol is not None:
+        best = flat.min()
+        limit = best * (1.0 + tol) if best > 0 else 1e-6 * max(flat.mean(), 1e-12)
+        idx = np.flatnonzero(flat <= limit)
+    else:
+        idx = np.arange(flat.size)
+    if k is not None and idx.size > k:
+        part = np.argpartition(flat[idx], k - 1)[:k]
+        idx = idx[part]
+    order = np.lexsort((idx, flat[idx]))
+    idx = idx[order]
+    return np.stack(np.unravel_index(idx, cost.shape), axis=1).astype(np.int64)
+
+
+def _dp_left_cut(err: np.ndarray) -> np.ndarray:
+    """Min-cost vertical path through ``err (K, B, w)``; returns the column per row ``(K, B)``."""
+    K, B, w = err.shape
+    acc = err[:, 0, :].astype(np.float64).copy()
+    back = np.zeros((K, B, w), dtype=np.int8)
+    big = np.full((K, 1), np.inf)
+    for y in range(1, B):
+        left = np.concatenate([big, acc[:, :-1]], axis=1)
+        right = np.concatenate([acc[:, 1:], big], axis=1)
+        stack = np.stack([left, acc, right], axis=0)
+        choice = np.argmin(stack, axis=0)
+        acc = np.take_along_axis(stack, choice[None], axis=0)[0] + err[:, y, :]
+        back[:, y, :] = choice.astype(np.int8) - 1
+    path = np.zeros((K, B), dtype=np.int64)
+    path[:, B - 1] = np.argmin(acc, axis=1)
+    rows = np.arange(K)
+    for y in range(B - 1, 0, -1):
+        path[:, y - 1] = path[:, y] + back[rows, y, path[:, y]]
+    return path
+
+
+def _left_mask(err: np.ndarray, width: int) -> np.ndarray:
+    """Keep-new mask ``(K, B, B)`` of a cut through the left ``width`` columns of ``err (K, B, B)``."""
+    K, B, _ = err.shape
+    if width <= 0:
+        return np.ones((K, B, B), dtype=bool)
+    width = min(width, B)
+    path = _dp_left_cut(err[:, :, :width])
+    cols = np.arange(B)
+    return cols[None, None, :] >= path[:, :, None]
+
+
+def boundary_masks(
+    patches: np.ndarray,
+    canvas: np.ndarray,
+    filled: np.ndarray,
+    *,
+    overlaps: tuple[int, int, int, int],
+) -> np.ndarray:
+    """Minimum-error boundary cut masks ``(K, B, B) bool`` (True: the new patch's pixel is kept).
+
+    Parameters
+    ----------
+    patches : (K, B, B[, C]) candidate patches.
+    canvas : (B, B[, C]) current content under the tile.
+    filled : (B, B) bool, pixels of the canvas that already hold texture.
+    overlaps : widths ``(top, left, bottom, right)`` of the overlap band on each side. A side gets a
+        cut (Efros-Freeman dynamic programming over the squared-difference surface, summed over
+        channels) when any pixel of its band is filled; the kept region is the intersection of the
+        sides' kept regions, so cuts on adjacent sides meet at the corners. Unfilled pixels always
+        take the new patch.
+    """
+    P = np.asarray(patches, dtype=np.float32)
+    if P.ndim == 3:
+        P = P[..., None]
+    C = _as3(canvas)
+    K, B = P.shape[0], P.shape[1]
+    err = ((P - C[None]) ** 2).sum(axis=3)
+    keep = np.ones((K, B, B), dtype=bool)
+    top, left, bottom, right = (int(v) for v in overlaps)
+    if left > 0 and filled[:, :left].any():
+        keep &= _left_mask(err, left)
+    if right > 0 and filled[:, B - right :].any():
+        keep &= _left_mask(err[:, :, ::-1], right)[:, :, ::-1]
+    if top > 0 and filled[:top, :].any():
+        keep &= _left_mask(err.transpose(0, 2, 1), top).transpose(0, 2, 1)
+    if bottom > 0 and filled[B - bottom :, :].any():
+        keep &= _left_mask(err[:, ::-1, :].transpose(0, 2, 1), bottom).transpose(0, 2, 1)[:, ::-1, :]
+    keep |= ~filled[None]
+    return keep
+
+
+def paste(canvas: np.ndarray, patch: np.ndarray, keep: np.ndarray, y0: int, x0: int) -> None:
+    """Write ``patch (B, B[, C])`` into toroidal ``canvas`` at ``(y0, x0)`` where ``keep (B, B)``."""
+    B = patch.shape[0]
+    ry, rx = region_indices(y0, x0, B, canvas.shape[:2])
+    region = canvas[np.ix_(ry, rx)]
+    k = keep if canvas.ndim == 2 else keep[..., None]
+    canvas[np.ix_(ry, rx)] = np.where(k, patch, region)
+
+
+def tile_overlaps(ys: np.ndarray, xs: np.ndarray, i: int, j: int, patch: int, shape) -> tuple[int, ...]:
+    """Overlap widths ``(top, left, bottom, right)`` of tile ``(i, j)`` with its toroidal neighbours."""
+    H, W = shape
+    ny, nx = len(ys), len(xs)
+
+    def ov(a, b, n, size):  # overlap of tile at a with the next tile at b (b after a)
+        return int(patch - ((b - a) % size)) if n > 1 else 0
+
+    top = ov(ys[(i - 1) % ny], ys[i], ny, H)
+    bottom = ov(ys[i], ys[(i + 1) % ny], ny, H)
+    left = ov(xs[(j - 1) % nx], xs[j], nx, W)
+    right = ov(xs[j], xs[(j + 1) % nx], nx, W)
+    return max(top, 0), max(left, 0), max(bottom, 0), max(right, 0)
+
+
+@dataclass
+class QuiltResult:
+    """Output of :func:`quilt`.
+
+    image : (H, W[, C]) float32 toroidal texture.
+    origins : (ny, nx, 2) int64 source position (row, col) of each tile's patch.
+    ys, xs : (ny,), (nx,) tile origins in the output.
+    """
+
+    image: np.ndarray
+    origins: np.ndarray
+    ys: np.ndarray
+    xs: np.ndarray
+
+
+def source_patches(source: np.ndarray, positions: np.ndarray, patch: int) -> np.ndarray:
+    """Patches ``(K, B, B[, C])`` of ``source`` at ``positions (K, 2)`` (row, col)."""
+    src = np.asarray(source, dtype=np.float32)
+    off = np.arange(patch)
+    rows = positions[:, 0, None] + off[None, :]
+    cols = positions[:, 1, None] + off[None, :]
+    return src[rows[:, :, None], cols[:, None, :]]
+
+
+def check_sizes(source_shape, out_shape, patch: int, overlap: int) -> None:
+    """ValueError naming the problem when the patch does not fit the source or the output."""
+    if patch < 2 or not 0 <= overlap < patch:
+        raise ValueError(f"need patch >= 2 and 0 <= overlap < patch, got patch={patch}, overlap={overlap}")
+    if patch > min(source_shape[:2]):
+        raise ValueError(f"patch {patch} is larger than the {source_shape[0]}x{source_shape[1]} source")
+    if min(out_shape[:2]) < patch:
+        raise ValueError(f"output size {out_shape[0]}x{out_shape[1]} is smaller than one patch ({patch})")
+
+
+def quilt(
+    source: np.ndarray,
+    shape: tuple[int, int],
+    *,
+    patch: int = 32,
+    overlap: int = 12,
+    tol: float = 0.1,
+    rng=None,
+) -> QuiltResult:
+    """Unguided image quilting of ``source (Hs, Ws[, C])`` into a toroidal ``shape`` ``(H, W)`` image.
+
+    Tiles are placed in raster order; each takes a random patch among the source positions whose
+    overlap error with the already-filled canvas is within ``(1 + tol)`` of the best (the first
+    tile is uniformly random), pasted inside its minimum-error boundary cuts. Randomness: ``rng``
+    (anything ``np.random.default_rng`` accepts) picks among the candidates.
+    """
+    rng = np.random.default_rng(rng)
+    src = np.asarray(source, dtype=np.float32)
+    check_sizes(src.shape, shape, patch, overlap)
+    H, W = int(shape[0]), int(shape[1])
+    ys = tile_grid(H, patch, overlap)
+    xs = tile_grid(W, patch, overlap)
+    canvas = np.zeros((H, W) + src.shape[2:], dtype=np.float32)
+    filled = np.zeros((H, W), dtype=bool)
+    origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
+    for i, y0 in enumerate(ys):
+        for j, x0 in enumerate(xs):
+            ry, rx = region_indices(y0, x0, patch, (H, W))
+            region = canvas[np.ix_(ry, rx)]
+            weight = filled[np.ix_(ry, rx)]
+            cost = overlap_costs(src, region, weight.astype(np.float32))
+            cands = candidates(cost, tol=tol)
+            pos = cands[rng.integers(len(cands))]
+            p = source_patches(src, pos[None], patch)
+            keep = boundary_masks(p, region, weight, overlaps=tile_overlaps(ys, xs, i, j, patch, (H, W)))[0]
+            paste(canvas, p[0], keep, y0, x0)
+            filled[np.ix_(ry, rx)] = True
+            origins[i, j] = pos
+    return QuiltResult(canvas, origins, ys, xs)

@@ -1,0 +1,117 @@
+"""Image quilting building blocks against brute force on tiny inputs."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from synthkit.core import quilting as q
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(3)
+
+
+@pytest.mark.parametrize("size", [32, 33, 50, 64, 100, 512])
+def test_tile_grid_covers_torus_with_overlap(size):
+    ys = q.tile_grid(size, 32, 12)
+    assert ys[0] == 0
+    steps = np.diff(np.append(ys, ys[0] + size))
+    assert steps.max() <= 20 and steps.min() >= 1
+    assert (32 - steps).min() >= 12
+
+
+def test_tile_grid_errors():
+    with pytest.raises(ValueError, match="smaller than one patch"):
+        q.tile_grid(20, 32, 12)
+    with pytest.raises(ValueError, match="overlap"):
+        q.tile_grid(64, 8, 8)
+
+
+def test_overlap_costs_match_brute_force(rng):
+    src = rng.random((9, 11, 3)).astype(np.float32)
+    tgt = rng.random((4, 4, 3)).astype(np.float32)
+    w = np.zeros((4, 4), dtype=np.float32)
+    w[:, :2] = 1
+    w[0, :] = 1
+    cost = q.overlap_costs(src, tgt, w)
+    assert cost.shape == (6, 8)
+    for v, u in itertools.product(range(6), range(8)):
+        ref = (w[..., None] * (src[v : v + 4, u : u + 4] - tgt) ** 2).sum()
+        assert cost[v, u] == pytest.approx(ref, rel=1e-4, abs=1e-4)
+
+
+def test_candidates_rules():
+    cost = np.array([[4.0, 1.0, 1.05], [3.0, 1.2, 1.0]])
+    np.testing.assert_array_equal(q.candidates(cost, tol=0.1), [[0, 1], [1, 2], [0, 2]])
+    np.testing.assert_array_equal(q.candidates(cost, tol=None, k=2), [[0, 1], [1, 2]])
+    zero = np.array([[0.0, 5.0], [0.0, 7.0]])
+    np.testing.assert_array_equal(q.candidates(zero, tol=0.1), [[0, 0], [1, 0]])
+
+
+def test_left_cut_is_minimum_over_all_paths(rng):
+    err = rng.random((3, 5, 3))
+    path = q._dp_left_cut(err)
+    for k in range(3):
+        best = np.inf
+        for cols in itertools.product(range(3), repeat=5):
+            if all(abs(a - b) <= 1 for a, b in itertools.pairwise(cols)):
+                best = min(best, sum(err[k, y, c] for y, c in enumerate(cols)))
+        assert sum(err[k, y, c] for y, c in enumerate(path[k])) == pytest.approx(best)
+        assert np.all(np.abs(np.diff(path[k])) <= 1)
+
+
+def test_boundary_masks_follow_the_seam():
+    B = 8
+    canvas = np.zeros((B, B), dtype=np.float32)
+    patch = np.ones((1, B, B), dtype=np.float32)
+    # the patch agrees with the canvas in column 2 only: the cut must run there
+    patch[0, :, 2] = 0.0
+    filled = np.zeros((B, B), dtype=bool)
+    filled[:, :4] = True
+    keep = q.boundary_masks(patch, canvas, filled, overlaps=(0, 4, 0, 0))[0]
+    assert keep[:, 3:].all() and not keep[:, :2].any()
+    assert keep[:, 2].all()
+    # unfilled pixels always take the new patch, even without a cut side
+    keep2 = q.boundary_masks(patch, canvas, np.zeros((B, B), bool), overlaps=(4, 4, 4, 4))[0]
+    assert keep2.all()
+
+
+def test_boundary_masks_all_sides_keep_centre(rng):
+    B = 12
+    canvas = rng.random((B, B, 3)).astype(np.float32)
+    patches = rng.random((4, B, B, 3)).astype(np.float32)
+    keep = q.boundary_masks(patches, canvas, np.ones((B, B), bool), overlaps=(4, 4, 4, 4))
+    assert keep.shape == (4, B, B)
+    assert keep[:, 4:8, 4:8].all()
+    assert not keep[:, 0, 0].any()
+
+
+def test_quilt_copies_source_pixels_and_is_deterministic(rng):
+    src = rng.random((40, 40, 3)).astype(np.float32)
+    a = q.quilt(src, (50, 70), patch=16, overlap=6, rng=5)
+    b = q.quilt(src, (50, 70), patch=16, overlap=6, rng=5)
+    assert a.image.shape == (50, 70, 3)
+    np.testing.assert_array_equal(a.image, b.image)
+    values = {tuple(v) for v in src.reshape(-1, 3)}
+    assert all(tuple(v) in values for v in a.image.reshape(-1, 3)[::7])
+    assert a.origins.shape == (len(a.ys), len(a.xs), 2)
+    assert a.origins.max() <= 40 - 16
+
+
+def test_quilt_of_periodic_source_stays_seamless():
+    # a source that is periodic with the tile step: perfect overlaps exist everywhere
+    y, x = np.mgrid[0:64, 0:64]
+    src = (0.5 + 0.5 * np.sin(2 * np.pi * x / 16) * np.cos(2 * np.pi * y / 16)).astype(np.float32)
+    out = q.quilt(src, (64, 64), patch=24, overlap=8, tol=0.0, rng=1).image
+    assert np.abs(out - np.roll(out, 16, axis=1)).max() < 1e-5
+    assert np.abs(out - np.roll(out, 16, axis=0)).max() < 1e-5
+
+
+def test_quilt_errors(rng):
+    src = rng.random((20, 20)).astype(np.float32)
+    with pytest.raises(ValueError, match="larger than the 20x20 source"):
+        q.quilt(src, (64, 64), patch=32, overlap=12)
+    with pytest.raises(ValueError, match="smaller than one patch"):
+        q.quilt(src, (10, 64), patch=16, overlap=4)

@@ -1,0 +1,292 @@
+"""Small man-made meshes with known lattice vectors, the retargeting method's test inputs.
+
+Every sample is a union of closed boxes (and a few hexahedra) laid out on an exact lattice, so the
+repetition the method must find is known: ``<name>.truth.json`` beside each mesh holds the lattice
+vectors in model units, the number of repetitions along each, the counts of the repeated elements
+and the expected number of principal offsets. Models are in metres-like units, not normalised.
+
+:func:`generate` writes them all (PLY or OBJ); ``build_<name>`` functions return the arrays, so
+tests can use the same geometry without files.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "SAMPLES",
+    "generate",
+    "box",
+    "hexahedron",
+    "build_bookshelf",
+    "build_facade",
+    "build_railing",
+    "build_stairs",
+    "build_sheared_grid",
+    "build_bridge",
+    "build_facade_large",
+]
+
+_BOX_FACES = np.array(
+    [
+        [0, 2, 1], [0, 3, 2],  # z = lo (normal -z)
+        [4, 5, 6], [4, 6, 7],  # z = hi (normal +z)
+        [0, 1, 5], [0, 5, 4],  # y = lo
+        [3, 7, 6], [3, 6, 2],  # y = hi
+        [0, 4, 7], [0, 7, 3],  # x = lo
+        [1, 2, 6], [1, 6, 5],  # x = hi
+    ],
+    dtype=np.int64,
+)  # fmt: skip
+
+
+def hexahedron(corners) -> tuple[np.ndarray, np.ndarray]:
+    """A closed hexahedron from ``corners (8, 3)`` ordered like a box's (x fastest in the bottom
+    quad ``0 1 2 3`` counter-clockwise seen from +z, top quad ``4 5 6 7`` above it).
+
+    Returns ``(V (8, 3) float64, F (12, 3) int64)`` with outward normals for a convex, positively
+    oriented hexahedron.
+    """
+    return np.asarray(corners, dtype=np.float64).reshape(8, 3), _BOX_FACES.copy()
+
+
+def box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned closed box ``lo (3,) .. hi (3,)`` as ``(V (8, 3), F (12, 3))``, outward normals."""
+    (x0, y0, z0), (x1, y1, z1) = np.asarray(lo, float), np.asarray(hi, float)
+    corners = [
+        [x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+        [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1],
+    ]  # fmt: skip
+    return hexahedron(corners)
+
+
+def _outward(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flip the faces of a closed mesh whose signed volume is negative, so normals point out."""
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+    return (V, F) if volume > 0 else (V, F[:, ::-1].copy())
+
+
+def _merge(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenate ``(V, F)`` parts into one indexed mesh (no welding)."""
+    Vs, Fs, off = [], [], 0
+    for V, F in parts:
+        Vs.append(V)
+        Fs.append(F + off)
+        off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs)
+
+
+def _cylinder(center, radius: float, height: float, sections: int) -> tuple[np.ndarray, np.ndarray]:
+    """Closed vertical (y axis) cylinder, base centre ``center (3,)``, as ``(V, F)``, outward normals."""
+    c = np.asarray(center, float)
+    t = np.linspace(0, 2 * np.pi, sections, endpoint=False)
+    ring = np.stack([radius * np.cos(t), np.zeros_like(t), -radius * np.sin(t)], axis=1)
+    bottom, top = c + ring, c + ring + [0, height, 0]
+    V = np.concatenate([bottom, top, [c], [c + [0, height, 0]]])
+    i = np.arange(sections)
+    j = (i + 1) % sections
+    n = sections
+    side = np.concatenate([np.stack([i, j, j + n], 1), np.stack([i, j + n, i + n], 1)])
+    caps = np.concatenate([np.stack([np.full(n, 2 * n), j, i], 1), np.stack([np.full(n, 2 * n + 1), i + n, j + n], 1)])
+    return V, np.concatenate([side, caps]).astype(np.int64)
+
+
+def build_bookshelf(cols: int = 4, rows: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A bookshelf: ``rows`` x ``cols`` cells between full-width boards and per-row dividers,
+    on a plinth, with a crown on top. Lattice: (0.40, 0, 0) per column, (0, 0.35, 0) per row."""
+    px, py, t, depth = 0.40, 0.35, 0.02, 0.30
+    width = cols * px
+    parts = [box([-t, -0.08, 0.0], [width + t, 0.0, depth])]  # plinth
+    for j in range(rows + 1):
+        parts.append(box([-t, j * py, 0.0], [width + t, j * py + t, depth]))  # board j
+    for j in range(rows):
+        for i in range(cols + 1):
+            parts.append(box([i * px - t / 2, j * py + t, 0.0], [i * px + t / 2, (j + 1) * py, depth]))
+    top = rows * py + t
+    parts.append(box([-t - 0.02, top, -0.02], [width + t + 0.02, top + 0.04, depth + 0.02]))  # crown
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [[px, 0.0, 0.0], [0.0, py, 0.0]],
+        "repeats": [cols, rows],
+        "counts": {"boards": rows + 1, "cells": rows * cols, "dividers": (cols + 1) * rows},
+        "board_size": [width + 2 * t, t, depth],
+        "board_pitch": py,
+        "principal_offsets": 2,
+    }
+    return V, F, truth
+
+
+def build_facade(cols: int = 5, floors: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A wall with a ``floors`` x ``cols`` lattice of framed windows with sills, on a base band
+    with a cornice. Lattice: (0.5, 0, 0), (0, 0.6, 0)."""
+    wx, wy = 0.5, 0.6
+    wall_t, fw, fd = 0.10, 0.03, 0.04
+    width, height = cols * wx, floors * wy
+    parts = [box([0.0, 0.0, -wall_t], [width, height, 0.0])]
+    parts.append(box([-0.02, -0.10, -wall_t], [width + 0.02, 0.0, 0.05]))  # base band
+    parts.append(box([-0.04, height, -wall_t], [width + 0.04, height + 0.06, 0.08]))  # cornice
+    win_w, win_h = 0.26, 0.34
+    for j in range(floors):
+        for i in range(cols):
+            x0, y0 = i * wx + (wx - win_w) / 2, j * wy + 0.15
+            x1, y1 = x0 + win_w, y0 + win_h
+            parts += [
+                box([x0, y0, 0.0], [x1, y0 + fw, fd]),
+                box([x0, y1 - fw, 0.0], [x1, y1, fd]),
+                box([x0, y0 + fw, 0.0], [x0 + fw, y1 - fw, fd]),
+                box([x1 - fw, y0 + fw, 0.0], [x1, y1 - fw, fd]),
+                box([(x0 + x1) / 2 - 0.01, y0 + fw, 0.0], [(x0 + x1) / 2 + 0.01, y1 - fw, fd / 2]),
+                box([x0 - 0.03, y0 - 0.04, 0.0], [x1 + 0.03, y0, fd + 0.04]),  # sill
+            ]
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [[wx, 0.0, 0.0], [0.0, wy, 0.0]],
+        "repeats": [cols, floors],
+        "counts": {"windows": cols * floors, "floors": floors, "columns": cols},
+        "principal_offsets": 2,
+    }
+    return V, F, truth
+
+
+def build_railing(n_posts: int = 10) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A railing: ``n_posts`` turned-looking balusters (stacked boxes) between a bottom and a top
+    rail. Lattice: (0.18, 0, 0)."""
+    p = 0.18
+    length = (n_posts - 1) * p
+    parts = [box([-0.06, 0.0, -0.05], [length + 0.06, 0.05, 0.05])]  # bottom rail
+    parts.append(box([-0.06, 0.62, -0.06], [length + 0.06, 0.68, 0.06]))  # hand rail
+    profile = [(0.05, 0.05, 0.12), (0.12, 0.02, 0.30), (0.30, 0.045, 0.40), (0.40, 0.02, 0.55), (0.55, 0.04, 0.62)]
+    for i in range(n_posts):
+        x = i * p
+        for y0, r, y1 in profile:
+            parts.append(box([x - r, y0, -r], [x + r, y1, r]))
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [[p, 0.0, 0.0]],
+        "repeats": [n_posts],
+        "counts": {"balusters": n_posts},
+        "principal_offsets": 1,
+    }
+    return V, F, truth
+
+
+def build_stairs(n_steps: int = 7) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A straight flight of ``n_steps`` blocks between two stringers. Lattice: (0, 0.17, 0.28)."""
+    h, d, w = 0.17, 0.28, 0.5
+    parts = []
+    for i in range(n_steps):
+        parts.append(box([0.0, i * h, i * d], [w, (i + 1) * h, (i + 1) * d]))
+        for x0 in (-0.05, w):  # stringer segments, one per step, so the flight stays exactly periodic
+            parts.append(box([x0, i * h + 0.04, i * d], [x0 + 0.05, (i + 1) * h + 0.08, (i + 1) * d]))
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [[0.0, h, d]],
+        "repeats": [n_steps],
+        "counts": {"steps": n_steps},
+        "principal_offsets": 1,
+    }
+    return V, F, truth
+
+
+def build_sheared_grid(n1: int = 6, n2: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A parallelogram slab carrying an ``n1`` x ``n2`` sheared lattice of studs (a post with a cap).
+    Lattice: (0.30, 0, 0) and (0.12, 0, 0.30): 68 degrees apart."""
+    v1, v2 = np.array([0.30, 0.0, 0.0]), np.array([0.12, 0.0, 0.30])
+    lo = -0.5 * (v1 + v2)
+    quad = [lo, lo + n1 * v1, lo + n1 * v1 + n2 * v2, lo + n2 * v2]
+    parts = [_outward(*hexahedron([q + [0, -0.06, 0] for q in quad] + quad))]
+    for i in range(n1):
+        for j in range(n2):
+            q = i * v1 + j * v2
+            parts.append(box(q + [-0.04, 0.0, -0.04], q + [0.04, 0.12, 0.04]))
+            parts.append(box(q + [-0.07, 0.12, -0.03], q + [0.07, 0.16, 0.03]))
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [v1.tolist(), v2.tolist()],
+        "repeats": [n1, n2],
+        "counts": {"studs": n1 * n2},
+        "principal_offsets": 2,
+    }
+    return V, F, truth
+
+
+def build_bridge(spans: int = 5) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A road bridge: a deck on ``spans + 1`` piers with a guard post above each pier and a
+    parapet rail. Lattice: (0.6, 0, 0)."""
+    p = 0.6
+    length = spans * p
+    parts = [box([-0.1, 0.0, -0.3], [length + 0.1, 0.06, 0.3])]  # deck
+    parts.append(box([-0.1, 0.16, 0.24], [length + 0.1, 0.19, 0.28]))  # parapet rail, one side
+    for i in range(spans + 1):
+        x = i * p
+        parts.append(box([x - 0.05, -0.5, -0.2], [x + 0.05, 0.0, 0.2]))  # pier
+        parts.append(box([x - 0.12, -0.56, -0.25], [x + 0.12, -0.5, 0.25]))  # footing
+        parts.append(box([x - 0.02, 0.06, 0.24], [x + 0.02, 0.16, 0.28]))  # guard post
+        if i < spans:
+            parts.append(box([x + 0.2, 0.06, -0.01], [x + 0.4, 0.07, 0.01]))  # dashed lane marking
+    V, F = _merge(parts)
+    truth = {
+        "lattice": [[p, 0.0, 0.0]],
+        "repeats": [spans + 1],
+        "counts": {"piers": spans + 1},
+        "principal_offsets": 1,
+    }
+    return V, F, truth
+
+
+def build_facade_large(cols: int = 6, floors: int = 4, sections: int = 24) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The benchmark input (about 20k triangles): the facade, each window with a balcony of eight
+    round balusters (``sections``-sided cylinders) and a rail. Lattice: (0.5, 0, 0), (0, 0.6, 0)."""
+    V, F, truth = build_facade(cols, floors)
+    parts = [(V, F)]
+    wx, wy = 0.5, 0.6
+    for j in range(floors):
+        for i in range(cols):
+            x0, y0 = i * wx + 0.08, j * wy + 0.05
+            for k in range(8):
+                parts.append(_cylinder([x0 + 0.02 + k * 0.0457, y0, 0.12], 0.008, 0.12, sections))
+            parts.append(box([x0, y0 + 0.12, 0.11], [x0 + 0.36, y0 + 0.135, 0.13]))
+            parts.append(box([x0, y0 - 0.01, 0.0], [x0 + 0.36, y0, 0.14]))  # balcony slab
+    V, F = _merge(parts)
+    truth = dict(truth, counts={"windows": cols * floors, "balconies": cols * floors})
+    return V, F, truth
+
+
+SAMPLES: dict[str, tuple[Callable[[], tuple[np.ndarray, np.ndarray, dict]], str]] = {
+    "bookshelf": (build_bookshelf, ".obj"),
+    "facade": (build_facade, ".ply"),
+    "railing": (build_railing, ".obj"),
+    "stairs": (build_stairs, ".ply"),
+    "sheared_grid": (build_sheared_grid, ".ply"),
+    "bridge": (build_bridge, ".obj"),
+    "facade_large": (build_facade_large, ".ply"),
+}
+"""Sample name -> (builder, file suffix)."""
+
+
+def generate(out_dir: Path) -> list[Path]:
+    """Write every sample as ``<name>.<obj|ply>`` plus ``<name>.truth.json`` into ``out_dir``.
+
+    Returns the written paths (meshes and truth files, in :data:`SAMPLES` order).
+    """
+    import trimesh
+
+    from synthkit.io.meshes import save_mesh
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, (builder, suffix) in SAMPLES.items():
+        V, F, truth = builder()
+        mesh_path = out_dir / f"retarget-{name}{suffix}"
+        save_mesh(trimesh.Trimesh(V, F, process=False), mesh_path)
+        truth = dict(truth, mesh=mesh_path.name, n_faces=int(len(F)), units="model")
+        truth_path = out_dir / f"retarget-{name}.truth.json"
+        truth_path.write_text(json.dumps(truth, indent=2) + "\n")
+        written += [mesh_path, truth_path]
+    return written

@@ -32,6 +32,9 @@ __all__ = [
     "split_by_planes",
     "weld",
     "remove_unreferenced",
+    "boundary_loops",
+    "triangulate_polygons",
+    "cap_plane",
 ]
 
 TOL = 1e-12
@@ -299,7 +302,7 @@ def remove_unreferenced(V, F) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return V[old], remap[F], old
 
 
-def clip_by_planes(V, F, normals, offsets, *, src_face=None):
+def clip_by_planes(V, F, normals, offsets, *, src_face=None, cap: bool = False):
     """Keep the part of the mesh on the side ``n . x <= d`` of every plane, splitting triangles exactly.
 
     Parameters
@@ -312,8 +315,10 @@ def clip_by_planes(V, F, normals, offsets, *, src_face=None):
     Returns
     -------
     V2 (#V2, 3), F2 (#F2, 3), src_face (#F2,) int64: the index of the input face each output face came
-    from. Cut faces are left open (no caps). Points where an edge crosses a plane are computed once
-    per edge from its endpoints in a fixed order, so faces that shared an edge still share the new
+    from. Cut faces are left open unless ``cap``: then after each plane the boundary loops lying on it
+    are closed by :func:`cap_plane` (cap faces get ``src_face = -1``; meant for closed meshes).
+    Points where an edge crosses a plane are computed once per edge from its endpoints in a fixed
+    order, so faces that shared an edge still share the new
     vertex and two clips that cut the same edge by the same plane give bitwise-equal points. A vertex
     within ``TOL`` x (bbox diagonal) of a plane counts as on it (kept, never split), so no sliver
     triangles appear; unused vertices are dropped, faces with repeated corners removed.
@@ -323,6 +328,11 @@ def clip_by_planes(V, F, normals, offsets, *, src_face=None):
         if len(F) == 0:
             break
         V, F, src = _split_one(V, F, src, n, d, eps * np.linalg.norm(n))[:3]
+        if cap and len(F):
+            scale = np.linalg.norm(n)
+            C = cap_plane(V, F, n, d / scale, tol=eps * 10)
+            F = np.concatenate([F, C])
+            src = np.concatenate([src, np.full(len(C), -1, np.int64)])
     V, F, _ = remove_unreferenced(V, F)
     return V, F, src
 
@@ -417,8 +427,9 @@ def _plane_args(V, F, normals, offsets, src_face):
     return V, F, normals, offsets, src, TOL * max(diag, 1.0)
 
 
-def clip_by_box(V, F, lo, hi):
-    """Keep the part of the mesh inside the axis-aligned box ``lo <= x <= hi`` (see :func:`clip_by_planes`).
+def clip_by_box(V, F, lo, hi, *, cap: bool = False):
+    """Keep the part of the mesh inside the axis-aligned box ``lo <= x <= hi`` (see :func:`clip_by_planes`,
+    also for ``cap``).
 
     Returns ``(V2, F2, src_face)``. Raises ValueError when ``lo > hi`` on some axis.
     """
@@ -429,7 +440,7 @@ def clip_by_box(V, F, lo, hi):
     eye = np.eye(3)
     normals = np.concatenate([eye, -eye])
     offsets = np.concatenate([hi, -lo])
-    return clip_by_planes(V, F, normals, offsets)
+    return clip_by_planes(V, F, normals, offsets, cap=cap)
 
 
 def weld(V, F, tol: float, *, return_index: bool = False):
@@ -460,3 +471,170 @@ def weld(V, F, tol: float, *, return_index: bool = False):
     if return_index:
         return V2, F2, old_to_new
     return V2, F2
+
+
+def boundary_loops(F, *, mask=None) -> list[np.ndarray]:
+    """Closed loops of boundary half-edges (edges whose opposite half-edge no face has).
+
+    ``mask (#V,) bool`` optionally restricts to half-edges with both end points in the mask. Each loop
+    is an int64 array of vertex indices in the faces' orientation (so the surface lies to the left
+    of the loop seen from outside). Chains that do not close (non-manifold junctions) are dropped.
+    """
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    H = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    if len(H) == 0:
+        return []
+    n = int(H.max()) + 1
+    key = H[:, 0] * n + H[:, 1]
+    twin = H[:, 1] * n + H[:, 0]
+    B = H[~np.isin(key, twin)]
+    if mask is not None:
+        mask = np.asarray(mask, bool)
+        B = B[mask[B[:, 0]] & mask[B[:, 1]]]
+    nxt: dict[int, int] = {}
+    for a, b in B.tolist():
+        nxt.setdefault(a, b)
+    loops, seen = [], set()
+    for start in list(nxt):
+        if start in seen:
+            continue
+        loop, v = [], start
+        while v in nxt and v not in seen:
+            seen.add(v)
+            loop.append(v)
+            v = nxt[v]
+        if v == start and len(loop) >= 3:
+            loops.append(np.asarray(loop, np.int64))
+    return loops
+
+
+def _signed_area(P: np.ndarray) -> float:
+    x, y = P[:, 0], P[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _point_in_polygon(p: np.ndarray, P: np.ndarray) -> bool:
+    x, y = p
+    xi, yi = P[:, 0], P[:, 1]
+    xj, yj = np.roll(xi, 1), np.roll(yi, 1)
+    cond = (yi > y) != (yj > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = (xj - xi) * (y - yi) / (yj - yi) + xi
+    return bool(np.sum(cond & (x < xc)) % 2)
+
+
+def _segments_cross(a, b, P: np.ndarray) -> bool:
+    """Whether segment a-b properly crosses any edge of the closed polygon P."""
+    C, D = P, np.roll(P, -1, axis=0)
+
+    def orient(p, q, r):
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+    o1, o2 = orient(a, b, C), orient(a, b, D)
+    o3, o4 = orient(C, D, a), orient(C, D, b)
+    return bool(np.any((o1 * o2 < 0) & (o3 * o4 < 0)))
+
+
+def triangulate_polygons(P2, loops: list[np.ndarray]) -> np.ndarray:
+    """Triangulate the region bounded by ``loops`` (vertex indices into ``P2 (n, 2)``), holes included.
+
+    Counter-clockwise loops are outer boundaries, clockwise loops holes (each hole belongs to the
+    smallest outer loop containing it). Holes are joined to their outer loop by a bridge from their
+    rightmost vertex to the nearest outer vertex it can see, then the polygon is ear-clipped.
+    Returns ``(k, 3)`` int64 triangles, counter-clockwise; a polygon that cannot be clipped (self-
+    intersecting input) is skipped.
+    """
+    P2 = np.asarray(P2, dtype=np.float64)
+    outers, holes = [], []
+    for loop in loops:
+        a = _signed_area(P2[loop])
+        if a > 0:
+            outers.append((a, list(loop)))
+        elif a < 0:
+            holes.append(list(loop))
+    outers.sort(key=lambda t: t[0])
+    polys = [o[1] for o in outers]
+    members: list[list[list[int]]] = [[] for _ in polys]
+    for h in holes:
+        for k, poly in enumerate(polys):
+            if _point_in_polygon(P2[h[0]], P2[poly]):
+                members[k].append(h)
+                break
+    tris: list[list[int]] = []
+    for poly, hs in zip(polys, members, strict=True):
+        poly = list(poly)
+        for h in sorted(hs, key=lambda h: -P2[h].max(axis=0)[0]):
+            m = int(np.argmax(P2[h][:, 0]))
+            M = P2[h[m]]
+            order = np.argsort(np.linalg.norm(P2[poly] - M, axis=1))
+            all_edges = np.concatenate([P2[poly]] + [P2[x] for x in hs])
+            pick = None
+            for i in order:
+                if not _segments_cross(M, P2[poly[i]], all_edges):
+                    pick = int(i)
+                    break
+            if pick is None:
+                pick = int(order[0])
+            h_rot = h[m:] + h[: m + 1]
+            poly = poly[: pick + 1] + h_rot + [poly[pick]] + poly[pick + 1 :]
+        tris.extend(_ear_clip(P2, poly))
+    return np.asarray(tris, np.int64).reshape(-1, 3)
+
+
+def _ear_clip(P2: np.ndarray, poly: list[int]) -> list[list[int]]:
+    idx = list(poly)
+    out: list[list[int]] = []
+    guard = 0
+    while len(idx) > 3 and guard < 4 * len(poly) ** 2:
+        guard += 1
+        n = len(idx)
+        clipped = False
+        for k in range(n):
+            a, b, c = idx[k - 1], idx[k], idx[(k + 1) % n]
+            A, B, C = P2[a], P2[b], P2[c]
+            cross = (B[0] - A[0]) * (C[1] - A[1]) - (B[1] - A[1]) * (C[0] - A[0])
+            if cross <= 0:
+                continue
+            others = [v for v in idx if v not in (a, b, c)]
+            if others:
+                Q = P2[others]
+                same = np.all(Q == A, axis=1) | np.all(Q == B, axis=1) | np.all(Q == C, axis=1)
+                Q = Q[~same]
+                d1 = (B[0] - A[0]) * (Q[:, 1] - A[1]) - (B[1] - A[1]) * (Q[:, 0] - A[0])
+                d2 = (C[0] - B[0]) * (Q[:, 1] - B[1]) - (C[1] - B[1]) * (Q[:, 0] - B[0])
+                d3 = (A[0] - C[0]) * (Q[:, 1] - C[1]) - (A[1] - C[1]) * (Q[:, 0] - C[0])
+                if np.any((d1 >= 0) & (d2 >= 0) & (d3 >= 0)):
+                    continue
+            out.append([a, b, c])
+            del idx[k]
+            clipped = True
+            break
+        if not clipped:
+            return []
+    if len(idx) == 3:
+        out.append(idx)
+    return out
+
+
+def cap_plane(V, F, normal, offset, *, tol: float = 1e-9) -> np.ndarray:
+    """Cap faces ``(k, 3)`` closing the boundary loops of ``F`` that lie on the plane ``n . x = d``.
+
+    The caps face along ``+normal`` (outwards for a solid kept on the ``n . x <= d`` side) and use
+    only existing vertices. Loops are found by :func:`boundary_loops` among vertices within ``tol`` of
+    the plane, triangulated by :func:`triangulate_polygons` in the plane.
+    """
+    V, F = as_mesh_arrays(V, F)
+    n = np.asarray(normal, np.float64)
+    n = n / np.linalg.norm(n)
+    on = np.abs(V @ n - offset) <= tol
+    loops = boundary_loops(F, mask=on)
+    if not loops:
+        return np.zeros((0, 3), np.int64)
+    # orthonormal frame (e1, e2, n): a counter-clockwise loop in (e1, e2) bounds a region facing +n
+    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
+    e1 = np.cross(helper, n)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    P2 = np.stack([V @ e1, V @ e2], axis=1)
+    # the surface's boundary runs clockwise seen from +n around the solid's section: reverse it
+    return triangulate_polygons(P2, [loop[::-1] for loop in loops])

@@ -1,0 +1,8 @@
+"""petri-synth: synthesis of 3D models by a coloured Petri net (Song, Sun, Zhang, Zhang 2013).
+
+Stages: :mod:`.analysis` cuts the example by a lattice into pieces, labels them by their feature
+vectors and collects the adjacency constraints; :mod:`.construction` turns the user's polyline
+into a space of hexahedral cells (Algorithm 1); :mod:`.net` holds the coloured Petri net and its
+inference (Algorithm 2) plus the plain AC-3 baseline; :mod:`.assembly` deforms the chosen pieces
+into their cells and measures the result; :mod:`.pipeline` runs it all.
+"""

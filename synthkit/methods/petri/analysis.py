@@ -1,0 +1,284 @@
+"""Model analysis (paper section 2.1): lattice, pieces e_ijk, feature vectors, labels, constraints.
+
+All functions are pure (arrays in, arrays out). Lattice axes are the example's world axes X, Y, Z;
+a piece's vertices are kept in *local* coordinates of its lattice cell, ``(x - cell_lo) / unit``,
+so a piece in [0, 1]^3 can be deformed into any hexahedron by trilinear FFD.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from synthkit.core.mesh import cap_plane, face_areas, remove_unreferenced, split_by_planes
+from synthkit.errors import InputError
+
+VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
+"""View name -> (rectangle x axis, rectangle y axis, depth axis) as world axis indices."""
+
+MAX_PIECES = 200_000
+
+
+@dataclass
+class LatticeSpec:
+    """A lattice of ``counts`` cells of size ``unit`` starting at ``origin`` (all (3,) arrays, X Y Z)."""
+
+    unit: np.ndarray
+    origin: np.ndarray
+    counts: np.ndarray
+
+    def cell_lo(self, ijk) -> np.ndarray:
+        """Lower corner(s) ``(..., 3)`` of cell(s) ``ijk (..., 3)``."""
+        return self.origin + np.asarray(ijk) * self.unit
+
+
+@dataclass
+class Pieces:
+    """The example cut by the lattice.
+
+    ``local[p] (n_p, 3)`` vertex positions in cell-local coordinates, ``faces[p] (m_p, 3)``,
+    ``src_face[p] (m_p,)`` the example face each came from; pieces are in C order of ``index (P, 3)``.
+    """
+
+    lattice: LatticeSpec
+    index: np.ndarray
+    local: list[np.ndarray] = field(default_factory=list)
+    faces: list[np.ndarray] = field(default_factory=list)
+    src_face: list[np.ndarray] = field(default_factory=list)
+
+
+@dataclass
+class Constraints:
+    """Adjacency constraints <L1, L2> per lattice axis (eq. 4).
+
+    ``allowed[axis, a, b]`` is True when a piece labelled ``a`` has a neighbour labelled ``b`` at
+    +1 along ``axis`` somewhere in the example. Index ``n_labels`` stands for "outside the lattice"
+    when ``boundary`` is on (so ``allowed[axis, a, OUT]`` says ``a`` may end the model on that side).
+    """
+
+    allowed: np.ndarray
+    n_labels: int
+    boundary: bool
+
+    @property
+    def out(self) -> int:
+        return self.n_labels
+
+
+def resolve_lattice(
+    lo,
+    hi,
+    *,
+    unit=None,
+    origin=None,
+    annotation=None,
+    fit_tolerance: float = 0.02,
+) -> LatticeSpec:
+    """The lattice covering the box ``[lo, hi]`` of the example.
+
+    Either ``unit (3,)`` (and optional ``origin (3,)``, default ``lo``) or ``annotation = (view, rect,
+    depth_unit)``: the rectangle gives the unit and a lattice corner in the view's two axes; along the
+    depth axis the unit is ``depth_unit`` (None: the whole depth is one layer) from ``lo``. The lattice
+    is replicated both ways from that corner; the example's box must start and end on lattice planes
+    within ``fit_tolerance`` units, else InputError ("the lattice does not fit the model").
+    """
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    ext = hi - lo
+    if annotation is not None:
+        view, rect, depth_unit = annotation
+        ax, ay, az = VIEW_AXES[view]
+        x0, y0, x1, y1 = (float(v) for v in rect)
+        u = np.zeros(3)
+        o = lo.copy()
+        u[ax], u[ay] = x1 - x0, y1 - y0
+        o[ax], o[ay] = x0, y0
+        u[az] = float(depth_unit) if depth_unit is not None else max(ext[az], 1e-12)
+        for axis, a0, a1 in ((ax, x0, x1), (ay, y0, y1)):
+            tol = fit_tolerance * u[axis]
+            if a0 < lo[axis] - tol or a1 > hi[axis] + tol:
+                raise InputError(
+                    f"lattice.annotation.rect {list(rect)} lies outside the example's extent "
+                    f"[{lo[axis]:.4g}, {hi[axis]:.4g}] along {'XYZ'[axis]} in the {view} view"
+                )
+    else:
+        u = np.asarray(unit, dtype=np.float64).reshape(3)
+        o = lo.copy() if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
+    a = (lo - o) / u
+    b = (hi - o) / u
+    n0, n1 = np.round(a), np.round(b)
+    for axis in range(3):
+        if ext[axis] <= 0 and n1[axis] == n0[axis]:
+            n1[axis] = n0[axis] + 1
+            continue
+        bad = abs(a[axis] - n0[axis]) > fit_tolerance or abs(b[axis] - n1[axis]) > fit_tolerance
+        if bad or n1[axis] - n0[axis] < 1:
+            raise InputError(
+                f"the lattice does not fit the model: along {'XYZ'[axis]} the example spans "
+                f"[{lo[axis]:.6g}, {hi[axis]:.6g}] = {b[axis] - a[axis]:.4g} units of {u[axis]:.6g} from the "
+                f"lattice corner {o[axis]:.6g} (needs a whole number within {fit_tolerance})"
+            )
+    counts = (n1 - n0).astype(np.int64)
+    if int(np.prod(counts)) > MAX_PIECES:
+        raise InputError(f"the lattice does not fit the model: {counts.tolist()} cells is more than {MAX_PIECES}")
+    return LatticeSpec(unit=u, origin=o + n0 * u, counts=counts)
+
+
+def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
+    """Cut the example ``V (#V, 3)``, ``F (#F, 3)`` along every interior lattice plane into pieces.
+
+    Faces are split exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
+    share their cut vertices bitwise; each face goes to the cell holding its centroid (clamped to the
+    lattice for faces just outside within the fit tolerance). ``caps="open"`` leaves cut faces open;
+    ``"capped"`` closes every cut of a piece with planar caps (:func:`cap_piece`; their faces get
+    ``src_face = -1``).
+    """
+    normals, offsets = [], []
+    for axis in range(3):
+        for m in range(1, int(lattice.counts[axis])):
+            n = np.zeros(3)
+            n[axis] = 1.0
+            normals.append(n)
+            offsets.append(lattice.origin[axis] + m * lattice.unit[axis])
+    if normals:
+        V2, F2, src = split_by_planes(V, F, np.array(normals), np.array(offsets))
+    else:
+        V2, F2, src = np.asarray(V, np.float64), np.asarray(F, np.int64), np.arange(len(F))
+    cent = V2[F2].mean(axis=1)
+    cell = np.floor((cent - lattice.origin) / lattice.unit).astype(np.int64)
+    cell = np.clip(cell, 0, lattice.counts - 1)
+    flat = np.ravel_multi_index(cell.T, tuple(lattice.counts))
+    n_cells = int(np.prod(lattice.counts))
+    order = np.argsort(flat, kind="stable")
+    bounds = np.searchsorted(flat[order], np.arange(n_cells + 1))
+    index = np.stack(np.unravel_index(np.arange(n_cells), tuple(lattice.counts)), axis=1)
+    pieces = Pieces(lattice=lattice, index=index)
+    for p in range(n_cells):
+        sel = order[bounds[p] : bounds[p + 1]]
+        Vp, Fp, _ = remove_unreferenced(V2, F2[sel])
+        Lp = (Vp - lattice.cell_lo(index[p])) / lattice.unit
+        Sp = src[sel]
+        if caps == "capped" and len(Fp):
+            Lp, Fp, Sp = cap_piece(Lp, Fp, Sp, index[p], lattice.counts)
+        pieces.local.append(Lp)
+        pieces.faces.append(Fp)
+        pieces.src_face.append(Sp)
+    return pieces
+
+
+def cap_piece(L, F, src, index, counts, *, tol: float = 1e-9):
+    """Close a piece's cuts: planar caps (:func:`synthkit.core.mesh.cap_plane`) on each of its cell faces
+    that is an interior lattice plane. Works in local coordinates; returns ``(L, F2, src2)`` with
+    cap faces appended (``src = -1``)."""
+    for t in range(3):
+        for side in (0, 1):
+            plane = int(index[t]) + side
+            if plane == 0 or plane == int(counts[t]):
+                continue
+            n = np.zeros(3)
+            n[t] = 1.0 if side else -1.0
+            C = cap_plane(L, F, n, float(side) if side else 0.0, tol=tol)
+            if len(C):
+                F = np.concatenate([F, C])
+                src = np.concatenate([src, np.full(len(C), -1, np.int64)])
+    return L, F, src
+
+
+def feature_vectors(pieces: Pieces, *, corner_tol: float = 1e-6) -> np.ndarray:
+    """Feature vector of eq. (1) per piece, ``(P, 15)``: ``[S, X0, Y0, Z0, X1, Y1, Z1, f000 .. f111]``.
+
+    ``S`` is the surface area in world units; the bounding box is in cell-local coordinates (so that
+    translated copies agree); ``f_ijk`` (order ``i j k`` as in the paper: f000, f001, f010, ...) is 1 when
+    the box corner ``[X^i, Y^j, Z^k]`` is a vertex of the piece (within ``corner_tol`` local units).
+    An empty piece has all zeros.
+    """
+    unit = pieces.lattice.unit
+    out = np.zeros((len(pieces.local), 15))
+    for p, (L, Fp) in enumerate(zip(pieces.local, pieces.faces, strict=True)):
+        if len(Fp) == 0:
+            continue
+        out[p, 0] = face_areas(L * unit, Fp).sum()
+        bmin, bmax = L.min(axis=0), L.max(axis=0)
+        out[p, 1:4], out[p, 4:7] = bmin, bmax
+        f = 7
+        for i in (0, 1):
+            for j in (0, 1):
+                for k in (0, 1):
+                    corner = np.array([(bmin, bmax)[i][0], (bmin, bmax)[j][1], (bmin, bmax)[k][2]])
+                    out[p, f] = float(np.any(np.all(np.abs(L - corner) <= corner_tol, axis=1)))
+                    f += 1
+    return out
+
+
+def classify(features: np.ndarray, *, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Labels from feature vectors: greedy, in piece order.
+
+    A piece joins the first label whose representative (its first piece) has equal corner flags,
+    an area within ``tolerance`` x the larger area, and bounding-box bounds within ``tolerance``
+    local units; otherwise it starts a new label. Returns ``(labels (P,), representative (L,))``.
+    """
+    labels = np.full(len(features), -1, np.int64)
+    reps: list[int] = []
+    for p, fv in enumerate(features):
+        if reps:
+            R = features[reps]
+            area_ok = np.abs(R[:, 0] - fv[0]) <= tolerance * np.maximum(np.maximum(R[:, 0], fv[0]), 1e-300)
+            area_ok |= (R[:, 0] == 0) & (fv[0] == 0)
+            box_ok = np.all(np.abs(R[:, 1:7] - fv[1:7]) <= tolerance + 1e-12, axis=1)
+            flag_ok = np.all(R[:, 7:] == fv[7:], axis=1)
+            hit = np.flatnonzero(area_ok & box_ok & flag_ok)
+            if len(hit):
+                labels[p] = hit[0]
+                continue
+        labels[p] = len(reps)
+        reps.append(p)
+    return labels, np.asarray(reps, np.int64)
+
+
+def adjacency_constraints(label_grid: np.ndarray, n_labels: int, *, boundary: bool = True) -> Constraints:
+    """Allowed label pairs per axis from the example's ``label_grid (nx, ny, nz)`` (eq. 4).
+
+    With ``boundary`` the grid is padded with the outside label ``n_labels`` so that which labels may
+    end the model on each side is a constraint too.
+    """
+    n = n_labels + 1
+    grid = np.pad(label_grid, 1, constant_values=n_labels) if boundary else label_grid
+    allowed = np.zeros((3, n, n), bool)
+    for axis in range(3):
+        a = np.moveaxis(grid, axis, 0)
+        first, second = a[:-1].ravel(), a[1:].ravel()
+        allowed[axis, first, second] = True
+    if boundary:
+        allowed[:, n_labels, n_labels] = False
+    return Constraints(allowed=allowed, n_labels=n_labels, boundary=boundary)
+
+
+def normal_histogram(V, F, axes: tuple[int, int], *, bins: int = 12) -> np.ndarray:
+    """Histogram ``(bins,)`` of face-normal directions in the plane of world ``axes`` (paper section 3.2).
+
+    Each face counts once (the paper: "the normal of each face"); its normal's two components along
+    ``axes`` give an angle in [0, 360) split into ``bins`` equal parts (bin 0 starts at angle 0).
+    Faces whose normal has no in-plane component (below 1e-6 after normalising) have no direction and are left out.
+    """
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 0
+    n = n[ok] / norm[ok, None]
+    x, y = n[:, axes[0]], n[:, axes[1]]
+    keep = np.hypot(x, y) > 1e-6
+    # bin positions rounded to 1e-6 so that normals on a bin edge (axis-aligned ones) land in one bin
+    pos = np.round(np.arctan2(y[keep], x[keep]) / (2 * np.pi) * bins, 6)
+    idx = np.floor(pos).astype(np.int64) % bins
+    return np.bincount(idx, minlength=bins).astype(np.float64)
+
+
+def histogram_discrimination(h1, h2) -> float:
+    """D(H1, H2) of eq. (5): squared differences of the two normalised histograms, summed."""
+    h1 = np.asarray(h1, np.float64)
+    h2 = np.asarray(h2, np.float64)
+    if h1.sum() <= 0 or h2.sum() <= 0:
+        raise ValueError("a histogram is empty")
+    return float(np.sum((h1 / h1.sum() - h2 / h2.sum()) ** 2))

@@ -1,0 +1,139 @@
+"""Piece deformation and assembly (the deforming transitions), and measurements of the result."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from synthkit.core.ffd import trilinear_weights
+
+
+class PieceLibrary:
+    """The representative piece of every label, ready for trilinear FFD into any hexahedron.
+
+    ``axes`` are the lattice axes of the construction axes (a, b, c): a piece's local coordinates
+    are reordered to (a, b, c) and their eight trilinear weights cached, so deforming a piece into a
+    cell is one ``(n, 8) @ (8, 3)`` product.
+    """
+
+    def __init__(self, pieces, representative: np.ndarray, axes: tuple[int, int, int]):
+        self.axes = tuple(axes)
+        self.local = []
+        self.faces = []
+        self.weights = []
+        for p in representative:
+            L = pieces.local[int(p)][:, list(axes)]
+            self.local.append(L)
+            self.faces.append(pieces.faces[int(p)])
+            self.weights.append(trilinear_weights(L))
+
+    def deform(self, label: int, corners: np.ndarray) -> np.ndarray:
+        """Vertices ``(n, 3)`` of ``label``'s piece deformed into the hexahedron ``corners (8, 3)``."""
+        return self.weights[label] @ corners
+
+
+class Assembler:
+    """Collects deformed pieces (the deforming transitions' output) and assembles the result mesh."""
+
+    def __init__(self, library: PieceLibrary, corners: np.ndarray):
+        self.library = library
+        self.corners = corners
+        self.parts: list[tuple[int, int, np.ndarray]] = []
+
+    def __call__(self, cell: int, label: int) -> None:
+        self.parts.append((cell, label, self.library.deform(label, self.corners[cell])))
+
+    def clear(self) -> None:
+        self.parts.clear()
+
+    def mesh(self):
+        """``(V, F, face_label, face_cell)`` of all deformed pieces, in firing order."""
+        Vs, Fs, labs, cells = [], [], [], []
+        off = 0
+        for cell, label, X in self.parts:
+            Fp = self.library.faces[label]
+            Vs.append(X)
+            Fs.append(Fp + off)
+            labs.append(np.full(len(Fp), label, np.int64))
+            cells.append(np.full(len(Fp), cell, np.int64))
+            off += len(X)
+        if not Vs:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs), np.concatenate(cells)
+
+
+def crack_measure(
+    library: PieceLibrary, label_grid: np.ndarray, corners: np.ndarray, *, periodic=(False,) * 3, tol: float = 1e-9
+):
+    """Gaps between neighbouring deformed pieces where their example pieces met.
+
+    For every pair of face-adjacent cells (p below q along construction axis t) with labels (A, B),
+    the vertices of A's piece on its face ``t = 1`` are matched to those of B's piece on ``t = 0`` with
+    the same other two local coordinates (within ``tol``): these are the boundary vertices the
+    example pieces shared. Returns ``(max_gap, unmatched)``: the largest world distance between
+    matched vertices after deformation, and the number of boundary vertices (summed over distinct
+    label pairs) that had no partner (pieces whose boundaries differ).
+    """
+    lib = library
+    shape = label_grid.shape
+    flat = np.arange(label_grid.size).reshape(shape)
+    max_gap, unmatched = 0.0, 0
+    match_cache = {}
+    for t in range(3):
+        p_cells = np.moveaxis(flat, t, 0)
+        first, second = p_cells[:-1].ravel(), p_cells[1:].ravel()
+        if periodic[t] and shape[t] > 1:
+            first = np.concatenate([first, p_cells[-1].ravel()])
+            second = np.concatenate([second, p_cells[0].ravel()])
+        la, lb = label_grid.ravel()[first], label_grid.ravel()[second]
+        groups = defaultdict(list)
+        for k, key in enumerate(zip(la.tolist(), lb.tolist(), strict=True)):
+            groups[key].append(k)
+        others = [x for x in range(3) if x != t]
+        for (A, B), ks in groups.items():
+            key = (t, A, B)
+            if key not in match_cache:
+                LA, LB = lib.local[A], lib.local[B]
+                ia = np.flatnonzero(np.abs(LA[:, t] - 1) <= tol)
+                ib = np.flatnonzero(np.abs(LB[:, t]) <= tol)
+                if len(ia) and len(ib):
+                    d, j = cKDTree(LB[ib][:, others]).query(LA[ia][:, others])
+                    ok = d <= tol
+                    match_cache[key] = (ia[ok], ib[j[ok]])
+                    unmatched += int((~ok).sum())
+                    # B's boundary vertices without a partner in A
+                    d2, _ = cKDTree(LA[ia][:, others]).query(LB[ib][:, others])
+                    unmatched += int((d2 > tol).sum())
+                else:
+                    match_cache[key] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+                    unmatched += len(ia) + len(ib)
+            ia, ib = match_cache[key]
+            if len(ia) == 0:
+                continue
+            ks = np.asarray(ks)
+            XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[first[ks]])
+            XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[second[ks]])
+            max_gap = max(max_gap, float(np.linalg.norm(XA - XB, axis=-1).max()))
+    return max_gap, unmatched
+
+
+def label_colors(n: int) -> np.ndarray:
+    """``(n, 3)`` distinct colours in [0, 1] (golden-ratio hues)."""
+    h = (np.arange(n) * 0.618033988749895) % 1.0
+    s, v = 0.55, 0.92
+    i = np.floor(h * 6).astype(int) % 6
+    f = h * 6 - np.floor(h * 6)
+    p, q, tt = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
+    table = np.stack(
+        [
+            np.stack([np.full(n, v), tt, np.full(n, p)], 1),
+            np.stack([q, np.full(n, v), np.full(n, p)], 1),
+            np.stack([np.full(n, p), np.full(n, v), tt], 1),
+            np.stack([np.full(n, p), q, np.full(n, v)], 1),
+            np.stack([tt, np.full(n, p), np.full(n, v)], 1),
+            np.stack([np.full(n, v), np.full(n, p), q], 1),
+        ]
+    )
+    return table[i, np.arange(n)]

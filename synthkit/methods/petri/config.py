@@ -1,0 +1,160 @@
+"""Config schema of ``synthkit petri-synth``."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from synthkit.config import InputFile, RunConfig, StrictModel
+
+Point2 = tuple[float, float]
+Point3 = tuple[float, float, float]
+
+
+class Annotation(StrictModel):
+    """The user's rectangle around one self-similar unit in an orthographic view (paper Fig. 2b)."""
+
+    view: Literal["front", "top", "side"] = Field(
+        "front",
+        description="View the rectangle is drawn in: front = (X, Y) with depth Z, top = (X, Z) with depth Y, "
+        "side = (Z, Y) with depth X (world coordinates of the example).",
+    )
+    rect: tuple[float, float, float, float] = Field(
+        description="[x0, y0, x1, y1]: the rectangle in the view's two axes, world units."
+    )
+    depth_unit: float | None = Field(
+        None,
+        gt=0,
+        description="Lattice unit along the view's depth axis; null = the whole depth is one layer.",
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        x0, y0, x1, y1 = self.rect
+        if not (x1 > x0 and y1 > y0):
+            raise ValueError(f"rect must have x1 > x0 and y1 > y0, got {list(self.rect)}")
+        return self
+
+
+class Lattice(StrictModel):
+    """The lattice that cuts the example into pieces e_ijk: an annotation rectangle or a unit cell."""
+
+    unit: Point3 | None = Field(None, description="Unit cell size (X, Y, Z); alternative to 'annotation'.")
+    origin: Point3 | None = Field(
+        None, description="A lattice corner (X, Y, Z); null = the example's bounding-box minimum."
+    )
+    annotation: Annotation | None = Field(None, description="Rectangle drawn in a view (paper Fig. 2b).")
+    fit_tolerance: float = Field(
+        0.02,
+        gt=0,
+        le=0.5,
+        description="How far (in units) the example's bounding box may end from a lattice plane.",
+    )
+    caps: Literal["open", "capped"] = Field(
+        "open",
+        description="Cut faces of the pieces: 'open' (default: neighbouring pieces share their cut "
+        "vertices and the result has no interior walls) or 'capped' (each piece closed by planar caps).",
+    )
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.unit is None) == (self.annotation is None):
+            raise ValueError("give exactly one of 'unit' and 'annotation'")
+        if self.unit is not None and min(self.unit) <= 0:
+            raise ValueError(f"unit sizes must be > 0, got {list(self.unit)}")
+        return self
+
+
+class Labels(StrictModel):
+    """Classification of pieces by their feature vectors (eq. 1, Table 1)."""
+
+    tolerance: float = Field(
+        0.01,
+        ge=0,
+        le=0.5,
+        description="Pieces share a label when their areas differ by at most this fraction and their "
+        "bounding boxes by at most this fraction of the unit, with equal corner flags.",
+    )
+    boundary: bool = Field(
+        True,
+        description="Treat the outside of the lattice as a label, so pieces that end the example (walls, "
+        "corners) end the result too (Merrell-style; the paper does not say).",
+    )
+
+
+class Construction(StrictModel):
+    """The user's curve on a projection plane and the sizes S_Y, S_Z (Algorithm 1, eq. 2)."""
+
+    plane: Literal["xy", "xz", "yz"] = Field(
+        "xy",
+        description="Projection plane of the curve: its two axes are the along-curve and offset lattice "
+        "axes; the construction plane is swept along the third (xy: sweep Z, xz: sweep Y, yz: sweep X).",
+    )
+    points: list[Point2] = Field(
+        description="Polyline points in the plane's two world coordinates (at least 2, no repeats in a row).",
+        min_length=2,
+    )
+    closed: bool = Field(False, description="Close the polyline (last point joins the first).")
+    side: Literal["left", "right", "center"] = Field(
+        "left",
+        description="Where the offset lines go: left of the curve (as drawn), right of it, or centred on it.",
+    )
+    size_y: int | None = Field(
+        None, ge=1, le=10000, description="S_Y: cells across the curve; null = the example's count."
+    )
+    size_z: int | None = Field(
+        None, ge=1, le=10000, description="S_Z: cells along the sweep axis; null = the example's count."
+    )
+
+    @model_validator(mode="after")
+    def _points(self):
+        pts = self.points
+        for i in range(1, len(pts)):
+            if pts[i] == pts[i - 1]:
+                raise ValueError(f"points {i - 1} and {i} repeat {list(pts[i])}")
+        if self.closed and len(pts) > 2 and pts[-1] == pts[0]:
+            self.points = pts[:-1]
+        if self.closed and len(self.points) < 3:
+            raise ValueError("a closed curve needs at least 3 distinct points")
+        return self
+
+
+class Inference(StrictModel):
+    """Algorithm 2 and what the paper leaves open."""
+
+    max_restarts: int = Field(
+        20, ge=0, le=10000, description="Restarts with a derived seed after a contradiction before failing."
+    )
+
+
+class Output(StrictModel):
+    """What the run writes besides report.json and the previews."""
+
+    mesh_format: Literal["ply", "obj", "glb"] = Field(
+        "ply", description="Format of the assembled mesh (PLY also stores a per-face label)."
+    )
+    export_net: Literal["none", "pnml", "dot", "both"] = Field(
+        "pnml", description="Export the target Petri net as PNML and/or Graphviz DOT."
+    )
+    baseline: bool = Field(
+        True,
+        description="Also run Merrell-style model synthesis on the orthogonal lattice (a straight curve "
+        "of the same length) and report its normal-histogram D beside the curved result's.",
+    )
+    weld: bool = Field(True, description="Weld coincident vertices of neighbouring pieces in the output mesh.")
+
+
+class PetriConfig(RunConfig):
+    """petri-synth: extend and deform an example's lattice pieces along a user curve (Song et al. 2013)."""
+
+    method: Literal["petri-synth"] = "petri-synth"
+    example: InputFile = Field(description="The example mesh (OBJ, PLY, GLB, OFF, STL).")
+    lattice: Lattice = Field(description="How the example is cut into pieces.")
+    labels: Labels = Field(default_factory=Labels, description="Piece classification.")
+    construction: Construction = Field(description="The curve and sizes of the construction space.")
+    inference: Inference = Field(default_factory=Inference, description="Inference options.")
+    output: Output = Field(default_factory=Output, description="Outputs.")
+
+
+CONFIG = PetriConfig

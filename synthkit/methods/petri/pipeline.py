@@ -1,0 +1,299 @@
+"""``petri-synth`` run: analysis, construction space, Petri nets, inference, assembly, evaluation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import trimesh
+
+from synthkit import preview
+from synthkit.core.mesh import weld
+from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.methods.petri import analysis, construction
+from synthkit.methods.petri.assembly import Assembler, PieceLibrary, crack_measure, label_colors
+from synthkit.methods.petri.config import PetriConfig
+from synthkit.methods.petri.net import ColouredPetriNet, adjacency_violations, to_dot, to_pnml
+
+VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
+PREVIEW_SAMPLES = 600_000
+"""Sample budget of the software rasterizer per preview (keeps previews well under a second)."""
+
+
+def analyse_example(V, F, cfg: PetriConfig):
+    """Lattice, pieces, labels and constraints of the example (section 2.1)."""
+    lat = cfg.lattice
+    ann = lat.annotation
+    spec = analysis.resolve_lattice(
+        V.min(axis=0),
+        V.max(axis=0),
+        unit=lat.unit,
+        origin=lat.origin,
+        annotation=None if ann is None else (ann.view, ann.rect, ann.depth_unit),
+        fit_tolerance=lat.fit_tolerance,
+    )
+    pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps)
+    features = analysis.feature_vectors(pieces)
+    labels, reps = analysis.classify(features, tolerance=cfg.labels.tolerance)
+    grid = labels.reshape(tuple(spec.counts))
+    cons = analysis.adjacency_constraints(grid, len(reps), boundary=cfg.labels.boundary)
+    return spec, pieces, features, grid, reps, cons
+
+
+def origin_preference(grid: np.ndarray) -> list[int]:
+    """Labels of the example's pieces ordered by lattice distance from e_000 (e_000's first), unique."""
+    idx = np.stack(np.unravel_index(np.arange(grid.size), grid.shape), axis=1)
+    order = np.lexsort((idx[:, 2], idx[:, 1], idx[:, 0], np.abs(idx).sum(axis=1)))
+    seen, out = set(), []
+    for lab in grid.ravel()[order].tolist():
+        if lab not in seen:
+            seen.add(lab)
+            out.append(lab)
+    return out
+
+
+def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
+    """Algorithm 1 on the config's curve (or on ``points``) with the lattice's units."""
+    con = cfg.construction
+    axes = construction.PLANE_AXES[con.plane]
+    units = spec.unit[list(axes)]
+    return construction.build_construction_space(
+        con.points if points is None else points,
+        plane=con.plane,
+        closed=con.closed if points is None else False,
+        side=con.side,
+        units=units,
+        size_y=con.size_y if con.size_y is not None else int(spec.counts[axes[1]]),
+        size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
+        sweep_origin=float(spec.origin[axes[2]]),
+    )
+
+
+def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: int):
+    """Target net + Algorithm 2 + deformation. Returns (net, assembler, restarts)."""
+    axes = space.axes
+    allowed_t = cons.allowed[list(axes)]
+    corners = space.hex_corners()
+    net = ColouredPetriNet(
+        space.shape,
+        allowed_t,
+        cons.n_labels,
+        boundary=cons.boundary,
+        periodic=(space.closed, False, False),
+        corners=corners,
+    )
+    assembler = Assembler(library, corners)
+    restarts = net.infer(
+        rng,
+        origin_labels=origin_preference(grid),
+        deform=assembler,
+        max_restarts=max_restarts,
+        on_restart=assembler.clear,
+    )
+    return net, assembler, restarts
+
+
+def example_net(grid: np.ndarray, cons, spec) -> ColouredPetriNet:
+    """The example Petri net: one local net per piece, tokens holding its coordinate and label."""
+    lo = spec.origin
+    n = grid.size
+    idx = np.stack(np.unravel_index(np.arange(n), grid.shape), axis=1)
+    corners = np.empty((n, 8, 3))
+    for c in range(8):
+        off = np.array([c & 1, (c >> 1) & 1, (c >> 2) & 1])
+        corners[:, c] = lo + (idx + off) * spec.unit
+    net = ColouredPetriNet(grid.shape, cons.allowed, cons.n_labels, boundary=cons.boundary, corners=corners)
+    for c, lab in enumerate(grid.ravel().tolist()):
+        net.cand[c] = 1 << lab
+        net.label[c] = lab
+        net.state[c] = 3
+    return net
+
+
+def _lines_of_space(space, *, z_index: int = 0) -> np.ndarray:
+    """Segments ``(k, 2, 3)`` of the construction plane's cell edges at one sweep level, plus the curve."""
+    G = space.grid
+    w = space.sweep[z_index]
+    W = space.world(G, np.full(G.shape[:2], w))
+    segs = []
+    nI, nJ = G.shape[:2]
+    rows = np.arange(nI) if space.closed else np.arange(nI - 1)
+    for j in range(nJ):
+        segs.append(np.stack([W[rows, j], W[(rows + 1) % nI, j]], axis=1))
+    for i in range(nI):
+        segs.append(np.stack([W[i, :-1], W[i, 1:]], axis=1))
+    curve = space.curve if not space.closed else np.vstack([space.curve, space.curve[:1]])
+    C = space.world(curve, np.full(len(curve), w))
+    segs.append(np.stack([C[:-1], C[1:]], axis=1))
+    return np.concatenate(segs)
+
+
+def run(cfg: PetriConfig, ctx) -> None:
+    with ctx.stage("load"):
+        mesh = load_mesh(cfg.example)
+        V = np.asarray(mesh.vertices, np.float64)
+        F = np.asarray(mesh.faces, np.int64)
+
+    with ctx.stage("analysis"):
+        spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
+
+    with ctx.stage("construction"):
+        space = build_space(cfg, spec)
+        deviation = space.center_deviation()
+
+    axes = space.axes
+    library = PieceLibrary(pieces, reps, axes)
+    with ctx.stage("inference"):
+        net, assembler, restarts = synthesize(
+            space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+        )
+    labels_out = net.label_grid()
+
+    with ctx.stage("assembly"):
+        RV, RF, face_label, face_cell = assembler.mesh()
+        gap, unmatched = crack_measure(library, labels_out, net.corners, periodic=net.periodic)
+        if cfg.output.weld:
+            RV, RF, old_to_new = weld(RV, RF, 1e-7 * float(spec.unit.min()), return_index=True)
+            keep = _kept_faces(assembler, old_to_new)
+            face_label, face_cell = face_label[keep], face_cell[keep]
+        result = trimesh.Trimesh(RV, RF, process=False)
+        fmt = cfg.output.mesh_format
+        out_mesh = ctx.path("mesh", f"result.{fmt}")
+        save_mesh(result, out_mesh, face_labels=face_label if fmt == "ply" else None)
+        _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
+
+    with ctx.stage("evaluation"):
+        plane_axes = space.point_axes
+        h_ex = analysis.normal_histogram(V, F, plane_axes)
+        h_res = analysis.normal_histogram(RV, RF, plane_axes)
+        D = analysis.histogram_discrimination(h_ex, h_res)
+        violations = adjacency_violations(
+            labels_out, net.allowed, cons.n_labels, boundary=cons.boundary, periodic=net.periodic
+        )
+        metrics = {
+            "cells": int(net.n_cells),
+            "construction_shape": list(space.shape),
+            "labels": int(cons.n_labels),
+            "example_pieces": int(grid.size),
+            "example_lattice": {"unit": spec.unit, "origin": spec.origin, "counts": spec.counts},
+            "transitions": dict(net.fired),
+            "restarts": int(restarts),
+            "adjacency_violations": int(violations),
+            "unfilled_cells": int((labels_out < 0).sum()),
+            "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.ravel().tolist())),
+            "crack_max": gap / float(spec.unit.min()),
+            "boundary_unmatched_vertices": int(unmatched),
+            "curve_max_deviation": float(deviation.max()),
+            "normal_histogram_D": D,
+            "normal_histogram_example": h_ex,
+            "normal_histogram_result": h_res,
+            "result_vertices": int(len(RV)),
+            "result_faces": int(len(RF)),
+        }
+
+    if cfg.output.baseline:
+        with ctx.stage("baseline"):
+            P0 = np.asarray(cfg.construction.points[0], np.float64)
+            straight = [P0, P0 + [space.shape[0] * space.units[0], 0.0]]
+            bspace = build_space(cfg, spec, points=straight)
+            bnet, bassembler, brestarts = synthesize(
+                bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+            )
+            BV, BF, b_label, _ = bassembler.mesh()
+            h_base = analysis.normal_histogram(BV, BF, plane_axes)
+            metrics["baseline"] = {
+                "method": "model synthesis on the orthogonal lattice (straight curve of the same length)",
+                "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_base),
+                "normal_histogram": h_base,
+                "adjacency_violations": adjacency_violations(
+                    bnet.label_grid(), bnet.allowed, cons.n_labels, boundary=cons.boundary
+                ),
+                "restarts": int(brestarts),
+            }
+            metrics["baseline_normal_histogram_D"] = metrics["baseline"]["normal_histogram_D"]
+
+    with ctx.stage("export"):
+        exp = cfg.output.export_net
+        if exp in ("pnml", "both"):
+            ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
+            ctx.path("example_net_pnml", "example_net.pnml").write_bytes(
+                to_pnml(example_net(grid, cons, spec), net_id="example")
+            )
+        if exp in ("dot", "both"):
+            ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
+            ctx.path("example_net_dot", "example_net.dot").write_text(
+                to_dot(example_net(grid, cons, spec), name="example")
+            )
+
+    with ctx.stage("previews"):
+        colors = label_colors(max(cons.n_labels, 1))
+        view = VIEW_OF_PLANE[cfg.construction.plane]
+        EV, EF, e_label = _example_pieces_mesh(pieces, grid)
+        img_ex = preview.rasterize_mesh(
+            EV, EF, face_colors=colors[e_label], view="iso", size=320, max_samples=PREVIEW_SAMPLES
+        )
+        img_space = preview.rasterize_mesh(
+            V, F, view=view, size=512, lines=_lines_of_space(space), max_samples=PREVIEW_SAMPLES
+        )
+        img_res = preview.rasterize_mesh(
+            RV, RF, face_colors=colors[face_label], view="iso", size=512, max_samples=4 * PREVIEW_SAMPLES
+        )
+        preview.image_png(ctx.path("preview_result", "result.png"), img_res)
+        preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
+        images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
+        if cfg.output.baseline:
+            images.append(
+                preview.rasterize_mesh(
+                    BV, BF, face_colors=colors[b_label], view="iso", size=320, max_samples=PREVIEW_SAMPLES
+                )
+            )
+        preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
+
+    ctx.metrics.update(metrics)
+
+
+def _kept_faces(assembler: Assembler, old_to_new: np.ndarray) -> np.ndarray:
+    """Mask of the assembled faces that survive welding (same rule as :func:`synthkit.core.mesh.weld`)."""
+    _, F, _, _ = assembler.mesh()
+    G = old_to_new[F]
+    return (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
+
+
+def _example_pieces_mesh(pieces, grid):
+    """The example's pieces back in place, ``(V, F, face_label)``."""
+    Vs, Fs, labs, off = [], [], [], 0
+    for p, (L, Fp) in enumerate(zip(pieces.local, pieces.faces, strict=True)):
+        Vs.append(pieces.lattice.cell_lo(pieces.index[p]) + L * pieces.lattice.unit)
+        Fs.append(Fp + off)
+        labs.append(np.full(len(Fp), grid.ravel()[p], np.int64))
+        off += len(L)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs)
+
+
+def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> None:
+    doc = {
+        "format": "petri-synth label grid: grid[i][j][k], i along the curve, j across, k along the sweep",
+        "shape": list(labels_out.shape),
+        "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
+        "closed": bool(space.closed),
+        "grid": labels_out.tolist(),
+        "example": {
+            "shape": list(grid.shape),
+            "grid": grid.tolist(),
+            "unit": spec.unit.tolist(),
+            "origin": spec.origin.tolist(),
+        },
+        "labels": [
+            {
+                "label": k,
+                "piece": [int(v) for v in np.unravel_index(int(r), grid.shape)],
+                "feature": features[r].tolist(),
+            }
+            for k, r in enumerate(reps)
+        ],
+        "constraints": {
+            "outside_label": cons.out if cons.boundary else None,
+            "pairs": {"XYZ"[axis]: np.argwhere(cons.allowed[axis]).tolist() for axis in range(3)},
+        },
+    }
+    ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")

@@ -620,14 +620,21 @@ def cap_plane(V, F, normal, offset, *, tol: float = 1e-9) -> np.ndarray:
     """Cap faces ``(k, 3)`` closing the boundary loops of ``F`` that lie on the plane ``n . x = d``.
 
     The caps face along ``+normal`` (outwards for a solid kept on the ``n . x <= d`` side) and use
-    only existing vertices. Loops are found by :func:`boundary_loops` among vertices within ``tol`` of
-    the plane, triangulated by :func:`triangulate_polygons` in the plane.
+    only existing vertices. Vertices within ``tol`` of each other are treated as one (so a soup whose
+    sides do not share vertices still has closed loops); loops are found by :func:`boundary_loops`
+    among vertices within ``tol`` of the plane and triangulated by :func:`triangulate_polygons`.
     """
     V, F = as_mesh_arrays(V, F)
     n = np.asarray(normal, np.float64)
     n = n / np.linalg.norm(n)
-    on = np.abs(V @ n - offset) <= tol
-    loops = boundary_loops(F, mask=on)
+    _, _, old_to_new = weld(V, F, tol, return_index=True)
+    rep = np.full(int(old_to_new.max()) + 1 if len(V) else 0, -1, np.int64)
+    rep[old_to_new[::-1]] = np.arange(len(V))[::-1]  # lowest original index of each welded vertex
+    W = V[rep]
+    G = old_to_new[F]
+    G = G[(G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])]
+    on = np.abs(W @ n - offset) <= tol
+    loops = boundary_loops(G, mask=on)
     if not loops:
         return np.zeros((0, 3), np.int64)
     # orthonormal frame (e1, e2, n): a counter-clockwise loop in (e1, e2) bounds a region facing +n
@@ -635,6 +642,6 @@ def cap_plane(V, F, normal, offset, *, tol: float = 1e-9) -> np.ndarray:
     e1 = np.cross(helper, n)
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
-    P2 = np.stack([V @ e1, V @ e2], axis=1)
+    P2 = np.stack([W @ e1, W @ e2], axis=1)
     # the surface's boundary runs clockwise seen from +n around the solid's section: reverse it
-    return triangulate_polygons(P2, [loop[::-1] for loop in loops])
+    return rep[triangulate_polygons(P2, [loop[::-1] for loop in loops])]

@@ -248,3 +248,48 @@ def test_simplify_correspondence():
     np.testing.assert_array_equal(f2c, nearest)
     Vs, Fs, ident = M.simplify(V, F, len(F) + 5)
     np.testing.assert_array_equal(ident, np.arange(len(V)))
+
+
+def test_boundary_loops_square_and_closed(square, cube):
+    loops = M.boundary_loops(square[1])
+    assert len(loops) == 1
+    loop = loops[0].tolist()
+    k = loop.index(0)
+    assert loop[k:] + loop[:k] == [0, 1, 2, 3]  # in the faces' (counter-clockwise) orientation
+    assert M.boundary_loops(cube[1]) == []
+
+
+def test_triangulate_polygon_with_hole():
+    outer = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    hole = np.array([[1, 1], [1, 3], [3, 3], [3, 1]], float)  # clockwise
+    P = np.concatenate([outer, hole])
+    T = M.triangulate_polygons(P, [np.arange(4), np.arange(4, 8)])
+    a = P[T[:, 1]] - P[T[:, 0]]
+    b = P[T[:, 2]] - P[T[:, 0]]
+    area = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    assert np.all(area > 0)
+    assert np.isclose(area.sum(), 16 - 4)
+    # an L-shaped (non-convex) polygon
+    L = np.array([[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]], float)
+    T = M.triangulate_polygons(L, [np.arange(6)])
+    assert len(T) == 4
+    assert np.isclose(M.face_areas(np.c_[L, np.zeros(6)], T).sum(), 3.0)
+
+
+def test_clip_with_caps_is_closed(cube):
+    import trimesh
+
+    V, F = cube
+    V2, F2, src = M.clip_by_box(V, F, [-1, -1, -1], [0.25, 0.5, 1], cap=True)
+    m = trimesh.Trimesh(V2, F2)
+    assert m.is_watertight and m.is_winding_consistent
+    assert np.isclose(m.volume, 1.25 * 1.5 * 2)
+    assert np.isclose(M.face_areas(V2, F2)[src < 0].sum(), 1.5 * 2 + 1.25 * 2)
+    # a ring cut across its axis: the cap is an annulus (a polygon with a hole)
+    ring = trimesh.creation.annulus(r_min=0.5, r_max=1.0, height=1.0)
+    V3, F3, src3 = M.clip_by_planes(ring.vertices, ring.faces, [[0, 0, 1]], [0.1], cap=True)
+    m3 = trimesh.Trimesh(V3, F3)
+    assert m3.is_watertight
+    assert np.isclose(m3.volume, ring.volume * 0.6)
+    cap_area = M.face_areas(V3, F3)[src3 < 0].sum()
+    assert np.isclose(cap_area, ring.volume / 1.0, rtol=1e-9)  # section area = volume / height

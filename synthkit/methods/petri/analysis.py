@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from synthkit.core.mesh import cap_plane, face_areas, remove_unreferenced, split_by_planes
+from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
 from synthkit.errors import InputError
 
 VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
@@ -130,10 +130,13 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
 
     Faces are split exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
     share their cut vertices bitwise; each face goes to the cell holding its centroid (clamped to the
-    lattice for faces just outside within the fit tolerance). ``caps="open"`` leaves cut faces open;
-    ``"capped"`` closes every cut of a piece with planar caps (:func:`cap_piece`; their faces get
-    ``src_face = -1``).
+    lattice for faces just outside within the fit tolerance). ``caps="open"`` leaves cut faces open.
+    ``"capped"`` instead clips the example to each cell by the cell's interior lattice planes with
+    :func:`synthkit.core.mesh.clip_by_planes` (``cap=True``), which closes every cut with planar caps
+    (cap faces get ``src_face = -1``; meaningful for closed examples).
     """
+    if caps == "capped":
+        return _capped_pieces(V, F, lattice)
     normals, offsets = [], []
     for axis in range(3):
         for m in range(1, int(lattice.counts[axis])):
@@ -157,32 +160,52 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
     for p in range(n_cells):
         sel = order[bounds[p] : bounds[p + 1]]
         Vp, Fp, _ = remove_unreferenced(V2, F2[sel])
-        Lp = (Vp - lattice.cell_lo(index[p])) / lattice.unit
-        Sp = src[sel]
-        if caps == "capped" and len(Fp):
-            Lp, Fp, Sp = cap_piece(Lp, Fp, Sp, index[p], lattice.counts)
-        pieces.local.append(Lp)
+        pieces.local.append((Vp - lattice.cell_lo(index[p])) / lattice.unit)
         pieces.faces.append(Fp)
-        pieces.src_face.append(Sp)
+        pieces.src_face.append(src[sel])
     return pieces
 
 
-def cap_piece(L, F, src, index, counts, *, tol: float = 1e-9):
-    """Close a piece's cuts: planar caps (:func:`synthkit.core.mesh.cap_plane`) on each of its cell faces
-    that is an interior lattice plane. Works in local coordinates; returns ``(L, F2, src2)`` with
-    cap faces appended (``src = -1``)."""
-    for t in range(3):
-        for side in (0, 1):
-            plane = int(index[t]) + side
-            if plane == 0 or plane == int(counts[t]):
-                continue
-            n = np.zeros(3)
-            n[t] = 1.0 if side else -1.0
-            C = cap_plane(L, F, n, float(side) if side else 0.0, tol=tol)
-            if len(C):
-                F = np.concatenate([F, C])
-                src = np.concatenate([src, np.full(len(C), -1, np.int64)])
-    return L, F, src
+def _capped_pieces(V, F, lattice: LatticeSpec) -> Pieces:
+    """Pieces by clipping with caps: slabs along X, each cut into Y slabs, each into Z cells, so every
+    face is clipped only against the planes around it. Only interior lattice planes cut."""
+    counts = lattice.counts
+    n_cells = int(np.prod(counts))
+    index = np.stack(np.unravel_index(np.arange(n_cells), tuple(counts)), axis=1)
+    out: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def split(Vm, Fm, Sm, axis, prefix):
+        if axis == 3:
+            out[prefix] = (Vm, Fm, Sm)
+            return
+        n = np.zeros(3)
+        n[axis] = 1.0
+        for i in range(int(counts[axis])):
+            lo = lattice.origin[axis] + i * lattice.unit[axis]
+            normals, offsets = [], []
+            if i < counts[axis] - 1:
+                normals.append(n)
+                offsets.append(lo + lattice.unit[axis])
+            if i > 0:
+                normals.append(-n)
+                offsets.append(-lo)
+            if normals and len(Fm):
+                Vi, Fi, keep = clip_by_planes(Vm, Fm, np.array(normals), np.array(offsets), cap=True)
+                Si = np.where(keep >= 0, Sm[np.maximum(keep, 0)], -1)
+            else:
+                Vi, Fi, Si = Vm, Fm, Sm
+            split(Vi, Fi, Si, axis + 1, prefix + (i,))
+
+    F = np.asarray(F, np.int64)
+    split(np.asarray(V, np.float64), F, np.arange(len(F)), 0, ())
+    pieces = Pieces(lattice=lattice, index=index)
+    for p in range(n_cells):
+        Vp, Fp, Sp = out[tuple(int(v) for v in index[p])]
+        Vp, Fp, _ = remove_unreferenced(Vp, Fp)
+        pieces.local.append((Vp - lattice.cell_lo(index[p])) / lattice.unit)
+        pieces.faces.append(Fp)
+        pieces.src_face.append(Sp)
+    return pieces
 
 
 def feature_vectors(pieces: Pieces, *, corner_tol: float = 1e-6) -> np.ndarray:

@@ -67,7 +67,8 @@ class Analysis:
     top7, top20 : share of offsets in the top 7% / 20% of occupied bins.
     dominant : (m, 3) dominant offsets before refinement; dominant_refined : (m, 3) after ICP;
     dominant_counts : (m,) offsets in each peak's window; dominant_overlap : (m,) share of the
-    dense cloud that the refined offset maps onto the surface.
+    dense cloud that the refined offset maps onto the surface; dominant_grip : (m,) how firmly the
+    matched surface pins the offset along itself (see :func:`refine_offset`).
     principal_index : indices into ``dominant`` of the principal offsets (0 to 3 of them).
     basis : (3, 3) columns = principal offsets then dummy directions; n_principal : int.
     """
@@ -85,6 +86,7 @@ class Analysis:
     dominant_refined: np.ndarray
     dominant_counts: np.ndarray
     dominant_overlap: np.ndarray
+    dominant_grip: np.ndarray
     principal_index: list[int] = field(default_factory=list)
     basis: np.ndarray | None = None
     n_principal: int = 0
@@ -279,7 +281,7 @@ def refine_offset(
     inlier_radius: float = 0.02,
     max_iter: int = 40,
     tol: float = 1e-9,
-) -> tuple[np.ndarray, float]:
+) -> tuple[np.ndarray, float, float]:
     """Translation-only ICP of the cloud onto itself, starting at offset ``t0 (3,)``.
 
     Each iteration moves ``sources`` (indices into ``P``, default all) by the current ``t``, pairs
@@ -288,8 +290,11 @@ def refine_offset(
     for the update, regularised by a point-to-point term of weight 0.01 so that directions no plane
     constrains still converge. Stops when the update is below ``tol``.
 
-    Returns ``(t (3,), overlap)``: the refined offset and the share of sources that land within
-    ``inlier_radius`` of a compatible point (how much of the model the offset maps onto itself).
+    Returns ``(t (3,), overlap, grip)``: the refined offset, the share of sources that land within
+    ``inlier_radius`` of a compatible point (how much of the model the offset maps onto itself),
+    and the mean squared component along ``t`` of the matched normals, which is near 0 when the
+    matched surface could slide along ``t`` (a continuous symmetry such as a long plank, not a
+    repetition) and 1/3 for normals spread evenly over all directions.
     """
     P = np.asarray(P, dtype=np.float64)
     N = np.asarray(N, dtype=np.float64)
@@ -317,7 +322,11 @@ def refine_offset(
     d, j = tree.query(S + t, distance_upper_bound=inlier_radius)
     ok = np.isfinite(d)
     ok[ok] &= np.einsum("ij,ij->i", SN[ok], N[j[ok]]) > 0.8
-    return t, float(ok.mean()) if len(S) else 0.0
+    if not ok.any():
+        return t, 0.0, 0.0
+    u = t / max(np.linalg.norm(t), 1e-300)
+    grip = float(np.mean((N[j[ok]] @ u) ** 2))
+    return t, float(ok.mean()), grip
 
 
 def select_principal(vectors, *, min_angle: float = np.pi / 3, max_count: int = 3, eligible=None) -> list[int]:
@@ -402,6 +411,7 @@ def analyze(
     min_peak_share: float = 0.01,
     max_dominant: int = 20,
     min_overlap: float = 0.15,
+    min_grip: float = 0.02,
     min_angle: float = np.pi / 3,
     max_principal: int = 3,
     dummy_length: float = 0.2,
@@ -413,8 +423,9 @@ def analyze(
     Randomness enters through the Poisson-disk seeds and the ICP source subset, both drawn from
     ``np.random.default_rng(rng)``. A dominant offset needs at least ``max(5, min_peak_share x
     #offsets)`` offsets in its window; only refined offsets whose ICP ``overlap`` reaches
-    ``min_overlap`` can become principal (a peak that does not map a real part of the surface onto
-    itself is not a repetition). Principal offsets are signed so their largest component is positive.
+    ``min_overlap`` and whose ``grip`` reaches ``min_grip`` can become principal (a peak that does
+    not map a real part of the surface onto itself, or only slides a plank along itself, is not a
+    repetition). Principal offsets are signed so their largest component is positive.
     """
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))
@@ -435,11 +446,13 @@ def analyze(
     src = np.sort(gen.choice(len(feats.dense_P), size=n_src, replace=False)) if n_src else None
     refined = np.zeros_like(dom)
     overlap = np.zeros(len(dom))
+    grip = np.zeros(len(dom))
     for i, t0 in enumerate(dom):
-        refined[i], overlap[i] = refine_offset(
+        refined[i], overlap[i], grip[i] = refine_offset(
             feats.dense_P, feats.dense_N, t0, tree=tree, sources=src, inlier_radius=dense_radius
         )
-    chosen = select_principal(refined, min_angle=min_angle, max_count=max_principal, eligible=overlap >= min_overlap)
+    eligible = (overlap >= min_overlap) & (grip >= min_grip)
+    chosen = select_principal(refined, min_angle=min_angle, max_count=max_principal, eligible=eligible)
     principal = np.array([_canonical_sign(refined[i]) for i in chosen]).reshape(-1, 3)
     basis, k = offset_basis(principal, dummy_length=dummy_length)
     return Analysis(
@@ -456,6 +469,7 @@ def analyze(
         dominant_refined=refined,
         dominant_counts=mags,
         dominant_overlap=overlap,
+        dominant_grip=grip,
         principal_index=chosen,
         basis=basis,
         n_principal=k,

@@ -1,0 +1,90 @@
+"""Config schema of ``synthkit retarget`` (paper defaults from Wu et al., sections IV and V)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from synthkit.config import InputFile, RunConfig, StrictModel
+
+__all__ = ["CONFIG", "RetargetConfig", "AnalysisSection", "TargetSection", "Pin"]
+
+
+class AnalysisSection(StrictModel):
+    """Offset statistics (section III-A, IV, V); lengths in normalised units (longest side = 2)."""
+
+    dense_radius: float = Field(0.02, gt=0, le=0.5, description="Poisson-disk spacing of the dense support cloud.")
+    feature_radius: float = Field(0.06, gt=0, le=0.5, description="Poisson-disk spacing of the feature samples.")
+    use_vertices: bool = Field(True, description="Add the mesh vertices as features.")
+    descriptor: Literal["shot", "fpfh"] = Field("shot", description="Feature descriptor (SHOT 352-d or FPFH 33-d).")
+    descriptor_radius: float = Field(0.2, gt=0, le=1.0, description="Support radius of the descriptor.")
+    tau: float = Field(0.15, ge=0, le=2.0, description="Minimum offset length of a match (eq. 1).")
+    bin_size: float = Field(0.05, gt=0, le=0.5, description="Side of a cubic offset-histogram bin.")
+    nms_window: float = Field(0.15, gt=0, le=1.0, description="Non-maximum suppression window.")
+    min_peak_share: float = Field(
+        0.01, ge=0, le=1, description="Offsets a dominant offset's window must hold, as a share of all offsets."
+    )
+    max_dominant: int = Field(20, ge=1, le=200, description="Dominant offsets kept and refined by ICP.")
+    min_overlap: float = Field(
+        0.15, ge=0, le=1, description="Share of the dense cloud a principal offset must map onto the surface."
+    )
+    min_grip: float = Field(
+        0.02, ge=0, le=1, description="Mean squared normal component along a principal offset (rejects sliding)."
+    )
+    min_angle_deg: float = Field(60.0, gt=0, le=90, description="Minimum angle between principal offsets (theta).")
+    max_principal: int = Field(3, ge=0, le=3, description="At most this many principal offsets.")
+    dummy_length: float = Field(0.2, gt=0, le=2.0, description="Length of the orthogonal dummy directions.")
+
+
+class TargetSection(StrictModel):
+    """Target size: exactly one of ``steps``, ``axis_steps`` or ``scale``."""
+
+    steps: list[int] | None = Field(
+        None, min_length=1, max_length=3, description="Integer steps per principal offset, in report order."
+    )
+    axis_steps: dict[Literal["x", "y", "z"], int] | None = Field(
+        None, description="Steps along the principal offset closest to each named world axis."
+    )
+    scale: list[float] | None = Field(
+        None, min_length=1, max_length=3, description="Scale factor per principal offset, rounded to steps."
+    )
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        given = [k for k in ("steps", "axis_steps", "scale") if getattr(self, k) is not None]
+        if len(given) > 1:
+            raise ValueError(f"give only one of steps, axis_steps, scale (got {', '.join(given)})")
+        if self.scale is not None and any(f <= 0 for f in self.scale):
+            raise ValueError(f"scale factors must be > 0 (got {self.scale})")
+        return self
+
+
+class Pin(StrictModel):
+    """A user constraint: output voxel ``voxel`` copies the input shifted by ``shift`` steps."""
+
+    voxel: list[int] = Field(min_length=3, max_length=3, description="Output voxel index (i, j, k).")
+    shift: list[int] = Field(min_length=3, max_length=3, description="Label: integer shift per grid axis.")
+
+
+class RetargetConfig(RunConfig):
+    """``synthkit retarget``: resize a mesh along its principal offsets by a graph cut."""
+
+    method: Literal["retarget"] = "retarget"
+    input: InputFile = Field(description="Input mesh (OBJ, PLY, GLB, OFF, STL).")
+    analyze_only: bool = Field(False, description="Stop after the offset statistics (CLI --analyze-only).")
+    analysis: AnalysisSection = Field(default_factory=AnalysisSection)
+    target: TargetSection = Field(default_factory=lambda: TargetSection(steps=[1]))
+    offsets: Literal["statistics", "regular"] = Field(
+        "statistics", description="Label space: principal offsets, or the conventional regular grid (baseline)."
+    )
+    regular_spacing: float = Field(0.1, gt=0, le=1.0, description="Voxel size of the regular baseline.")
+    compare_baseline: bool = Field(False, description="Also run the regular baseline and report it.")
+    label_margin: int = Field(0, ge=0, le=4, description="Extra shifts beyond the steps on each side.")
+    pins: list[Pin] = Field(default_factory=list, description="Voxels pinned to labels (interactive use).")
+    max_cycles: int = Field(20, ge=1, le=1000, description="Alpha-expansion cycles at most.")
+    weld_tolerance: float = Field(1e-7, gt=0, le=1e-2, description="Seam weld distance, normalised units.")
+    preview_size: int = Field(256, ge=64, le=2048, description="Side of the PNG previews in pixels.")
+
+
+CONFIG = RetargetConfig

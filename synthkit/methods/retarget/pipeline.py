@@ -1,0 +1,350 @@
+"""``synthkit retarget``: load a mesh, compute offset statistics, retarget by graph cut, write outputs.
+
+Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (grid, voxel descriptor
+sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld, map back), and the
+same three prefixed ``baseline_`` when the regular-offset baseline runs. Outputs: the retargeted mesh
+in the input's format, ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
+labels), PNG previews (sparsity curve, offset histogram, offsets over the model, before / after /
+labels renders) and metrics.
+
+No repetition (no principal offset): the statistics and previews are written, ``ctx.metrics`` is
+filled, then :class:`~synthkit.errors.InputError` is raised (exit 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from synthkit.core.mesh import normalize_unit, weld
+from synthkit.errors import InputError
+from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.methods.retarget.analysis import Analysis, analyze, describe
+from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, voxel_pieces
+from synthkit.preview import heatmap_png, montage_png, plot_curve_png, rasterize_mesh, render_mesh_png
+
+__all__ = ["run", "Retargeted", "synthesize", "resolve_steps"]
+
+_MESH_OUT = (".obj", ".ply", ".glb", ".off", ".stl")
+
+
+@dataclass
+class Retargeted:
+    """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)``, ``face_label (m,)``,
+    the grid, the problem (labels, shapes), the labeling ``(N,)`` and its energy."""
+
+    V: np.ndarray
+    F: np.ndarray
+    face_label: np.ndarray
+    grid: VoxelGrid
+    problem: RetargetProblem
+    labeling: np.ndarray
+    energy: float
+    cycles: int
+
+
+def _voxel_sets(an: Analysis, grid: VoxelGrid, pieces: dict, *, descriptor: str, radius: float) -> list[np.ndarray]:
+    """Descriptor set G of every input voxel (flat C order): the features inside it. A voxel the
+    surface reaches but that holds no feature (a sliver thinner than the feature spacing) gets up
+    to 8 of its dense samples, described the same way, so that it is not mistaken for empty."""
+    fs = an.features
+    shape = tuple(grid.shape)
+    vox = grid.voxel_of(grid.to_canonical(fs.P))
+    ok = np.all((vox >= 0) & (vox < grid.shape), axis=1)
+    flat = np.full(len(vox), -1)
+    flat[ok] = np.ravel_multi_index(tuple(vox[ok].T), shape)
+    sets = [fs.D[flat == i] for i in range(grid.n_voxels)]
+    missing = [i for i in pieces if len(sets[i]) == 0]
+    if missing:
+        dvox = grid.voxel_of(grid.to_canonical(fs.dense_P))
+        dok = np.all((dvox >= 0) & (dvox < grid.shape), axis=1)
+        dflat = np.full(len(dvox), -1)
+        dflat[dok] = np.ravel_multi_index(tuple(dvox[dok].T), shape)
+        for i in missing:
+            idx = np.flatnonzero(dflat == i)
+            if len(idx):
+                idx = idx[np.linspace(0, len(idx) - 1, min(8, len(idx))).astype(int)]
+                sets[i] = describe(
+                    fs.dense_P[idx], fs.dense_N[idx], fs.dense_P, fs.dense_N, descriptor=descriptor, radius=radius
+                )
+    return sets
+
+
+def synthesize(Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "") -> Retargeted:
+    """Retarget the normalised mesh ``Vn``, ``F`` on the grid spanned by ``basis (3, 3)`` by
+    ``steps (3,)`` voxels per axis; stages timed on ``ctx`` as ``<prefix>synthesis``,
+    ``<prefix>graphcut``, ``<prefix>assemble``. Raises InputError when no finite labeling exists."""
+    a = cfg.analysis
+    with ctx.stage(f"{prefix}synthesis"):
+        grid = make_grid(basis, an.features.dense_P, an.features.dense_N, Vn, dense_radius=a.dense_radius)
+        pieces = voxel_pieces(grid.to_canonical(Vn), F, grid)
+        sets = _voxel_sets(an, grid, pieces, descriptor=a.descriptor, radius=a.descriptor_radius)
+        steps = np.asarray(steps, dtype=np.int64)
+        out_shape = grid.shape + steps
+        for axis in np.flatnonzero(steps):
+            if out_shape[axis] < 2:
+                raise InputError(
+                    f"{cfg.input}: {int(steps[axis])} steps along grid axis {int(axis)} would shrink below one "
+                    f"cell (the input spans {int(grid.shape[axis])} voxels; at least 2 must remain)"
+                )
+        margin = np.where(np.arange(3) < an.n_principal, cfg.label_margin, 0) if not prefix else [cfg.label_margin] * 3
+        pins = [(p.voxel, p.shift) for p in cfg.pins] if not prefix else []
+        try:
+            problem = RetargetProblem(grid.shape, steps, sets, margin=margin, pins=pins)
+        except ValueError as exc:
+            raise InputError(f"{cfg.input}: pins: {exc}") from None
+    with ctx.stage(f"{prefix}graphcut"):
+        try:
+            result = problem.solve(rng=ctx.rng, max_cycles=cfg.max_cycles)
+        except ValueError as exc:
+            raise InputError(f"{cfg.input}: no valid labeling: {exc}") from None
+    if not np.isfinite(result.energy):
+        raise InputError(
+            f"{cfg.input}: no seamless retargeting for steps {steps.tolist()}: every labeling joins an empty voxel "
+            "to a non-empty one (try other steps)"
+        )
+    with ctx.stage(f"{prefix}assemble"):
+        Vc, Fo, fl = assemble(pieces, problem, result.labels)
+        Vo = grid.to_normalised(Vc)
+        Vw, Fw, old_to_new = weld(Vo, Fo, cfg.weld_tolerance, return_index=True)
+        Fmapped = old_to_new[Fo]
+        keep = (Fmapped[:, 0] != Fmapped[:, 1]) & (Fmapped[:, 1] != Fmapped[:, 2]) & (Fmapped[:, 2] != Fmapped[:, 0])
+        used = np.unique(Fw)
+        remap = np.full(len(Vw), -1)
+        remap[used] = np.arange(len(used))
+    return Retargeted(Vw[used], remap[Fw], fl[keep], grid, problem, result.labels, result.energy, result.cycles)
+
+
+def resolve_steps(target, an: Analysis, Vn, *, source) -> np.ndarray:
+    """Steps ``(3,)`` per basis column from the config's target (steps, axis_steps or scale).
+
+    ``scale`` factor f along principal offset i becomes ``round((f - 1) * extent_i)`` steps, with
+    ``extent_i`` the model's extent along canonical axis i in steps. Steps along dummy directions
+    are refused (InputError naming the key), as the paper never resizes along them.
+    """
+    k = an.n_principal
+    steps = np.zeros(3, dtype=np.int64)
+    if target.axis_steps is not None:
+        used: dict[int, str] = {}
+        for name, s in target.axis_steps.items():
+            axis = np.eye(3)["xyz".index(name)]
+            if k == 0:
+                if s:
+                    raise InputError(f"{source}: target.axis_steps.{name}={s}: no principal offset was found")
+                continue
+            P = an.basis[:, :k].T
+            cos = np.abs(P @ axis) / np.linalg.norm(P, axis=1)
+            i = int(np.argmax(cos))
+            if i in used and s:
+                raise InputError(f"{source}: target.axis_steps: {used[i]} and {name} both map to principal offset {i}")
+            if s:
+                used[i] = name
+                steps[i] += s
+        return steps
+    if target.scale is not None:
+        ext = np.ptp(Vn @ np.linalg.inv(an.basis).T, axis=0)
+        for i, f in enumerate(target.scale):
+            steps[i] = int(round((f - 1.0) * ext[i]))
+            if steps[i] and i >= k:
+                raise InputError(f"{source}: target.scale[{i}]={f}: only {k} principal offset(s) were found")
+        return steps
+    given = target.steps if target.steps is not None else [1]
+    for i, s in enumerate(given):
+        if s and i >= k:
+            raise InputError(f"{source}: target.steps[{i}]={s}: only {k} principal offset(s) were found")
+        steps[i] = s
+    return steps
+
+
+def _palette(n: int) -> np.ndarray:
+    """``(n, 3)`` distinct colours (golden-ratio hues)."""
+    import colorsys
+
+    return np.array([colorsys.hsv_to_rgb((0.13 + i * 0.618034) % 1.0, 0.55, 0.95) for i in range(max(n, 1))])
+
+
+def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
+    """Metrics and previews of the analysis (Fig. 2, Fig. 5)."""
+    principal_n = an.principal
+    order = np.argsort(-an.dominant_counts, kind="stable")
+    ctx.metrics.update(
+        {
+            "principal_offsets": (principal_n * scale).tolist(),
+            "principal_offsets_normalised": principal_n.tolist(),
+            "n_principal": an.n_principal,
+            "basis_normalised": an.basis.T.tolist(),
+            "dominant_offsets": [
+                {
+                    "offset": (an.dominant_refined[i] * scale).tolist(),
+                    "offset_normalised": an.dominant_refined[i].tolist(),
+                    "before_icp_normalised": an.dominant[i].tolist(),
+                    "count": int(an.dominant_counts[i]),
+                    "overlap": float(an.dominant_overlap[i]),
+                    "grip": float(an.dominant_grip[i]),
+                    "principal": int(i) in an.principal_index,
+                }
+                for i in order
+            ],
+            "sparsity_top7": an.top7,
+            "sparsity_top20": an.top20,
+            "n_features": int(len(an.features.P)),
+            "n_vertex_features": int(an.features.n_vertex_features),
+            "n_dense_samples": int(len(an.features.dense_P)),
+            "n_offsets": int(len(an.offsets)),
+            "n_bins": int(len(an.bin_counts)),
+            "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
+        }
+    )
+    plot_curve_png(
+        ctx.path("sparsity_plot", "sparsity.png"),
+        an.curve_x * 100.0,
+        an.curve_y * 100.0,
+        xlabel="% of occupied bins (sorted)",
+        ylabel="% of offsets",
+        title=f"offset sparsity: top 7% {an.top7:.1%}, top 20% {an.top20:.1%}",
+    )
+    keys, counts = an.bin_keys, an.bin_counts
+    views = []
+    for a0, a1 in ((0, 1), (0, 2)):
+        if len(keys):
+            lo = keys[:, [a0, a1]].min(axis=0)
+            shape = keys[:, [a0, a1]].max(axis=0) - lo + 1
+            img = np.zeros(tuple(shape))
+            np.add.at(img, tuple((keys[:, [a0, a1]] - lo).T), counts)
+        else:
+            img = np.zeros((1, 1))
+        views.append(np.log1p(img.T[::-1]))
+    tiles = [
+        heatmap_png(ctx.path(f"histogram_{i}", f"histogram_{n}.png"), v, title=f"offsets {n} (log)")
+        for i, (v, n) in enumerate(zip(views, ("xy", "xz"), strict=True))
+    ]
+    montage_png(ctx.path("histogram", "histogram.png"), tiles, titles=["bins x-y", "bins x-z"])
+    c0 = V.mean(axis=0)
+    segs = [[c0, c0 + v * scale] for v in an.dominant_refined] + [[c0, c0 + v * scale] for v in principal_n]
+    render_mesh_png(
+        ctx.path("offsets_preview", "offsets.png"),
+        V,
+        F,
+        size=cfg.preview_size,
+        lines=np.array(segs).reshape(-1, 2, 3) if segs else None,
+    )
+
+
+def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefix: str) -> None:
+    """Write mesh, label volume, labelled PLY and renders of one result; fill its metrics."""
+    Vm = res.V * scale + center
+    mesh = trimesh.Trimesh(Vm, res.F, process=False)
+    name = f"{prefix}retargeted{suffix}"
+    save_mesh(mesh, ctx.path(f"{prefix}mesh", name))
+    np.save(
+        ctx.path(f"{prefix}labels_volume", f"{prefix}labels.npy"), res.problem.volume(res.labeling).astype(np.int32)
+    )
+    save_mesh(mesh, ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply"), face_labels=res.face_label)
+    colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
+    render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
+    render_mesh_png(
+        ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
+        Vm,
+        res.F,
+        face_colors=colours,
+        size=cfg.preview_size,
+    )
+
+
+def _result_metrics(res: Retargeted, steps, graphcut_seconds: float) -> dict:
+    return {
+        "graph_nodes": int(res.problem.n_nodes),
+        "graph_labels": int(res.problem.n_labels),
+        "graph_edges": int(len(res.problem.edges)),
+        "energy": float(res.energy),
+        "cycles": int(res.cycles),
+        "graphcut_seconds": float(graphcut_seconds),
+        "steps": np.asarray(steps).tolist(),
+        "grid_in": res.grid.shape.tolist(),
+        "grid_out": res.problem.out_shape.tolist(),
+        "label_shifts": res.problem.labels.tolist(),
+        "labels_used": int(len(np.unique(res.labeling))),
+        "output_faces": int(len(res.F)),
+        "output_vertices": int(len(res.V)),
+    }
+
+
+def run(cfg, ctx) -> None:
+    """Run the retargeting described by ``cfg`` (a :class:`RetargetConfig`) into ``ctx``."""
+    with ctx.stage("load"):
+        mesh = load_mesh(cfg.input)
+        V = np.asarray(mesh.vertices, dtype=np.float64)
+        F = np.asarray(mesh.faces, dtype=np.int64)
+        try:
+            Vn, center, scale = normalize_unit(V[np.unique(F)])
+        except ValueError as exc:
+            raise InputError(f"{cfg.input}: {exc}") from None
+        Vn = (V - center) / scale
+        suffix = Path(cfg.input).suffix.lower()
+        suffix = suffix if suffix in _MESH_OUT else ".ply"
+    a = cfg.analysis
+    with ctx.stage("analysis"):
+        an = analyze(
+            Vn,
+            F,
+            dense_radius=a.dense_radius,
+            feature_radius=a.feature_radius,
+            use_vertices=a.use_vertices,
+            descriptor=a.descriptor,
+            descriptor_radius=a.descriptor_radius,
+            tau=a.tau,
+            bin_size=a.bin_size,
+            nms_window=a.nms_window,
+            min_peak_share=a.min_peak_share,
+            max_dominant=a.max_dominant,
+            min_overlap=a.min_overlap,
+            min_grip=a.min_grip,
+            min_angle=np.radians(a.min_angle_deg),
+            max_principal=a.max_principal,
+            dummy_length=a.dummy_length,
+            rng=ctx.rng,
+        )
+    _statistics_outputs(an, V, F, center, scale, cfg, ctx)
+    before = rasterize_mesh(V, F, size=cfg.preview_size)
+    render_mesh_png(ctx.path("before", "before.png"), V, F, size=cfg.preview_size)
+    ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
+    if cfg.analyze_only:
+        return
+    if an.n_principal == 0:
+        ctx.metrics["error"] = "no repetition found"
+        raise InputError(
+            f"{cfg.input}: no repetition found (no dominant offset maps at least {a.min_overlap:.0%} of the surface "
+            f"onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); refusing to resize"
+        )
+    steps = resolve_steps(cfg.target, an, Vn, source=cfg.input)
+    growth = an.basis @ steps
+    results = []
+    if cfg.offsets == "statistics" or cfg.compare_baseline:
+        res = synthesize(Vn, F, an, an.basis, steps, cfg=cfg, ctx=ctx)
+        results.append(("", res, steps, ctx.timings["graphcut"]))
+    if cfg.offsets == "regular" or cfg.compare_baseline:
+        h = cfg.regular_spacing
+        reg_steps = np.rint(growth / h).astype(np.int64)
+        prefix = "baseline_" if cfg.offsets == "statistics" else ""
+        res_b = synthesize(Vn, F, an, h * np.eye(3), reg_steps, cfg=cfg, ctx=ctx, prefix=prefix or "regular_")
+        results.append((prefix, res_b, reg_steps, ctx.timings[f"{prefix or 'regular_'}graphcut"]))
+    if cfg.offsets == "regular":
+        ctx.timings["graphcut"] = ctx.timings.get("regular_graphcut", 0.0)
+    with ctx.stage("output"):
+        renders = [before]
+        titles = ["input"]
+        for prefix, res, st, secs in results:
+            _save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix)
+            metrics = _result_metrics(res, st, secs)
+            if prefix:
+                ctx.metrics["baseline"] = metrics
+            else:
+                ctx.metrics.update(metrics)
+                ctx.metrics["growth"] = (growth * scale).tolist()
+            colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
+            renders.append(rasterize_mesh(res.V * scale + center, res.F, face_colors=colours, size=cfg.preview_size))
+            titles.append(f"{prefix or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels")
+        montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)

@@ -1,0 +1,325 @@
+"""Retargeting by stitching translated copies with a multi-label graph cut (Wu et al., III-B, V).
+
+Pure functions over arrays. Geometry is handled in *canonical* coordinates ``c = B^-1 x`` where the
+columns of ``B (3, 3)`` are the principal offsets (and dummy directions) in normalised units: a
+principal offset is one unit step along a canonical axis and a voxel is a unit cube (Fig. 7).
+
+- :func:`grid_phase` / :class:`VoxelGrid`: the input's voxel grid Omega_in (integer-aligned cubes
+  shifted by a phase chosen so voxel faces avoid the surface).
+- :func:`label_set`: the offset space Phi (eq. 2) as integer shifts, one label per copy.
+- :class:`RetargetProblem`: unary (0 / inf) and pairwise (eq. 4) terms on the 26-connected output
+  grid; :meth:`RetargetProblem.solve` runs alpha-expansion.
+- :func:`voxel_pieces` / :func:`assemble`: clip the input to each voxel and place the pieces.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from synthkit.core.descriptors import descriptor_distances
+from synthkit.core.graphcut import ExpansionResult, alpha_expansion
+from synthkit.core.mesh import split_by_planes
+
+__all__ = [
+    "VoxelGrid",
+    "grid_phase",
+    "make_grid",
+    "label_set",
+    "hausdorff",
+    "RetargetProblem",
+    "voxel_pieces",
+    "assemble",
+]
+
+
+@dataclass(frozen=True)
+class VoxelGrid:
+    """A grid of unit voxels in canonical coordinates.
+
+    basis : (3, 3) columns = step vectors in normalised units; inverse : (3, 3) = basis^-1.
+    origin : (3,) canonical corner of voxel (0, 0, 0); shape : (3,) int voxels per axis.
+    """
+
+    basis: np.ndarray
+    inverse: np.ndarray
+    origin: np.ndarray
+    shape: np.ndarray
+
+    def to_canonical(self, X) -> np.ndarray:
+        """Canonical coordinates ``(n, 3)`` of normalised points ``X (n, 3)``."""
+        return np.asarray(X, dtype=np.float64) @ self.inverse.T
+
+    def to_normalised(self, C) -> np.ndarray:
+        """Normalised coordinates ``(n, 3)`` of canonical points ``C (n, 3)``."""
+        return np.asarray(C, dtype=np.float64) @ self.basis.T
+
+    def voxel_of(self, C) -> np.ndarray:
+        """Integer voxel index ``(n, 3)`` of canonical points (may lie outside ``shape``)."""
+        return np.floor(np.asarray(C, dtype=np.float64) - self.origin).astype(np.int64)
+
+    @property
+    def n_voxels(self) -> int:
+        return int(np.prod(self.shape))
+
+
+def grid_phase(C, plane_distance, *, parallel=None, n_phases: int = 32) -> np.ndarray:
+    """Per canonical axis, the phase in [0, 1) of the voxel faces that cuts the least surface.
+
+    ``C (n, 3)`` are canonical coordinates of the dense samples; ``plane_distance (3,)`` the
+    canonical distance that counts as "on a face" per axis; ``parallel (n, 3) bool`` marks the
+    samples whose surface is nearly parallel to the faces of each axis (all samples when None;
+    a surface crossing a face is cut cleanly, one lying along it is not). For each of
+    ``n_phases`` candidate phases the marked samples within that distance of a face
+    ``c_i = phase + k`` are counted; the phase
+    is the centre of the longest (circular) run of candidates with the minimum count. The paper
+    only says copies must be aligned with the grid; putting faces where the surface is sparse
+    keeps boards, frames and floors whole inside one voxel and avoids faces coplanar with a cut.
+    """
+    C = np.asarray(C, dtype=np.float64).reshape(-1, 3)
+    phases = np.arange(n_phases) / n_phases
+    out = np.zeros(3)
+    for i in range(3):
+        frac = np.mod(C[:, i][None, :] - phases[:, None], 1.0)
+        near = np.minimum(frac, 1.0 - frac) < plane_distance[i]
+        if parallel is not None:
+            near &= parallel[None, :, i]
+        counts = near.sum(axis=1)
+        best = counts == counts.min()
+        # longest circular run of minimal phases
+        run, best_len, best_end = 0, 0, 0
+        for k in range(2 * n_phases):
+            run = run + 1 if best[k % n_phases] else 0
+            run = min(run, n_phases)
+            if run > best_len:
+                best_len, best_end = run, k
+        centre = best_end - (best_len - 1) / 2.0
+        out[i] = np.mod(centre, n_phases) / n_phases
+    return out
+
+
+def make_grid(basis, dense_P, dense_N, extent_P, *, dense_radius: float = 0.02) -> VoxelGrid:
+    """The input voxel grid for step vectors ``basis (3, 3)`` (columns), with the phase of
+    :func:`grid_phase` from the dense samples ``dense_P (n, 3)`` with normals ``dense_N (n, 3)``
+    (a sample counts as parallel to a face when its normal is within 45 degrees of the face
+    normal), covering all of ``extent_P (m, 3)`` (the mesh vertices), normalised units."""
+    B = np.asarray(basis, dtype=np.float64)
+    inv = np.linalg.inv(B)
+    row_norm = np.linalg.norm(inv, axis=1)
+    plane_distance = dense_radius * row_norm
+    parallel = np.abs(np.asarray(dense_N) @ (inv / row_norm[:, None]).T) > np.sqrt(0.5)
+    phase = grid_phase(np.asarray(dense_P) @ inv.T, plane_distance, parallel=parallel)
+    Cx = np.asarray(extent_P, dtype=np.float64) @ inv.T
+    k0 = np.floor(Cx.min(axis=0) - phase)
+    k1 = np.ceil(Cx.max(axis=0) - phase)
+    shape = np.maximum(k1 - k0, 1).astype(np.int64)
+    return VoxelGrid(B, inv, phase + k0, shape)
+
+
+def label_set(steps, *, margin=(0, 0, 0)) -> np.ndarray:
+    """The offset space Phi (eq. 2) as integer shifts ``(M, 3) int64``: along axis i the shifts
+    ``min(0, s_i) - m_i .. max(0, s_i) + m_i`` for ``steps s (3,)`` and ``margin m (3,)``, so
+    ``M = prod(|s_i| + 1 + 2 m_i)``; label 0 is the identity when it is in the set."""
+    steps = np.asarray(steps, dtype=np.int64).reshape(3)
+    margin = np.asarray(margin, dtype=np.int64).reshape(3)
+    ranges = [range(min(0, s) - m, max(0, s) + m + 1) for s, m in zip(steps, margin, strict=True)]
+    L = np.array(list(itertools.product(*ranges)), dtype=np.int64).reshape(-1, 3)
+    ident = np.flatnonzero((L == 0).all(axis=1))
+    if len(ident):
+        L = np.concatenate([L[ident], np.delete(L, ident, axis=0)])
+    return L
+
+
+def hausdorff(A, B) -> float:
+    """Hausdorff distance between descriptor sets ``A (a, d)`` and ``B (b, d)`` under L2."""
+    D = descriptor_distances(A, B)
+    return float(max(D.min(axis=1).max(), D.min(axis=0).max()))
+
+
+_NEIGHBOURS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if d > (0, 0, 0)], dtype=np.int64)
+"""The 13 forward offsets of the 26-neighbourhood (each undirected edge once)."""
+
+
+class RetargetProblem:
+    """The MRF of eq. 3 on the output grid Omega.
+
+    Parameters
+    ----------
+    in_shape : (3,) int voxels of the input grid.
+    steps : (3,) int steps per axis (negative shrinks); the output has ``in_shape + steps`` voxels.
+    voxel_sets : list of ``(k_v, d)`` descriptor arrays, one per input voxel in C order (flat
+        index ``np.ravel_multi_index``); an empty array marks an empty voxel.
+    margin : (3,) int extra shifts beyond the steps on each side (0 in the paper).
+    pins : optional list of ``(voxel (3,), shift (3,))``: the output voxel must use that copy.
+
+    Terms: the unary cost of label ``l`` at output voxel ``x`` is 0 when the source voxel
+    ``x - l`` lies in the input grid, infinite otherwise. On every axis with more than one shift,
+    the first and last layers of the output must copy the first and last layers of the input (the
+    paper's energy has no term for the model's ends: without it shrinking could just crop the
+    model; when growing it is already implied). The pairwise cost of eq. 4 between 26-neighbours
+    ``x, x'`` with labels ``l_a, l_b`` is ``d_H(G(x - l_a), G(x - l_b)) + d_H(G(x' - l_a), G(x' - l_b))``
+    with ``G`` the voxel's descriptor set (voxels outside the input are empty), 0 for two empty
+    sets and infinite for an empty against a non-empty one. Hausdorff distances are computed once
+    per (source voxel, label difference) pair that can occur.
+    """
+
+    def __init__(self, in_shape, steps, voxel_sets, *, margin=(0, 0, 0), pins=()):
+        self.in_shape = np.asarray(in_shape, dtype=np.int64).reshape(3)
+        self.steps = np.asarray(steps, dtype=np.int64).reshape(3)
+        self.out_shape = self.in_shape + self.steps
+        if np.any(self.out_shape < 1):
+            raise ValueError(f"steps {self.steps.tolist()} leave no voxel of an input of {self.in_shape.tolist()}")
+        if len(voxel_sets) != int(np.prod(self.in_shape)):
+            raise ValueError(f"need {int(np.prod(self.in_shape))} voxel sets, got {len(voxel_sets)}")
+        self.labels = label_set(self.steps, margin=margin)
+        self.nodes = np.array(list(itertools.product(*[range(n) for n in self.out_shape])), dtype=np.int64)
+        n, m = len(self.nodes), len(self.labels)
+        src = self.nodes[:, None, :] - self.labels[None, :, :]  # (N, M, 3)
+        inside = np.all((src >= 0) & (src < self.in_shape), axis=2)
+        self.source = np.where(
+            inside, np.ravel_multi_index(tuple(np.clip(src, 0, self.in_shape - 1).T), self.in_shape).T, -1
+        )
+        unary = np.where(inside, 0.0, np.inf)
+        for axis in range(3):
+            if len(np.unique(self.labels[:, axis])) < 2:
+                continue
+            first = self.nodes[:, axis] == 0
+            last = self.nodes[:, axis] == self.out_shape[axis] - 1
+            unary[first[:, None] & (src[:, :, axis] != 0)] = np.inf
+            unary[last[:, None] & (src[:, :, axis] != self.in_shape[axis] - 1)] = np.inf
+        for voxel, shift in pins:
+            voxel = np.asarray(voxel, dtype=np.int64).reshape(3)
+            shift = np.asarray(shift, dtype=np.int64).reshape(3)
+            if np.any(voxel < 0) or np.any(voxel >= self.out_shape):
+                raise ValueError(f"pinned voxel {voxel.tolist()} outside the output grid {self.out_shape.tolist()}")
+            hit = np.flatnonzero((self.labels == shift).all(axis=1))
+            if len(hit) == 0:
+                raise ValueError(f"pinned shift {shift.tolist()} is not a label (labels span {self._span()})")
+            row = int(np.ravel_multi_index(tuple(voxel), self.out_shape))
+            keep = unary[row, hit[0]]
+            unary[row] = np.inf
+            unary[row, hit[0]] = keep
+        self.unary = unary
+        self.edges = self._edges()
+        self.empty = np.array([len(s) == 0 for s in voxel_sets] + [True])  # index -1 = outside
+        self._hausdorff_table(voxel_sets)
+        self.n_nodes, self.n_labels = n, m
+
+    def _span(self) -> str:
+        return f"{self.labels.min(axis=0).tolist()}..{self.labels.max(axis=0).tolist()}"
+
+    def _edges(self) -> np.ndarray:
+        grid = np.arange(len(self.nodes)).reshape(tuple(self.out_shape))
+        pairs = []
+        for d in _NEIGHBOURS:
+            sl_a = tuple(slice(max(0, -k), n - max(0, k)) for k, n in zip(d, self.out_shape, strict=True))
+            sl_b = tuple(slice(max(0, k), n - max(0, -k)) for k, n in zip(d, self.out_shape, strict=True))
+            a, b = grid[sl_a].reshape(-1), grid[sl_b].reshape(-1)
+            if len(a):
+                pairs.append(np.stack([a, b], axis=1))
+        return np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64)
+
+    def _hausdorff_table(self, voxel_sets) -> None:
+        """``self.table[s, k] = d_H(G(s), G(s + delta_k))`` for the label differences ``delta_k``."""
+        L = self.labels
+        diffs = (L[:, None, :] - L[None, :, :]).reshape(-1, 3)
+        self.deltas, inv = np.unique(diffs, axis=0, return_inverse=True)
+        self.delta_index = inv.reshape(len(L), len(L))
+        n_in = int(np.prod(self.in_shape))
+        table = np.zeros((n_in, len(self.deltas)))
+        coords = np.array(list(itertools.product(*[range(k) for k in self.in_shape])), dtype=np.int64)
+        index = {tuple(d): k for k, d in enumerate(self.deltas.tolist())}
+        done = np.zeros(len(self.deltas), bool)
+        for k, delta in enumerate(self.deltas):
+            if done[k] or not delta.any():
+                done[k] = True
+                continue
+            back = index[tuple((-delta).tolist())]
+            tgt = coords + delta
+            ok = np.all((tgt >= 0) & (tgt < self.in_shape), axis=1)
+            for s in np.flatnonzero(ok):
+                t = int(np.ravel_multi_index(tuple(tgt[s]), self.in_shape))
+                if len(voxel_sets[s]) and len(voxel_sets[t]):
+                    table[s, k] = table[t, back] = hausdorff(voxel_sets[s], voxel_sets[t])
+            done[k] = done[back] = True
+        self.table = table
+
+    def _term(self, nodes, la, lb) -> np.ndarray:
+        sa, sb = self.source[nodes, la], self.source[nodes, lb]
+        ea, eb = self.empty[sa], self.empty[sb]
+        val = self.table[np.maximum(sa, 0), self.delta_index[la, lb]]
+        return np.where(ea & eb, 0.0, np.where(ea != eb, np.inf, val))
+
+    def pairwise(self, eidx, la, lb) -> np.ndarray:
+        """Eq. 4 for edges ``eidx (k,)`` with labels ``la`` (first node) and ``lb`` (second node)."""
+        e = self.edges[eidx]
+        cost = self._term(e[:, 0], la, lb) + self._term(e[:, 1], la, lb)
+        return np.where(la == lb, 0.0, cost)
+
+    def solve(self, *, rng=None, max_cycles: int = 20) -> ExpansionResult:
+        """Alpha-expansion from the identity-nearest labeling; infinite results are returned as is."""
+        return alpha_expansion(
+            self.unary, self.edges, self.pairwise, max_cycles=max_cycles, rng=rng, allow_infinite=True
+        )
+
+    def volume(self, labeling) -> np.ndarray:
+        """Label indices ``(N,)`` reshaped to the output grid ``out_shape``."""
+        return np.asarray(labeling).reshape(tuple(self.out_shape))
+
+
+def voxel_pieces(Vc, F, grid: VoxelGrid) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The input cut into its voxels: flat voxel index -> ``(V (k, 3) canonical, F (m, 3))``.
+
+    ``Vc (#V, 3)`` are canonical vertex positions. The whole mesh is split once along every inner
+    face plane of the grid (:func:`synthkit.core.mesh.split_by_planes`, exact splits, shared cut
+    vertices), then faces are grouped by the voxel of their centroid, so the pieces of neighbouring
+    voxels meet vertex to vertex with no T-junctions. Voxels the surface does not reach are absent.
+    """
+    Vc = np.asarray(Vc, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    normals, offsets = [], []
+    for axis in range(3):
+        for k in range(1, int(grid.shape[axis])):
+            normals.append(np.eye(3)[axis])
+            offsets.append(grid.origin[axis] + k)
+    if normals:
+        V2, F2, _ = split_by_planes(Vc, F, np.array(normals), np.array(offsets))
+    else:
+        V2, F2 = Vc, F
+    vox = np.clip(grid.voxel_of(V2[F2].mean(axis=1)), 0, grid.shape - 1)
+    flat = np.ravel_multi_index(tuple(vox.T), tuple(grid.shape))
+    pieces = {}
+    order = np.argsort(flat, kind="stable")
+    bounds = np.flatnonzero(np.diff(flat[order])) + 1
+    for group in np.split(order, bounds):
+        if len(group) == 0:
+            continue
+        Fg = F2[group]
+        used, inv = np.unique(Fg, return_inverse=True)
+        pieces[int(flat[group[0]])] = (V2[used], inv.reshape(-1, 3))
+    return pieces
+
+
+def assemble(pieces, problem: RetargetProblem, labeling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Place every output voxel's copy: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int)``.
+
+    Output voxel ``x`` with label ``l`` takes the piece of input voxel ``x - l`` translated by ``l``
+    (canonical units), so copies stay aligned with the grid. Vertices are not welded here.
+    """
+    labeling = np.asarray(labeling, dtype=np.int64)
+    Vs, Fs, Ls = [], [], []
+    off = 0
+    for node, lab in enumerate(labeling):
+        s = int(problem.source[node, lab])
+        if s < 0 or s not in pieces:
+            continue
+        V, F = pieces[s]
+        Vs.append(V + problem.labels[lab])
+        Fs.append(F + off)
+        Ls.append(np.full(len(F), lab, dtype=np.int64))
+        off += len(V)
+    if not Vs:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls)

@@ -160,7 +160,7 @@ def build_railing(n_posts: int = 10) -> tuple[np.ndarray, np.ndarray, dict]:
     length = (n_posts - 1) * p
     parts = [box([-0.06, 0.0, -0.05], [length + 0.06, 0.05, 0.05])]  # bottom rail
     parts.append(box([-0.06, 0.62, -0.06], [length + 0.06, 0.68, 0.06]))  # hand rail
-    profile = [(0.05, 0.05, 0.12), (0.12, 0.02, 0.30), (0.30, 0.045, 0.40), (0.40, 0.02, 0.55), (0.55, 0.04, 0.62)]
+    profile = [(0.05, 0.05, 0.12), (0.12, 0.02, 0.40), (0.40, 0.045, 0.48), (0.48, 0.03, 0.55), (0.55, 0.04, 0.62)]
     for i in range(n_posts):
         x = i * p
         for y0, r, y1 in profile:

@@ -33,6 +33,7 @@ __all__ = [
     "share_in_top",
     "dominant_offsets",
     "refine_offset",
+    "reduce_to_generators",
     "select_principal",
     "offset_basis",
     "analyze",
@@ -329,6 +330,30 @@ def refine_offset(
     return t, float(ok.mean()), grip
 
 
+def reduce_to_generators(vectors, *, eligible=None, tol: float = 0.05, max_multiple: int = 6) -> np.ndarray:
+    """For each vector ``(m, 3)``, the index of the shortest eligible vector ``u`` with
+    ``v ~ k u`` for an integer ``|k| <= max_multiple`` (within ``tol``), else its own index.
+
+    A choice beyond the paper's greedy rule: on a 1-D grid of n copies the peaks at v and 2v hold
+    about (n - 1) and (n - 2) matches, so sampling noise can rank 2v first; the paper's principal
+    offsets are the generators, of which 2v is a combination.
+    """
+    V = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
+    ok = np.ones(len(V), bool) if eligible is None else np.asarray(eligible, bool)
+    lengths = np.linalg.norm(V, axis=1)
+    out = np.arange(len(V))
+    for i, v in enumerate(V):
+        best = i
+        for j in np.flatnonzero(ok):
+            if lengths[j] >= lengths[best] or lengths[j] == 0:
+                continue
+            k = np.rint((v @ V[j]) / lengths[j] ** 2)
+            if 2 <= abs(k) <= max_multiple and np.linalg.norm(v - k * V[j]) <= tol:
+                best = j
+        out[i] = best
+    return out
+
+
 def select_principal(vectors, *, min_angle: float = np.pi / 3, max_count: int = 3, eligible=None) -> list[int]:
     """Greedy choice of up to ``max_count`` principal offsets (section V).
 
@@ -425,7 +450,8 @@ def analyze(
     #offsets)`` offsets in its window; only refined offsets whose ICP ``overlap`` reaches
     ``min_overlap`` and whose ``grip`` reaches ``min_grip`` can become principal (a peak that does
     not map a real part of the surface onto itself, or only slides a plank along itself, is not a
-    repetition). Principal offsets are signed so their largest component is positive.
+    repetition). Each dominant offset stands for its generator (:func:`reduce_to_generators`) in the
+    greedy choice. Principal offsets are signed so their largest component is positive.
     """
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))
@@ -452,7 +478,9 @@ def analyze(
             feats.dense_P, feats.dense_N, t0, tree=tree, sources=src, inlier_radius=dense_radius
         )
     eligible = (overlap >= min_overlap) & (grip >= min_grip)
-    chosen = select_principal(refined, min_angle=min_angle, max_count=max_principal, eligible=eligible)
+    gen_index = reduce_to_generators(refined, eligible=eligible, tol=bin_size)
+    cand = select_principal(refined[gen_index], min_angle=min_angle, max_count=max_principal, eligible=eligible)
+    chosen = [int(gen_index[i]) for i in cand]
     principal = np.array([_canonical_sign(refined[i]) for i in chosen]).reshape(-1, 3)
     basis, k = offset_basis(principal, dummy_length=dummy_length)
     return Analysis(

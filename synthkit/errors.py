@@ -8,9 +8,19 @@ environment problem and exits with 1.
 
 
 class SynthkitError(Exception):
-    """Base class for errors reported to the user as one line, without a traceback."""
+    """Base class for errors reported to the user as one line, without a traceback.
+
+    ``keep_outputs=True`` marks a refusal whose diagnostics are worth keeping (for example the
+    offset statistics of a mesh with no repetition): the runner then still moves the output folder
+    into place, with ``report.json`` saying ``"status": "refused"`` and the message, before the
+    error reaches the user with its exit code.
+    """
 
     exit_code = 1
+
+    def __init__(self, message: str, *, keep_outputs: bool = False):
+        super().__init__(message)
+        self.keep_outputs = keep_outputs
 
 
 class ConfigError(SynthkitError):

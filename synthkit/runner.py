@@ -159,14 +159,13 @@ def run_config(
     staging.mkdir()
     ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress)
     start = time.perf_counter()
-    try:
-        pipeline_module(method).run(cfg, ctx)
+
+    def make_report(status: str, error: str | None = None) -> dict[str, Any]:
         ctx.timings["total"] = time.perf_counter() - start
-        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
-            raise RuntimeError(f"method {method} wrote no PNG preview")
         report = {
             "method": method,
             "version": __version__,
+            "status": status,
             "seed": cfg.seed,
             "config": cfg.model_dump(mode="json"),
             "config_file": str(Path(config_path).resolve()),
@@ -174,8 +173,25 @@ def run_config(
             "metrics": ctx.metrics,
             "outputs": {**ctx.outputs, "report": "report.json"},
         }
+        if error is not None:
+            report["error"] = error
+        report = _finite_or_none(to_jsonable(report))
         write_json(staging / "report.json", report)
+        return report
+
+    try:
+        pipeline_module(method).run(cfg, ctx)
+        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
+            raise RuntimeError(f"method {method} wrote no PNG preview")
+        report = make_report("ok")
         _replace_dir(staging, out_abs)
+    except SynthkitError as exc:
+        if exc.keep_outputs:
+            make_report("refused", str(exc))
+            _replace_dir(staging, out_abs)
+        else:
+            shutil.rmtree(staging, ignore_errors=True)
+        raise
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
@@ -206,14 +222,26 @@ def _json_default(obj: Any) -> Any:
 
 def to_jsonable(obj: Any) -> Any:
     """``obj`` with numpy scalars/arrays and paths turned into plain JSON values."""
-    return json.loads(json.dumps(obj, default=_json_default))
+    return json.loads(json.dumps(obj, default=_json_default, allow_nan=True))
+
+
+def _finite_or_none(obj: Any) -> Any:
+    """``obj`` with non-finite floats replaced by None (JSON has no NaN or infinity)."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite_or_none(v) for v in obj]
+    return obj
 
 
 def write_json(path: Path, obj: Any) -> None:
-    """Write ``obj`` as indented JSON (numpy values converted), atomically."""
+    """Write ``obj`` as indented JSON, atomically; numpy values become plain values and non-finite
+    floats become null."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2, default=_json_default, allow_nan=False) + "\n")
+    tmp.write_text(json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
     os.replace(tmp, path)
 
 

@@ -70,3 +70,21 @@ def test_seed_determinism(echo_config, tmp_path):
     assert a["metrics"]["noise"] == b["metrics"]["noise"]
     assert a["metrics"]["noise"] != c["metrics"]["noise"]
     assert (tmp_path / "a" / "result.png").read_bytes() == (tmp_path / "b" / "result.png").read_bytes()
+
+
+def test_refusal_keeps_diagnostics(echo_config, tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(InputError, match="refused after writing diagnostics"):
+        run_config(echo_config, out_dir=out, overrides=["fail=refuse"], show_progress=False)
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "refused"
+    assert report["error"].endswith("refused after writing diagnostics")
+    assert report["metrics"] == {"why": "statistics kept", "ratio": None}
+    assert (out / "diagnostic.png").is_file()
+
+
+def test_numpy_metrics_become_plain_json(echo_config, tmp_path):
+    report = run_config(echo_config, out_dir=tmp_path / "o", show_progress=False)
+    assert type(report["metrics"]["noise"]) is int
+    assert report["status"] == "ok"
+    json.dumps(report, allow_nan=False)

@@ -9,6 +9,11 @@ def run(cfg, ctx):
         img = load_image(cfg.image, mode="gray")
     if cfg.fail == "input":
         raise InputError(f"{cfg.image}: deliberately refused")
+    if cfg.fail == "refuse":
+        ctx.metrics["why"] = "statistics kept"
+        ctx.metrics["ratio"] = float("nan")
+        save_image(ctx.path("diagnostic", "diagnostic.png"), img)
+        raise InputError(f"{cfg.image}: refused after writing diagnostics", keep_outputs=True)
     if cfg.fail == "crash":
         raise ZeroDivisionError("deliberate crash")
     with ctx.stage("process"):
@@ -17,4 +22,4 @@ def run(cfg, ctx):
         noise = ctx.rng.integers(0, 1000)
     save_image(ctx.path("image", "result.png"), out)
     ctx.metrics["mean"] = float(out.mean())
-    ctx.metrics["noise"] = int(noise)
+    ctx.metrics["noise"] = noise

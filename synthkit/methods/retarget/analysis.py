@@ -477,7 +477,8 @@ def analyze(
         refined[i], overlap[i], grip[i] = refine_offset(
             feats.dense_P, feats.dense_N, t0, tree=tree, sources=src, inlier_radius=dense_radius
         )
-    eligible = (overlap >= min_overlap) & (grip >= min_grip)
+    stayed = (np.linalg.norm(refined, axis=1) > tau) & (np.linalg.norm(refined - dom, axis=1) <= nms_window)
+    eligible = (overlap >= min_overlap) & (grip >= min_grip) & stayed
     gen_index = reduce_to_generators(refined, eligible=eligible, tol=bin_size)
     cand = select_principal(refined[gen_index], min_angle=min_angle, max_count=max_principal, eligible=eligible)
     chosen = [int(gen_index[i]) for i in cand]

@@ -298,8 +298,13 @@ def test_no_repetition_is_input_error(tmp_path):
     mesh.export(path)
     cfg = tmp_path / "c.yaml"
     cfg.write_text(json.dumps({"method": "retarget", "input": str(path)}))
-    with pytest.raises(InputError, match="no repetition found"):
+    with pytest.raises(InputError, match="no repetition found") as info:
         run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    assert info.value.exit_code == 3
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["status"] == "refused" and report["metrics"]["principal_offsets"] == []
+    assert 0 < report["metrics"]["sparsity_top7"] <= 1
+    assert (tmp_path / "out" / "sparsity.png").is_file()
 
 
 def test_shrink_below_one_cell_and_dummy_steps(tmp_path, sample_dir):

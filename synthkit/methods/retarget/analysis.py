@@ -450,8 +450,9 @@ def analyze(
     #offsets)`` offsets in its window; only refined offsets whose ICP ``overlap`` reaches
     ``min_overlap`` and whose ``grip`` reaches ``min_grip`` can become principal (a peak that does
     not map a real part of the surface onto itself, or only slides a plank along itself, is not a
-    repetition). Each dominant offset stands for its generator (:func:`reduce_to_generators`) in the
-    greedy choice. Principal offsets are signed so their largest component is positive.
+    repetition; nor is one that ICP moves out of its NMS window or below ``tau``). Each dominant
+    offset stands for its generator (:func:`reduce_to_generators`) in the greedy choice.
+    Principal offsets are signed so their largest component is positive.
     """
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))

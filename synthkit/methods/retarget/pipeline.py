@@ -8,7 +8,8 @@ labels), PNG previews (sparsity curve, offset histogram, offsets over the model,
 labels renders) and metrics.
 
 No repetition (no principal offset): the statistics and previews are written, ``ctx.metrics`` is
-filled, then :class:`~synthkit.errors.InputError` is raised (exit 3).
+filled, then :class:`~synthkit.errors.InputError` is raised with ``keep_outputs=True`` (exit 3; the
+runner keeps the folder, ``report.json`` has ``"status": "refused"``).
 """
 
 from __future__ import annotations
@@ -317,7 +318,8 @@ def run(cfg, ctx) -> None:
         ctx.metrics["error"] = "no repetition found"
         raise InputError(
             f"{cfg.input}: no repetition found (no dominant offset maps at least {a.min_overlap:.0%} of the surface "
-            f"onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); refusing to resize"
+            f"onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); refusing to resize",
+            keep_outputs=True,
         )
     steps = resolve_steps(cfg.target, an, Vn, source=cfg.input)
     growth = an.basis @ steps

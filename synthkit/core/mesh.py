@@ -260,13 +260,16 @@ def _greedy_independent_set(points: np.ndarray, radius: float, priority: np.ndar
     return kept[np.argsort(priority[kept])]
 
 
-def simplify(V, F, n_faces: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def simplify(
+    V, F, n_faces: int, *, preserve_boundary: bool = False, preserve_topology: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Decimate to about ``n_faces`` triangles and map every fine vertex to a coarse one.
 
     Uses pymeshlab's quadric edge collapse (``meshing_decimation_quadric_edge_collapse`` with
-    ``preservetopology`` and ``optimalplacement`` on), then maps each fine vertex to its nearest
-    coarse vertex (Euclidean). Returns ``(Vc (#Vc, 3), Fc (#Fc, 3), fine_to_coarse (#V,) int64)``.
-    When ``n_faces >= #F`` the mesh is returned unchanged with the identity map.
+    ``optimalplacement`` on, ``preservetopology`` and ``preserveboundary`` as asked), then maps each
+    fine vertex to its nearest coarse vertex (Euclidean). Returns
+    ``(Vc (#Vc, 3), Fc (#Fc, 3), fine_to_coarse (#V,) int64)``; when ``n_faces >= #F`` the mesh is
+    returned unchanged with the identity map.
     """
     import pymeshlab
 
@@ -280,7 +283,12 @@ def simplify(V, F, n_faces: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=V, face_matrix=F.astype(np.int32)))
     ms.meshing_decimation_quadric_edge_collapse(
-        targetfacenum=int(n_faces), preservetopology=True, optimalplacement=True, autoclean=True
+        targetfacenum=int(n_faces),
+        preservetopology=bool(preserve_topology),
+        optimalplacement=True,
+        autoclean=True,
+        preserveboundary=bool(preserve_boundary),
+        boundaryweight=1000.0 if preserve_boundary else 1.0,
     )
     m = ms.current_mesh()
     Vc = np.asarray(m.vertex_matrix(), dtype=np.float64)
@@ -345,8 +353,9 @@ def _split_one(V, F, src, n, d, eps):
     """
     s = V @ n - d
     s[np.abs(s) <= eps] = 0.0
-    out = s > 0
-    n_out = out[F].sum(axis=1)
+    out = (s > 0).view(np.uint8)
+    n_out = out[F[:, 0]] + out[F[:, 1]] + out[F[:, 2]]
+    out = out.view(bool)
     whole_in, whole_out = n_out == 0, n_out == 3
     mixed = np.flatnonzero((n_out == 1) | (n_out == 2))
     if len(mixed) == 0:
@@ -404,8 +413,18 @@ def split_by_planes(V, F, normals, offsets):
     """
     V, F, normals, offsets, src, eps = _plane_args(V, F, normals, offsets, None)
     for n, d in zip(normals, offsets, strict=True):
-        V, Fi, Si, Fo, So = _split_one(V, F, src, n, d, eps * np.linalg.norm(n))
-        F, src = np.concatenate([Fi, Fo]), np.concatenate([Si, So])
+        # only faces with corners strictly on both sides change: split those, keep the rest in place
+        e = eps * np.linalg.norm(n)
+        s = V @ n - d
+        pos = (s > e).view(np.uint8)
+        neg = (s < -e).view(np.uint8)
+        cross = (pos[F[:, 0]] | pos[F[:, 1]] | pos[F[:, 2]]) & (neg[F[:, 0]] | neg[F[:, 1]] | neg[F[:, 2]])
+        mixed = cross.view(bool)
+        if not mixed.any():
+            continue
+        V, Fi, Si, Fo, So = _split_one(V, F[mixed], src[mixed], n, d, e)
+        F = np.concatenate([F[~mixed], Fi, Fo])
+        src = np.concatenate([src[~mixed], Si, So])
     V, F, _ = remove_unreferenced(V, F)
     return V, F, src
 

@@ -20,18 +20,21 @@ COUNTS = (6, 4, 2)
 ORIGIN = (0.0, 0.0, 0.0)
 
 
-def box(lo, hi, *, unit=UNIT) -> tuple[np.ndarray, np.ndarray]:
+def box(lo, hi, *, unit=UNIT, detail: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Surface of the axis-aligned box ``[lo, hi]`` as a grid of triangles, outward facing.
 
     Each side is subdivided at every lattice plane (multiples of ``unit``) strictly inside the box,
     with the same diagonal in every grid rectangle, so the lattice never splits a triangle and the
-    pieces of a long box are translated copies of each other. Vertices are not shared between sides.
+    pieces of a long box are translated copies of each other. ``detail`` further splits every grid
+    interval into that many equal parts. Vertices are not shared between sides.
     """
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     breaks = []
     for a in range(3):
         inner = np.arange(np.floor(lo[a] / unit[a]) + 1, np.ceil(hi[a] / unit[a])) * unit[a]
-        breaks.append(np.unique(np.concatenate([[lo[a], hi[a]], inner[(inner > lo[a]) & (inner < hi[a])]])))
+        b = np.unique(np.concatenate([[lo[a], hi[a]], inner[(inner > lo[a]) & (inner < hi[a])]]))
+        t = np.arange(detail) / detail
+        breaks.append(np.append((b[:-1, None] + t[None, :] * np.diff(b)[:, None]).ravel(), b[-1]))
     Vs, Fs, off = [], [], 0
     for a in range(3):
         b, c = (a + 1) % 3, (a + 2) % 3  # (b, c, a) is right-handed
@@ -52,10 +55,13 @@ def box(lo, hi, *, unit=UNIT) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(Vs), np.concatenate(Fs)
 
 
-def building(*, floors: int = COUNTS[1], columns: int = COUNTS[0]) -> tuple[np.ndarray, np.ndarray]:
-    """``(V, F)`` of the building with ``floors`` x ``columns`` units in front (two units deep)."""
+def building(
+    *, floors: int = COUNTS[1], columns: int = COUNTS[0], depth: int = COUNTS[2], detail: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(V, F)`` of the building: ``columns`` x ``floors`` x ``depth`` units, every box side subdivided
+    ``detail`` times more finely than the lattice (for large benchmark examples)."""
     ux, uy, uz = UNIT
-    W, H, D = columns * ux, floors * uy, COUNTS[2] * uz
+    W, H, D = columns * ux, floors * uy, depth * uz
     boxes = []
     # floor slabs straddling the floor planes (bottom and roof inside the box)
     boxes.append(((0, 0, 0), (W, 0.2, D)))
@@ -88,7 +94,7 @@ def building(*, floors: int = COUNTS[1], columns: int = COUNTS[0]) -> tuple[np.n
                 boxes.append(((x0 + 0.2, y0 + 0.3, D - 0.2), (x0 + 1.8, y0 + 0.7, D)))
     Vs, Fs, off = [], [], 0
     for lo, hi in boxes:
-        V, F = box(lo, hi)
+        V, F = box(lo, hi, detail=detail)
         Vs.append(V)
         Fs.append(F + off)
         off += len(V)

@@ -159,9 +159,9 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
     pieces = Pieces(lattice=lattice, index=index)
     for p in range(n_cells):
         sel = order[bounds[p] : bounds[p + 1]]
-        Vp, Fp, _ = remove_unreferenced(V2, F2[sel])
-        pieces.local.append((Vp - lattice.cell_lo(index[p])) / lattice.unit)
-        pieces.faces.append(Fp)
+        used, Fp = np.unique(F2[sel], return_inverse=True)
+        pieces.local.append((V2[used] - lattice.cell_lo(index[p])) / lattice.unit)
+        pieces.faces.append(Fp.reshape(-1, 3).astype(np.int64))
         pieces.src_face.append(src[sel])
     return pieces
 
@@ -286,12 +286,12 @@ def normal_histogram(V, F, axes: tuple[int, int], *, bins: int = 12) -> np.ndarr
     """
     V = np.asarray(V, np.float64)
     F = np.asarray(F, np.int64)
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    norm = np.linalg.norm(n, axis=1)
-    ok = norm > 0
-    n = n[ok] / norm[ok, None]
-    x, y = n[:, axes[0]], n[:, axes[1]]
-    keep = np.hypot(x, y) > 1e-6
+    a, b = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
+    n = [a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+         a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]]  # fmt: skip
+    x, y = n[axes[0]], n[axes[1]]
+    in_plane = x * x + y * y
+    keep = in_plane > 1e-12 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
     # bin positions rounded to 1e-6 so that normals on a bin edge (axis-aligned ones) land in one bin
     pos = np.round(np.arctan2(y[keep], x[keep]) / (2 * np.pi) * bins, 6)
     idx = np.floor(pos).astype(np.int64) % bins

@@ -34,6 +34,51 @@ class PieceLibrary:
         return self.weights[label] @ corners
 
 
+def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
+    """A copy of ``library`` whose pieces have at most about ``max_faces`` triangles each, for previews.
+
+    Larger pieces are decimated by quadric edge collapse with their boundaries kept (topology not
+    enforced, which is faster; :func:`synthkit.core.mesh.simplify`); the weights are recomputed. Small pieces are
+    shared as they are.
+    """
+    from synthkit.core.mesh import simplify
+
+    out = PieceLibrary.__new__(PieceLibrary)
+    out.axes = library.axes
+    out.local, out.faces, out.weights = [], [], []
+    for L, Fp, W in zip(library.local, library.faces, library.weights, strict=True):
+        if len(Fp) > max_faces:
+            L, Fp, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
+            W = trilinear_weights(L)
+        out.local.append(L)
+        out.faces.append(Fp)
+        out.weights.append(W)
+    return out
+
+
+def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceLibrary:
+    """``library`` (in lattice axis order X, Y, Z) with local coordinates reordered to ``axes``."""
+    out = PieceLibrary.__new__(PieceLibrary)
+    out.axes = tuple(library.axes[a] for a in axes)
+    out.local = [L[:, list(axes)] for L in library.local]
+    out.faces = list(library.faces)
+    out.weights = [trilinear_weights(L) for L in out.local]
+    return out
+
+
+def assemble(library: PieceLibrary, labels, corners: np.ndarray):
+    """``(V, F, face_label)`` of ``library``'s pieces deformed into the cells ``corners (N, 8, 3)`` with
+    ``labels (N,)`` (the same product as the deforming transitions, in one pass)."""
+    Vs, Fs, labs, off = [], [], [], 0
+    for c, lab in enumerate(np.asarray(labels).ravel().tolist()):
+        X = library.deform(lab, corners[c])
+        Vs.append(X)
+        Fs.append(library.faces[lab] + off)
+        labs.append(np.full(len(library.faces[lab]), lab, np.int64))
+        off += len(X)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs)
+
+
 class Assembler:
     """Collects deformed pieces (the deforming transitions' output) and assembles the result mesh."""
 

@@ -11,13 +11,21 @@ from synthkit import preview
 from synthkit.core.mesh import weld
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.petri import analysis, construction
-from synthkit.methods.petri.assembly import Assembler, PieceLibrary, crack_measure, label_colors
+from synthkit.methods.petri.assembly import (
+    Assembler,
+    PieceLibrary,
+    assemble,
+    crack_measure,
+    label_colors,
+    preview_library,
+    reorder_library,
+)
 from synthkit.methods.petri.config import PetriConfig
 from synthkit.methods.petri.net import ColouredPetriNet, adjacency_violations, to_dot, to_pnml
 
 VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
-PREVIEW_SAMPLES = 600_000
-"""Sample budget of the software rasterizer per preview (keeps previews well under a second)."""
+PREVIEW_FACES = 60_000
+"""Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
 
 
 def analyse_example(V, F, cfg: PetriConfig):
@@ -153,8 +161,10 @@ def run(cfg: PetriConfig, ctx) -> None:
         RV, RF, face_label, face_cell = assembler.mesh()
         gap, unmatched = crack_measure(library, labels_out, net.corners, periodic=net.periodic)
         if cfg.output.weld:
+            G = RF
             RV, RF, old_to_new = weld(RV, RF, 1e-7 * float(spec.unit.min()), return_index=True)
-            keep = _kept_faces(assembler, old_to_new)
+            G = old_to_new[G]
+            keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
             face_label, face_cell = face_label[keep], face_cell[keep]
         result = trimesh.Trimesh(RV, RF, process=False)
         fmt = cfg.output.mesh_format
@@ -228,46 +238,25 @@ def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("previews"):
         colors = label_colors(max(cons.n_labels, 1))
         view = VIEW_OF_PLANE[cfg.construction.plane]
-        EV, EF, e_label = _example_pieces_mesh(pieces, grid)
-        img_ex = preview.rasterize_mesh(
-            EV, EF, face_colors=colors[e_label], view="iso", size=320, max_samples=PREVIEW_SAMPLES
-        )
-        img_space = preview.rasterize_mesh(
-            V, F, view=view, size=512, lines=_lines_of_space(space), max_samples=PREVIEW_SAMPLES
-        )
-        img_res = preview.rasterize_mesh(
-            RV, RF, face_colors=colors[face_label], view="iso", size=512, max_samples=4 * PREVIEW_SAMPLES
-        )
+        n_max = max(net.n_cells, grid.size)
+        lib_xyz = preview_library(PieceLibrary(pieces, reps, (0, 1, 2)), max(PREVIEW_FACES // n_max, 64))
+        lib_abc = reorder_library(lib_xyz, axes)
+        ex_corners = example_net(grid, cons, spec).corners
+        EV, EF, e_label = assemble(lib_xyz, grid, ex_corners)
+        PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
+        small, large = {"size": 320, "max_samples": 1_200_000}, {"size": 512, "max_samples": 2_500_000}
+        img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
+        img_space = preview.rasterize_mesh(EV, EF, view=view, lines=_lines_of_space(space), **large)
+        img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
         preview.image_png(ctx.path("preview_result", "result.png"), img_res)
         preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
         images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
         if cfg.output.baseline:
-            images.append(
-                preview.rasterize_mesh(
-                    BV, BF, face_colors=colors[b_label], view="iso", size=320, max_samples=PREVIEW_SAMPLES
-                )
-            )
+            BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
+            images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
         preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
     ctx.metrics.update(metrics)
-
-
-def _kept_faces(assembler: Assembler, old_to_new: np.ndarray) -> np.ndarray:
-    """Mask of the assembled faces that survive welding (same rule as :func:`synthkit.core.mesh.weld`)."""
-    _, F, _, _ = assembler.mesh()
-    G = old_to_new[F]
-    return (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-
-
-def _example_pieces_mesh(pieces, grid):
-    """The example's pieces back in place, ``(V, F, face_label)``."""
-    Vs, Fs, labs, off = [], [], [], 0
-    for p, (L, Fp) in enumerate(zip(pieces.local, pieces.faces, strict=True)):
-        Vs.append(pieces.lattice.cell_lo(pieces.index[p]) + L * pieces.lattice.unit)
-        Fs.append(Fp + off)
-        labs.append(np.full(len(Fp), grid.ravel()[p], np.int64))
-        off += len(L)
-    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs)
 
 
 def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> None:

@@ -306,7 +306,6 @@ class _Expansion:
     """State of an alpha-expansion run: current labels, their unary and pairwise terms."""
 
     def __init__(self, u: np.ndarray, e: np.ndarray, pw: _Pairwise, labels: np.ndarray):
-        self.u = u
         self.uT = np.ascontiguousarray(u.T)
         self.okT = np.isfinite(self.uT)
         self.e0 = np.ascontiguousarray(e[:, 0])
@@ -316,114 +315,127 @@ class _Expansion:
         self.lab = labels.copy()
         self.un = u[np.arange(self.n), self.lab]
         self.pv = pw(np.arange(len(e)), self.lab[self.e0], self.lab[self.e1])
-        self.pos = np.full(self.n, -1, dtype=np.int64)
+        self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
+        self.pos = np.zeros(self.n, dtype=np.int64)
+        self.buf = np.zeros(len(e))
 
     def energy(self) -> float:
         return _sum_terms(self.un, self.pv)
 
+    def _one_sided(self, act: np.ndarray, alpha: int) -> tuple[np.ndarray, np.ndarray]:
+        """Edges with exactly one active end, and their cost after that end switches to alpha.
+
+        When the current energy is finite, an active node whose switch would meet an infinite
+        cost with a fixed neighbour keeps its label in every finite move result: it is made fixed
+        (``act`` is updated in place) and the test repeats on the edges this creates.
+        """
+        lab, e0, e1, buf = self.lab, self.e0, self.e1, self.buf
+        a0 = act[e0]
+        one = a0 != act[e1]
+        new = np.flatnonzero(one)
+        while len(new):
+            side0 = a0[new]
+            la = np.where(side0, alpha, lab[e0[new]])
+            lb = np.where(side0, lab[e1[new]], alpha)
+            v = self.pw(new, la, lb)
+            buf[new] = v
+            bad = np.isinf(v)
+            if self.n_inf or not bad.any():
+                break
+            act[np.where(side0[bad], e0[new[bad]], e1[new[bad]])] = False
+            a0 = act[e0]
+            now = a0 != act[e1]
+            new = np.flatnonzero(now & ~one)
+            one = now
+        oi = np.flatnonzero(one)
+        return oi, buf[oi]
+
     def move(self, alpha: int) -> bool:
         """One expansion move on ``alpha``; applies it and returns True when it lowers the energy."""
-        lab = self.lab
+        lab, e0, e1 = self.lab, self.e0, self.e1
         act = self.okT[alpha] & (lab != alpha)
+        if not act.any():
+            return False
+        oi, ov = self._one_sided(act, alpha)
         nodes = np.flatnonzero(act)
         na = len(nodes)
         if na == 0:
             return False
         pos = self.pos
         pos[nodes] = np.arange(na)
-        e0, e1 = self.e0, self.e1
-        a0 = act[e0]
-        a1 = act[e1]
-        tk = np.flatnonzero(a0 | a1)
-        p, q = e0[tk], e1[tk]
-        ap, aq = a0[tk], a1[tk]
-        both = ap & aq
-        lp, lq = lab[p], lab[q]
-        k = len(tk)
-        nb = int(both.sum())
-        bi = np.flatnonzero(both)
-        # one call: V(new_p, new_q) for touched edges, V(l_p, alpha) and V(alpha, l_q) for edges
-        # with both ends active.
-        la = np.concatenate([np.where(ap, alpha, lp), lp[bi], np.full(nb, alpha)])
-        lb = np.concatenate([np.where(aq, alpha, lq), np.full(nb, alpha), lq[bi]])
-        vals = self.pw(np.concatenate([tk, tk[bi], tk[bi]]), la, lb) if k else np.zeros(0)
-        w11 = vals[:k]
-        e01 = vals[k : k + nb]
-        e10 = vals[k + nb :]
-        e00 = self.pv[tk]
+        on = pos[np.where(act[e0[oi]], e0[oi], e1[oi])]  # the active end of each one-sided edge
+        bi = np.flatnonzero(act[e0] & act[e1])
+        nb = len(bi)
+        bp, bq = e0[bi], e1[bi]
+        # V(alpha, alpha), V(l_p, alpha), V(alpha, l_q) for edges with both ends active, one call
+        if nb:
+            full = np.full(nb, alpha)
+            vals = self.pw(np.concatenate([bi, bi, bi]), np.concatenate([full, lab[bp], full]),
+                           np.concatenate([full, full, lab[bq]]))
+        else:
+            vals = np.zeros(0)
+        e11, e01, e10 = vals[:nb], vals[nb : 2 * nb], vals[2 * nb :]
+        e00 = self.pv[bi]
+        o00 = self.pv[oi]
         c0 = self.un[nodes]
         c1 = self.uT[alpha, nodes]
+        bp, bq = pos[bp], pos[bq]
 
-        raw = (c0, c1, e00, vals)
+        raw = (c0, c1, e00, vals, o00, ov)
         fin_total = sum(float(np.abs(r[np.isfinite(r)]).sum()) for r in raw)
-        big = 2.0 * fin_total + 1.0
-        if not all(np.isfinite(r).all() for r in raw):
-            c0, c1, e00f, w11f, e01f, e10f = (
-                np.where(np.isinf(r), big, r) for r in (c0, c1, e00, w11, e01, e10)
-            )
+        if all(np.isfinite(r).all() for r in raw):
+            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = c0, c1, e00, e11, e01, e10, o00, ov
         else:
-            e00f, w11f, e01f, e10f = e00, w11, e01, e10
+            big = 2.0 * fin_total + 1.0
+            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = (
+                np.where(np.isinf(r), big, r) for r in (c0, c1, e00, e11, e01, e10, o00, ov)
+            )
 
-        # node costs of keeping (x=0) and switching (x=1), Kolmogorov-Zabih decomposition
-        one = ~both
-        sp = ap & one  # p active, q fixed
-        sq = aq & one  # q active, p fixed
-        ip = pos[p]
-        iq = pos[q]
-        k0 = np.zeros(na)
-        k1 = np.zeros(na)
-        k0 += np.bincount(ip[sp], weights=e00f[sp], minlength=na)
-        k0 += np.bincount(iq[sq], weights=e00f[sq], minlength=na)
-        k1 += np.bincount(ip[sp], weights=w11f[sp], minlength=na)
-        k1 += np.bincount(iq[sq], weights=w11f[sq], minlength=na)
-        b00 = e00f[bi]
-        b11 = w11f[bi]
-        bp, bq = ip[bi], iq[bi]
-        k1 += np.bincount(bp, weights=e10f - b00, minlength=na)
-        k1 += np.bincount(bq, weights=b11 - e10f, minlength=na)
-        cap = e01f + e10f - b00 - b11
-        # Rother et al. 2005 truncation: a non-submodular term (cap < 0) is replaced by raising
-        # E01 to E00 + E11 - E10, an overestimate that is exact at the current labeling (x = 0).
-        keep = cap > 0
-        d = (c1 + k1) - (c0 + k0)
-        g = maxflow.Graph[float](na, int(keep.sum()) or 1)
+        # Kolmogorov-Zabih: x = 1 switches to alpha. One-sided edges are unary terms of their
+        # active end; two-sided edges give E00 + a x_p + b x_q + c_pq (1 - x_p) x_q + c_qp x_p (1 - x_q).
+        # Rother et al. 2005 truncation: a non-submodular term (E01 + E10 < E00 + E11) gets E01
+        # raised to E00 + E11 - E10, an overestimate that is exact at the current labeling (x = 0).
+        cap = np.maximum(e01f + e10f - e00f - e11f, 0.0)
+        # Split cap between the two directions so that the unary parts a, b stay small: with
+        # E00 = E11 = 0 both vanish, and infinite terms create no large opposite terminal links.
+        c_qp = np.clip(e10f - e00f, 0.0, cap)
+        c_pq = cap - c_qp
+        d = c1f - c0f
+        d += np.bincount(on, weights=ovf - o00f, minlength=na)
+        d += np.bincount(bp, weights=e10f - e00f - c_qp, minlength=na)
+        d += np.bincount(bq, weights=e11f - e10f + c_qp, minlength=na)
+        keep = np.flatnonzero(cap > 0)
+        g = maxflow.Graph[float](na, len(keep) or 1)
         ids = g.add_nodes(na)
         g.add_grid_tedges(ids, np.maximum(d, 0.0), np.maximum(-d, 0.0))
-        if keep.any():
-            g.add_edges(bp[keep], bq[keep], cap[keep], np.zeros(int(keep.sum())))
+        if len(keep):
+            g.add_edges(bp[keep], bq[keep], c_pq[keep], c_qp[keep])
         g.maxflow()
         x = g.get_grid_segments(ids)
         if not x.any():
             return False
 
-        # exact energy change of the proposed labeling (infinite terms counted separately)
-        xp = np.zeros(k, dtype=bool)
-        xq = np.zeros(k, dtype=bool)
-        xp[ap] = x[ip[ap]]
-        xq[aq] = x[iq[aq]]
-        v10 = w11.copy()
-        v01 = w11.copy()
-        v10[bi] = e10
-        v01[bi] = e01
-        new_pv = np.where(xp & xq, w11, np.where(xp, v10, np.where(xq, v01, e00)))
-        sw = nodes[x]
-        old_u = self.un[sw]
-        new_u = self.uT[alpha, sw]
-        ch = xp | xq
-        old_p = e00[ch]
-        new_p = new_pv[ch]
-        n_old = int(np.isinf(old_u).sum() + np.isinf(old_p).sum())
-        n_new = int(np.isinf(new_u).sum() + np.isinf(new_p).sum())
+        # exact change of the energy (infinite terms counted separately)
+        xo = x[on]
+        xp, xq = x[bp], x[bq]
+        bch = xp | xq
+        new_b = np.where(xp, np.where(xq, e11, e10), e01)[bch]
+        old_terms = (self.un[nodes[x]], o00[xo], e00[bch])
+        new_terms = (c1[x], ov[xo], new_b)
+        n_old = sum(int(np.isinf(t).sum()) for t in old_terms)
+        n_new = sum(int(np.isinf(t).sum()) for t in new_terms)
         if n_new > n_old:
             return False
         if n_new == n_old:
-            f_old = float(old_u[np.isfinite(old_u)].sum() + old_p[np.isfinite(old_p)].sum())
-            f_new = float(new_u[np.isfinite(new_u)].sum() + new_p[np.isfinite(new_p)].sum())
+            f_old = sum(float(t[np.isfinite(t)].sum()) for t in old_terms)
+            f_new = sum(float(t[np.isfinite(t)].sum()) for t in new_terms)
             if not f_new < f_old - _REL_TOL * (fin_total + 1.0):
                 return False
-        lab[sw] = alpha
-        self.un[sw] = new_u
-        self.pv[tk[ch]] = new_p
+        lab[nodes[x]] = alpha
+        self.un[nodes[x]] = new_terms[0]
+        self.pv[oi[xo]] = new_terms[1]
+        self.pv[bi[bch]] = new_b
+        self.n_inf += n_new - n_old
         return True
 
 

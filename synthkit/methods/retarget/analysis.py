@@ -174,10 +174,11 @@ def match_offsets(P, D, *, tau: float = 0.15, chunk: int = 1024) -> tuple[np.nda
     match = np.full(k, -1, dtype=np.int64)
     best = np.full(k, np.inf)
     sq = (D.astype(np.float64) ** 2).sum(1).astype(np.float32)
+    psq = (P * P).sum(1)
     for start in range(0, k, chunk):
         stop = min(start + chunk, k)
         d2 = sq[start:stop, None] + sq[None, :] - 2.0 * (D[start:stop] @ D.T)
-        near = ((P[start:stop, None, :] - P[None, :, :]) ** 2).sum(-1) <= tau * tau
+        near = psq[start:stop, None] + psq[None, :] - 2.0 * (P[start:stop] @ P.T) <= tau * tau
         d2[near] = np.inf
         j = np.argmin(d2, axis=1)
         val = d2[np.arange(stop - start), j]

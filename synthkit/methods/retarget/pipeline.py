@@ -25,7 +25,7 @@ from synthkit.errors import InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
 from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, voxel_pieces
-from synthkit.preview import heatmap_png, montage_png, plot_curve_png, rasterize_mesh, render_mesh_png
+from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
 __all__ = ["run", "Retargeted", "synthesize", "resolve_steps"]
 
@@ -234,8 +234,8 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
     )
 
 
-def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefix: str) -> None:
-    """Write mesh, label volume, labelled PLY and renders of one result; fill its metrics."""
+def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefix: str) -> np.ndarray:
+    """Write mesh, label volume, labelled PLY and renders of one result; returns the label render."""
     Vm = res.V * scale + center
     mesh = trimesh.Trimesh(Vm, res.F, process=False)
     name = f"{prefix}retargeted{suffix}"
@@ -246,7 +246,7 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     save_mesh(mesh, ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply"), face_labels=res.face_label)
     colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
     render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
-    render_mesh_png(
+    return render_mesh_png(
         ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
         Vm,
         res.F,
@@ -309,8 +309,7 @@ def run(cfg, ctx) -> None:
             rng=ctx.rng,
         )
     _statistics_outputs(an, V, F, center, scale, cfg, ctx)
-    before = rasterize_mesh(V, F, size=cfg.preview_size)
-    render_mesh_png(ctx.path("before", "before.png"), V, F, size=cfg.preview_size)
+    before = render_mesh_png(ctx.path("before", "before.png"), V, F, size=cfg.preview_size)
     ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
     if cfg.analyze_only:
         return
@@ -339,14 +338,12 @@ def run(cfg, ctx) -> None:
         renders = [before]
         titles = ["input"]
         for prefix, res, st, secs in results:
-            _save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix)
+            renders.append(_save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix))
             metrics = _result_metrics(res, st, secs)
             if prefix:
                 ctx.metrics["baseline"] = metrics
             else:
                 ctx.metrics.update(metrics)
                 ctx.metrics["growth"] = (growth * scale).tolist()
-            colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
-            renders.append(rasterize_mesh(res.V * scale + center, res.F, face_colors=colours, size=cfg.preview_size))
             titles.append(f"{prefix or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels")
         montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)

@@ -1,0 +1,171 @@
+"""Config schema of ``synthkit symmetry-texture`` (Kim, Lipman, Funkhouser 2012).
+
+A config picks the application (``mode``), the input signal(s), the symmetry representation, the
+target (another image's representation for ``transfer``, a filter of the input's own for
+``filter``) and the perturbation model (``synth``: guided quilting; ``deform``: as-rigid-as-possible
+warping; ``lens``: one-parameter radial undistortion). The objective follows from the mode: E_L2
+against the target for ``transfer``/``filter``, E_symm (maximized) for ``tile``/``symmetrize``.
+Every row of the paper's Fig. 14 is one such combination.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from synthkit.config import InputFile, RunConfig, StrictModel
+
+Signal = Literal["lum", "1-lum", "edge"]
+
+
+class SymmetrySection(StrictModel):
+    """Symmetry representation S and the input signals it is computed from."""
+
+    kind: Literal["translational", "rotational", "reflective"] = Field(
+        "translational", description="S_T (translations), S_R (rotations about a centre), S_Ref (reflections)."
+    )
+    signals: list[Signal] = Field(
+        ["lum"],
+        min_length=1,
+        description="Input signals f_lum, f_1-lum, f_edge; the objective is summed over them (Fig. 7 uses lum + 1-lum).",
+    )
+    mode: Literal["toroidal", "zero"] = Field(
+        "toroidal", description="S_T autocorrelation on a torus or with zero padding (deform/lens only)."
+    )
+    window: float = Field(
+        0.25,
+        gt=0.0,
+        le=0.5,
+        description="S_T displacement window as a fraction of the output's height/width (0.5 = all).",
+    )
+    center: tuple[float, float] | None = Field(
+        None, description="Centre (row, col) in pixels for S_R / S_Ref; default the image centre."
+    )
+    n_angles: int = Field(360, ge=8, le=4096, description="Angular samples of S_R / S_Ref.")
+
+
+class FilterSection(StrictModel):
+    """Symmetry-space filter that turns S(f) into the target (mode: filter)."""
+
+    kind: Literal["identity", "blur", "sharpen", "contrast", "scale", "rotate"] = Field(
+        "identity", description="Filter applied to the input's own representation."
+    )
+    sigma: float = Field(2.0, ge=0.0, le=100.0, description="Gaussian blur sigma in samples (paper: 2 and 4).")
+    power: float = Field(4.0, gt=0.0, le=16.0, description="Sharpen exponent (paper: 4).")
+    amount: float = Field(2.0, gt=0.0, le=20.0, description="Contrast curve exponent (1 = identity).")
+    factor: float = Field(2.0, gt=0.0, le=8.0, description="Scale factor of the pattern (paper: 2).")
+    angle: float = Field(90.0, ge=-360.0, le=360.0, description="Rotation in degrees (paper: 90).")
+
+
+class SynthSection(StrictModel):
+    """Guided image quilting (theta_synth)."""
+
+    patch: int = Field(32, ge=4, le=256, description="Patch size in pixels (paper: 32).")
+    overlap: int = Field(12, ge=1, le=128, description="Overlap in pixels (paper: 12).")
+    tol: float = Field(0.1, ge=0.0, le=10.0, description="Unguided quilting: accept patches within (1+tol) of the best overlap error.")
+    candidates: int = Field(
+        24, ge=1, le=1024, description="Guided walk: overlap-consistent candidate patches tried per tile (k best)."
+    )
+    sweeps: int = Field(4, ge=0, le=100, description="Guided walk: passes over all tiles (stops early when none changes).")
+    init: Literal["random", "quilt"] = Field(
+        "random", description="Start from random patches (paper) or from the unguided quilting result."
+    )
+    evaluation: Literal["incremental", "full"] = Field(
+        "incremental",
+        description="Candidate evaluation: incremental dS_T of the changed block, or a full S_T per candidate.",
+    )
+
+
+class DeformSection(StrictModel):
+    """As-rigid-as-possible warping on corner-detected control points (theta_deform)."""
+
+    points: int = Field(256, ge=8, le=4096, description="Control points N (paper: 256), corners then dart throwing.")
+    levels: int = Field(3, ge=1, le=8, description="Levels of the coarse-to-fine hierarchy.")
+    step: float = Field(5.0, gt=0.0, le=100.0, description="Initial gradient step in pixels (paper: 5).")
+    min_step: float = Field(1.0, gt=0.0, le=100.0, description="Stop a level once the step falls below this (paper: 1).")
+    max_cycles: int = Field(4, ge=1, le=100, description="Cycles over the control points per step size.")
+    max_evaluations: int = Field(20000, ge=10, description="Budget of objective evaluations (paper: up to 20000).")
+
+
+class LensSection(StrictModel):
+    """One-parameter radial distortion (Tsai k1) about a given centre (theta_lens)."""
+
+    center: tuple[float, float] | None = Field(None, description="Distortion centre (row, col) in pixels; default the image centre.")
+    k1_min: float = Field(-0.5, ge=-2.0, le=2.0, description="Lower end of the k1 search range.")
+    k1_max: float = Field(0.5, ge=-2.0, le=2.0, description="Upper end of the k1 search range.")
+    samples: int = Field(41, ge=3, le=1001, description="Coarse grid samples before the golden-section refinement.")
+    tol: float = Field(1e-4, gt=0.0, le=0.1, description="Final k1 tolerance of the refinement.")
+
+
+class TileSection(StrictModel):
+    """Toroidal tiling by symmetrization (mode: tile)."""
+
+    margin: float = Field(0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%).")
+    blend: float = Field(
+        0.15, ge=0.0, le=0.5, description="Width of the mean-value-coordinate blend across the toroidal boundary (fraction)."
+    )
+
+
+class SymtexConfig(RunConfig):
+    """Symmetry-guided texture synthesis, filtering, tiling and symmetrization."""
+
+    method: Literal["symmetry-texture"] = "symmetry-texture"
+    mode: Literal["transfer", "filter", "tile", "symmetrize", "quilt"] = Field(
+        description="Application: transfer, filter, tile, symmetrize, or plain unguided quilting."
+    )
+    source: InputFile = Field(description="Input image f (the source texture).")
+    target: InputFile | None = Field(None, description="Target image or sketch g (mode: transfer).")
+    perturbation: Literal["synth", "deform", "lens"] | None = Field(
+        None,
+        description="Perturbation model; default synth for transfer/filter/quilt, deform for tile/symmetrize.",
+    )
+    output_size: tuple[int, int] | None = Field(
+        None, description="Synthesis output (height, width) in pixels; default the source's size."
+    )
+    symmetry: SymmetrySection = Field(default_factory=SymmetrySection, description="Symmetry representation.")
+    filter: FilterSection = Field(default_factory=FilterSection, description="Symmetry-space filter (mode: filter).")
+    synth: SynthSection = Field(default_factory=SynthSection, description="Guided quilting parameters.")
+    deform: DeformSection = Field(default_factory=DeformSection, description="ARAP warping parameters.")
+    lens: LensSection = Field(default_factory=LensSection, description="Lens undistortion search.")
+    tile: TileSection = Field(default_factory=TileSection, description="Tiling parameters (mode: tile).")
+
+    @model_validator(mode="after")
+    def _check_combination(self):
+        pert = self.resolved_perturbation()
+        if self.mode == "transfer" and self.target is None:
+            raise ValueError("mode 'transfer' needs 'target' (an image or sketch)")
+        if self.mode == "quilt" and pert != "synth":
+            raise ValueError("mode 'quilt' uses perturbation 'synth'")
+        if self.mode == "tile" and pert != "deform":
+            raise ValueError("mode 'tile' uses perturbation 'deform'")
+        if self.mode in ("transfer", "filter") and pert == "lens":
+            raise ValueError("perturbation 'lens' applies to mode 'symmetrize' only")
+        if self.mode == "symmetrize" and pert == "synth":
+            raise ValueError("mode 'symmetrize' uses perturbation 'deform' or 'lens'")
+        if pert == "synth" and self.symmetry.kind != "translational":
+            raise ValueError("perturbation 'synth' is guided by the translational representation (symmetry.kind)")
+        if pert == "synth" and "edge" in self.symmetry.signals:
+            raise ValueError("perturbation 'synth' supports the signals 'lum' and '1-lum' (symmetry.signals)")
+        if pert == "synth" and self.synth.overlap >= self.synth.patch:
+            raise ValueError(f"synth.overlap {self.synth.overlap} must be smaller than synth.patch {self.synth.patch}")
+        if self.deform.min_step > self.deform.step:
+            raise ValueError("deform.min_step must not exceed deform.step")
+        if self.lens.k1_min >= self.lens.k1_max:
+            raise ValueError("lens.k1_min must be below lens.k1_max")
+        if self.output_size is not None and min(self.output_size) < 1:
+            raise ValueError(f"output_size must be positive, got {self.output_size}")
+        return self
+
+    def resolved_perturbation(self) -> str:
+        """The perturbation model in effect (the mode's default when not given)."""
+        if self.perturbation is not None:
+            return self.perturbation
+        return "deform" if self.mode in ("tile", "symmetrize") else "synth"
+
+    def objective_kind(self) -> str:
+        """``"l2"`` (minimized, against a target) or ``"symm"`` (maximized)."""
+        return "l2" if self.mode in ("transfer", "filter", "quilt") else "symm"
+
+
+CONFIG = SymtexConfig

@@ -1,0 +1,239 @@
+"""``synthkit symmetry-texture``: load, build the target, optimize, write the result and previews.
+
+Stages: ``load`` (images, blank/size checks), ``target`` (S(g) or FLT(S(f))), ``baseline``
+(unguided quilting from the same seed, synthesis modes), ``optimize`` (guided walk, ARAP or lens
+search), ``write``. Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
+``iterations`` plus mode-specific values. Randomness: ``ctx.rng`` is split once into a baseline
+generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the baseline of a
+guided run with that seed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from synthkit.core import quilting as q
+from synthkit.core import symmetry as sy
+from synthkit.errors import ConfigError, InputError
+from synthkit.io.images import load_image, save_image
+from synthkit.methods.symtex import lens as lens_mod
+from synthkit.methods.symtex import synth as synth_mod
+from synthkit.methods.symtex.config import SymtexConfig
+from synthkit.methods.symtex.objective import Objective, st_window
+from synthkit.preview import heatmap_png, montage_png, plot_curve_png
+
+MIN_SIZE = 8
+
+
+def _load(path: Path, what: str) -> np.ndarray:
+    img = load_image(path, mode="rgb")
+    if min(img.shape[:2]) < MIN_SIZE:
+        raise InputError(f"{path}: {what} is {img.shape[0]}x{img.shape[1]}, smaller than {MIN_SIZE}x{MIN_SIZE}")
+    if float(np.ptp(img)) <= 1e-6:
+        raise InputError(f"{path}: {what} is blank (constant): its symmetry representation is undefined")
+    return img
+
+
+def _check_signals(img: np.ndarray, signals, path: Path, what: str) -> None:
+    for s in signals:
+        if float(np.ptp(sy.signal(img, s))) <= 1e-6:
+            raise InputError(f"{path}: {what} has a constant {s} signal: its symmetry representation is undefined")
+
+
+def _apply_filter(S: np.ndarray, cfg: SymtexConfig) -> np.ndarray:
+    flt = cfg.filter
+    if flt.kind == "identity":
+        return sy.standardize(S)
+    if flt.kind == "blur":
+        return sy.blur(S, flt.sigma)
+    if flt.kind == "sharpen":
+        return sy.sharpen(S, flt.power)
+    if flt.kind == "contrast":
+        return sy.contrast(S, flt.amount)
+    if flt.kind == "scale":
+        if S.ndim != 2:
+            raise ConfigError("filter.kind 'scale' needs the translational representation (symmetry.kind)")
+        return sy.scale(S, flt.factor)
+    if S.ndim != 2:
+        shift = int(round(flt.angle / 360.0 * S.shape[0]))
+        return sy.standardize(np.roll(S, shift))
+    return sy.rotate(S, flt.angle)
+
+
+def _objective(cfg: SymtexConfig, shape, targets=None, center=None) -> Objective:
+    sym = cfg.symmetry
+    return Objective(
+        representation=sym.kind,
+        signals=sym.signals,
+        kind=cfg.objective_kind(),
+        targets=targets,
+        window=st_window(shape, sym.window) if sym.kind == "translational" else None,
+        mode=sym.mode,
+        center=center if center is not None else sym.center,
+        n_angles=sym.n_angles,
+    )
+
+
+def _targets(cfg: SymtexConfig, src: np.ndarray, tgt: np.ndarray | None, out_shape) -> list[np.ndarray] | None:
+    """Standardized target per signal: S(g) for transfer, FLT(S(f)) for filter (and quilt's identity)."""
+    if cfg.objective_kind() != "l2":
+        return None
+    sym = cfg.symmetry
+    image = tgt if cfg.mode == "transfer" else src
+    # S_T of the target image over the output's window (toroidal, so a small sketch extends
+    # periodically); S_R / S_Ref about the target image's own centre.
+    own = Objective(
+        representation=sym.kind,
+        signals=sym.signals,
+        kind="symm",
+        window=st_window(out_shape, sym.window) if sym.kind == "translational" else None,
+        mode="toroidal" if sym.kind == "translational" else sym.mode,
+        center=None,
+        n_angles=sym.n_angles,
+    )
+    reps = [own.represent(sy.signal(image, s), standardize=True) for s in sym.signals]
+    if cfg.mode == "filter":
+        reps = [_apply_filter(S, cfg) for S in reps]
+    return reps
+
+
+def _preview_rep(path: Path, S: np.ndarray, title: str) -> None:
+    if S.ndim == 2:
+        heatmap_png(path, S, title=title)
+    else:
+        deg = np.arange(S.shape[0]) * (360.0 if title.startswith("S_R") else 180.0) / S.shape[0]
+        plot_curve_png(path, deg, S, xlabel="degrees", ylabel="S", title=title)
+
+
+def run(cfg: SymtexConfig, ctx) -> None:
+    """Run one symmetry-texture config (see the module docstring)."""
+    pert = cfg.resolved_perturbation()
+    with ctx.stage("load"):
+        src = _load(cfg.source, "source image")
+        _check_signals(src, cfg.symmetry.signals, cfg.source, "source image")
+        tgt = None
+        if cfg.target is not None and cfg.mode == "transfer":
+            tgt = _load(cfg.target, "target image")
+            _check_signals(tgt, cfg.symmetry.signals, cfg.target, "target image")
+    if pert == "synth":
+        _run_synth(cfg, ctx, src, tgt)
+    elif pert == "lens":
+        _run_lens(cfg, ctx, src)
+    else:
+        from synthkit.methods.symtex import deform as deform_mod
+
+        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective,
+                              preview_fn=_preview_rep)
+
+
+def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> None:
+    sc = cfg.synth
+    out_shape = tuple(cfg.output_size) if cfg.output_size is not None else src.shape[:2]
+    if sc.patch > min(src.shape[:2]):
+        raise ConfigError(
+            f"synth.patch {sc.patch} is larger than the {src.shape[0]}x{src.shape[1]} source image {cfg.source}"
+        )
+    if sc.patch > min(out_shape):
+        raise ConfigError(f"output_size {out_shape[0]}x{out_shape[1]} is smaller than one patch ({sc.patch})")
+    with ctx.stage("target"):
+        targets = _targets(cfg, src, tgt, out_shape)
+        objective = _objective(cfg, out_shape, targets)
+    base_rng, walk_rng = ctx.rng.spawn(2)
+    with ctx.stage("baseline"):
+        baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, rng=base_rng)
+        baseline_value = objective.value(baseline.image)
+    if cfg.mode == "quilt":
+        image = baseline.image
+        start = end = baseline_value
+        iterations = len(baseline.ys) * len(baseline.xs)
+        ctx.metrics.update(tiles=iterations)
+    else:
+        with ctx.stage("optimize"):
+            if sc.init == "quilt":
+                init = baseline
+            else:
+                init = synth_mod.random_init(src, out_shape, patch=sc.patch, overlap=sc.overlap, rng=walk_rng)
+            walk = synth_mod.guided_walk(
+                src,
+                init,
+                signals=cfg.symmetry.signals,
+                targets=targets,
+                window=objective.window,
+                patch=sc.patch,
+                candidates=sc.candidates,
+                sweeps=sc.sweeps,
+                evaluation=sc.evaluation,
+                progress=ctx.progress,
+            )
+        image = walk.image
+        start, end = walk.history[0], objective.value(image)
+        iterations = walk.iterations
+        ctx.metrics.update(
+            sweeps=len(walk.history) - 1,
+            tiles_changed=walk.changed,
+            candidates_evaluated=walk.candidates_evaluated,
+            objective_history=walk.history,
+        )
+    ctx.metrics.update(
+        objective="E_L2",
+        objective_start=start,
+        objective_end=end,
+        baseline_objective=baseline_value,
+        iterations=iterations,
+        output_size=list(out_shape),
+        window=list(objective.window),
+    )
+    with ctx.stage("write"):
+        _write_common(cfg, ctx, src, image, objective, targets)
+        if cfg.mode != "quilt":
+            save_image(ctx.path("baseline", "baseline.png"), baseline.image)
+            montage_png(
+                ctx.path("comparison", "comparison.png"),
+                [src, baseline.image, image],
+                titles=["source", "unguided", "guided"],
+            )
+
+
+def _write_common(cfg, ctx, src, image, objective: Objective, targets) -> None:
+    save_image(ctx.path("result", "result.png"), image)
+    name = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}[cfg.symmetry.kind]
+    sig_in = sy.signal(src, cfg.symmetry.signals[0])
+    if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
+        rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
+    else:
+        rep_in = objective.represent(sig_in, standardize=True)
+    _preview_rep(ctx.path("s_input", "s_input.png"), rep_in, f"{name} input")
+    if targets is not None:
+        _preview_rep(ctx.path("s_target", "s_target.png"), targets[0], f"{name} target")
+    rep_out = objective.represent(sy.signal(image, cfg.symmetry.signals[0]), standardize=True)
+    _preview_rep(ctx.path("s_result", "s_result.png"), rep_out, f"{name} result")
+    if rep_out.ndim == 2:
+        ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))
+
+
+def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
+    lc = cfg.lens
+    objective = _objective(cfg, src.shape[:2])
+    with ctx.stage("optimize"):
+        def score(k1: float) -> float:
+            return objective.value(lens_mod.undistort(src, k1, center=lc.center))
+
+        start = score(0.0)
+        k1, history = lens_mod.search_k1(score, k1_min=lc.k1_min, k1_max=lc.k1_max, samples=lc.samples, tol=lc.tol)
+        image = lens_mod.undistort(src, k1, center=lc.center)
+        end = objective.value(image)
+    ctx.metrics.update(
+        objective="E_symm",
+        objective_start=start,
+        objective_end=end,
+        baseline_objective=start,
+        iterations=len(history),
+        k1=k1,
+    )
+    with ctx.stage("write"):
+        _write_common(cfg, ctx, src, image, objective, None)
+        ks, vals = np.array(sorted(history)).T
+        plot_curve_png(ctx.path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm",
+                       title="lens search")

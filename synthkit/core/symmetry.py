@@ -273,9 +273,7 @@ def rotational(
     ``gamma_k = 2 pi k / n_angles``, from :func:`polar_resample` about ``center`` ``(y, x)``; one
     FFT per radius (Kazhdan et al. 2004). Raw ``S[0] = 1``; see the module notes on ``standardize``.
     """
-    return _polar_descriptor(
-        f, "rot", center=center, n_angles=n_angles, n_radii=n_radii, standardize=standardize
-    )
+    return _polar_descriptor(f, "rot", center=center, n_angles=n_angles, n_radii=n_radii, standardize=standardize)
 
 
 def reflective(
@@ -293,9 +291,7 @@ def reflective(
     +y), normalized by ``sum r f^2``; a self-convolution along ``phi`` by FFT per radius. A signal
     mirror-symmetric about the line at ``theta`` has raw value 1 there.
     """
-    return _polar_descriptor(
-        f, "ref", center=center, n_angles=n_angles, n_radii=n_radii, standardize=standardize
-    )
+    return _polar_descriptor(f, "ref", center=center, n_angles=n_angles, n_radii=n_radii, standardize=standardize)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -405,22 +401,26 @@ def rotate(S: np.ndarray, degrees: float) -> np.ndarray:
     return _affine_about_centre(S, R.T)
 
 
-def strongest_peak(S: np.ndarray, *, min_distance: float = 2.0) -> tuple[int, int]:
-    """Displacement ``(dy, dx)`` of the largest value of centred 2-D ``S`` at least ``min_distance``
-    from zero displacement.
+def strongest_peak(S: np.ndarray, *, min_distance: float = 1.0) -> tuple[int, int]:
+    """Displacement ``(dy, dx)`` of the strongest non-zero peak of centred 2-D ``S``.
 
-    Values within ``1e-9`` (relative to the range of ``S``) of the maximum tie; the tie with the
-    shortest displacement wins (then the first in row-major order), so a perfect lattice reports
-    a basis vector rather than a diagonal.
+    A peak is a local maximum over its 3x3 neighbourhood (window borders excluded, toroidal
+    neighbours are not assumed) at least ``min_distance`` from zero displacement, so the central
+    lobe around ``(0, 0)`` never counts. Values within ``1e-9`` (relative to the range of ``S``) of
+    the best tie; the shortest displacement wins (then row-major order), so a perfect lattice
+    reports a basis vector rather than a diagonal. ValueError when there is no peak.
     """
     S = np.asarray(S, dtype=np.float64)
     wy, wx = (S.shape[0] - 1) // 2, (S.shape[1] - 1) // 2
     dy, dx = np.mgrid[-wy : S.shape[0] - wy, -wx : S.shape[1] - wx]
     dist = np.hypot(dy, dx)
-    masked = np.where(dist >= min_distance, S, -np.inf)
+    local = S >= ndimage.maximum_filter(S, size=3, mode="constant", cval=-np.inf)
+    local[[0, -1], :] = False
+    local[:, [0, -1]] = False
+    masked = np.where(local & (dist >= min_distance), S, -np.inf)
     best = masked.max()
     if not np.isfinite(best):
-        raise ValueError(f"no displacement at least {min_distance} from zero in a {S.shape} array")
+        raise ValueError(f"no peak at least {min_distance} from zero displacement in a {S.shape} array")
     tol = 1e-9 * max(float(np.ptp(S)), 1.0)
     ties = np.flatnonzero(masked.ravel() >= best - tol)
     k = int(ties[np.argmin(dist.ravel()[ties])])
@@ -455,7 +455,7 @@ class IncrementalAutocorrelation:
         H, W = f.shape
         wy, wx = int(window[0]), int(window[1])
         if not (0 <= wy <= (H - 1) // 2 and 0 <= wx <= (W - 1) // 2):
-            raise ValueError(f"window {window} must lie within ((H-1)//2, (W-1)//2) = {((H-1)//2, (W-1)//2)}")
+            raise ValueError(f"window {window} must lie within ((H-1)//2, (W-1)//2) = {((H - 1) // 2, (W - 1) // 2)}")
         self.f = f.copy()
         self.window = (wy, wx)
         self._plans: dict[tuple[int, int], tuple[tuple[int, int], np.ndarray, np.ndarray]] = {}

@@ -28,7 +28,7 @@ class SymmetrySection(StrictModel):
     signals: list[Signal] = Field(
         ["lum"],
         min_length=1,
-        description="Input signals f_lum, f_1-lum, f_edge; the objective is summed over them (Fig. 7 uses lum + 1-lum).",
+        description="Input signals f_lum, f_1-lum, f_edge; objective summed over them (Fig. 7: lum + 1-lum).",
     )
     mode: Literal["toroidal", "zero"] = Field(
         "toroidal", description="S_T autocorrelation on a torus or with zero padding (deform/lens only)."
@@ -63,11 +63,15 @@ class SynthSection(StrictModel):
 
     patch: int = Field(32, ge=4, le=256, description="Patch size in pixels (paper: 32).")
     overlap: int = Field(12, ge=1, le=128, description="Overlap in pixels (paper: 12).")
-    tol: float = Field(0.1, ge=0.0, le=10.0, description="Unguided quilting: accept patches within (1+tol) of the best overlap error.")
+    tol: float = Field(
+        0.1, ge=0.0, le=10.0, description="Unguided quilting: accept patches within (1+tol) of the best overlap error."
+    )
     candidates: int = Field(
         24, ge=1, le=1024, description="Guided walk: overlap-consistent candidate patches tried per tile (k best)."
     )
-    sweeps: int = Field(4, ge=0, le=100, description="Guided walk: passes over all tiles (stops early when none changes).")
+    sweeps: int = Field(
+        4, ge=0, le=100, description="Guided walk: passes over all tiles (stops early when none changes)."
+    )
     init: Literal["random", "quilt"] = Field(
         "random", description="Start from random patches (paper) or from the unguided quilting result."
     )
@@ -83,7 +87,9 @@ class DeformSection(StrictModel):
     points: int = Field(256, ge=8, le=4096, description="Control points N (paper: 256), corners then dart throwing.")
     levels: int = Field(3, ge=1, le=8, description="Levels of the coarse-to-fine hierarchy.")
     step: float = Field(5.0, gt=0.0, le=100.0, description="Initial gradient step in pixels (paper: 5).")
-    min_step: float = Field(1.0, gt=0.0, le=100.0, description="Stop a level once the step falls below this (paper: 1).")
+    min_step: float = Field(
+        1.0, gt=0.0, le=100.0, description="Stop a level once the step falls below this (paper: 1)."
+    )
     max_cycles: int = Field(4, ge=1, le=100, description="Cycles over the control points per step size.")
     max_evaluations: int = Field(20000, ge=10, description="Budget of objective evaluations (paper: up to 20000).")
 
@@ -91,7 +97,9 @@ class DeformSection(StrictModel):
 class LensSection(StrictModel):
     """One-parameter radial distortion (Tsai k1) about a given centre (theta_lens)."""
 
-    center: tuple[float, float] | None = Field(None, description="Distortion centre (row, col) in pixels; default the image centre.")
+    center: tuple[float, float] | None = Field(
+        None, description="Distortion centre (row, col) in pixels; default the image centre."
+    )
     k1_min: float = Field(-0.5, ge=-2.0, le=2.0, description="Lower end of the k1 search range.")
     k1_max: float = Field(0.5, ge=-2.0, le=2.0, description="Upper end of the k1 search range.")
     samples: int = Field(41, ge=3, le=1001, description="Coarse grid samples before the golden-section refinement.")
@@ -101,9 +109,14 @@ class LensSection(StrictModel):
 class TileSection(StrictModel):
     """Toroidal tiling by symmetrization (mode: tile)."""
 
-    margin: float = Field(0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%).")
+    margin: float = Field(
+        0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%)."
+    )
     blend: float = Field(
-        0.15, ge=0.0, le=0.5, description="Width of the mean-value-coordinate blend across the toroidal boundary (fraction)."
+        0.15,
+        ge=0.0,
+        le=0.5,
+        description="Width of the mean-value-coordinate blend across the toroidal boundary (fraction).",
     )
 
 

@@ -27,9 +27,7 @@ def _grid(shape, center):
 
 def _remap(img: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
     src = np.asarray(img, dtype=np.float32)
-    return cv2.remap(
-        src, xs.astype(np.float32), ys.astype(np.float32), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
-    )
+    return cv2.remap(src, xs.astype(np.float32), ys.astype(np.float32), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
 
 def distort(img: np.ndarray, k1: float, *, center=None) -> np.ndarray:

@@ -124,8 +124,7 @@ def run(cfg: SymtexConfig, ctx) -> None:
     else:
         from synthkit.methods.symtex import deform as deform_mod
 
-        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective,
-                              preview_fn=_preview_rep)
+        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective, preview_fn=_preview_rep)
 
 
 def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> None:
@@ -217,6 +216,7 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
     lc = cfg.lens
     objective = _objective(cfg, src.shape[:2])
     with ctx.stage("optimize"):
+
         def score(k1: float) -> float:
             return objective.value(lens_mod.undistort(src, k1, center=lc.center))
 
@@ -235,5 +235,6 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
     with ctx.stage("write"):
         _write_common(cfg, ctx, src, image, objective, None)
         ks, vals = np.array(sorted(history)).T
-        plot_curve_png(ctx.path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm",
-                       title="lens search")
+        plot_curve_png(
+            ctx.path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm", title="lens search"
+        )

@@ -126,13 +126,12 @@ def guided_walk(
 
     def full_value(img):
         return float(
-            sum(
-                sy.e_l2(sy.translational(f, window=window), T)
-                for f, T in zip(sig(img), targets, strict=True)
-            )
+            sum(sy.e_l2(sy.translational(f, window=window), T) for f, T in zip(sig(img), targets, strict=True))
         )
 
-    states = [sy.IncrementalAutocorrelation(f, window=window) for f in sig(canvas)] if evaluation == "incremental" else []
+    states = (
+        [sy.IncrementalAutocorrelation(f, window=window) for f in sig(canvas)] if evaluation == "incremental" else []
+    )
 
     def current_value():
         if states:

@@ -199,11 +199,14 @@ def poisson_disk_sample(V, F, radius: float, *, seed: int = 0, oversample: int =
 
     Method (the one of MeshLab's ``generate_sampling_poisson_disk``: a Monte Carlo pool pruned to a
     Poisson-disk set): a pool of ``oversample`` points per disk of radius ``radius / 2`` of surface
-    area, drawn area-uniformly with ``np.random.default_rng(seed)``, then the greedy maximal subset in
-    random priority order whose points are pairwise at least ``radius`` apart. Written here rather
-    than calling pymeshlab because pymeshlab's sampler draws from a process-wide generator with no
-    seed parameter, so two calls in one process return different sets; this one is deterministic for
-    a seed. Distances are Euclidean, not geodesic.
+    area (at most 4 million), drawn area-uniformly with ``np.random.default_rng(seed)`` in random
+    order, then pruned in rounds on a grid of cells of side ``radius / sqrt(3)`` (a cell holds at most
+    one sample): in round k every cell still without a sample offers its k-th pool point; offers
+    closer than ``radius`` to a sample are dropped, and among the rest the greedy independent set in
+    pool order is kept. The result is maximal for the pool (every pool point lies within ``radius`` of
+    a sample). Written here rather than calling pymeshlab because pymeshlab's sampler draws from a
+    process-wide generator with no seed parameter (two calls in one process return different sets);
+    this one is deterministic for a seed. Distances are Euclidean, not geodesic.
     """
     V, F = as_mesh_arrays(V, F)
     if not radius > 0:
@@ -220,9 +223,48 @@ def poisson_disk_sample(V, F, radius: float, *, seed: int = 0, oversample: int =
     u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
     tri = V[F[face]]
     pool = tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
-    keep = _greedy_independent_set(pool, radius, rng.permutation(n_pool))
-    normals = face_normals(V, F)[face[keep]]
-    return pool[keep], normals
+    keep = _poisson_prune(pool, radius)
+    return pool[keep], face_normals(V, F)[face[keep]]
+
+
+def _poisson_prune(pool: np.ndarray, radius: float) -> np.ndarray:
+    """Indices (sorted) of a maximal subset of ``pool (n, 3)`` with pairwise distances >= ``radius``,
+    preferring earlier points (see :func:`poisson_disk_sample`)."""
+    h = radius / np.sqrt(3.0)
+    cell = np.floor((pool - pool.min(axis=0)) / h).astype(np.int64)
+    dims = cell.max(axis=0) + 1
+    key = (
+        np.ravel_multi_index(cell.T, tuple(dims))
+        if np.prod(dims.astype(float)) < 2**62
+        else (np.unique(cell, axis=0, return_inverse=True)[1].reshape(-1))
+    )
+    order = np.lexsort((np.arange(len(pool)), key))
+    sorted_key = key[order]
+    start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
+    group = np.cumsum(start) - 1
+    rank = np.arange(len(pool)) - np.flatnonzero(start)[group]
+    rank_of = np.empty(len(pool), np.int64)
+    rank_of[order] = rank
+    cell_of = np.empty(len(pool), np.int64)
+    cell_of[order] = group
+    filled = np.zeros(int(group[-1]) + 1, bool)
+    accepted: list[np.ndarray] = []
+    tree = None
+    r_test = radius * (1 - 1e-12)
+    for k in range(int(rank.max()) + 1):
+        cand = np.flatnonzero((rank_of == k) & ~filled[cell_of])
+        if len(cand) == 0:
+            continue
+        if tree is not None:
+            d, _ = tree.query(pool[cand], distance_upper_bound=r_test)
+            cand = cand[~np.isfinite(d)]
+            if len(cand) == 0:
+                continue
+        win = cand[_greedy_independent_set(pool[cand], radius, cand)]
+        filled[cell_of[win]] = True
+        accepted.append(win)
+        tree = cKDTree(pool[np.concatenate(accepted)])
+    return np.sort(np.concatenate(accepted)) if accepted else np.zeros(0, np.int64)
 
 
 def _greedy_independent_set(points: np.ndarray, radius: float, priority: np.ndarray) -> np.ndarray:
@@ -230,7 +272,7 @@ def _greedy_independent_set(points: np.ndarray, radius: float, priority: np.ndar
 
     Visiting points by increasing ``priority`` and keeping those with no kept point closer than
     ``radius`` equals the fixed point of "keep every undecided point whose priority is the lowest among
-    its undecided neighbours; drop their neighbours", which is computed here with sparse products.
+    its undecided neighbours; drop their neighbours", which is computed here with sparse arrays.
     """
     n = len(points)
     pairs = cKDTree(points).query_pairs(radius * (1 - 1e-12), output_type="ndarray")
@@ -242,15 +284,17 @@ def _greedy_independent_set(points: np.ndarray, radius: float, priority: np.ndar
     state = np.zeros(n, np.int8)  # 0 undecided, 1 kept, -1 dropped
     prio = priority.astype(np.float64)
     indptr, indices = A.indptr, A.indices
+    has_nb = np.diff(indptr) > 0
+    starts = indptr[:-1][has_nb]
     row = np.repeat(np.arange(n), np.diff(indptr))
     while True:
         und = state == 0
         if not und.any():
             break
-        # lowest priority among undecided neighbours
+        # lowest priority among undecided neighbours (segment minima over the CSR rows)
         nb_prio = np.where(und[indices], prio[indices], np.inf)
         low = np.full(n, np.inf)
-        np.minimum.at(low, row, nb_prio)
+        low[has_nb] = np.minimum.reduceat(nb_prio, starts)
         win = und & (prio < low)
         state[win] = 1
         hit = np.zeros(n, bool)

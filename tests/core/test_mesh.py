@@ -293,3 +293,17 @@ def test_clip_with_caps_is_closed(cube):
     assert np.isclose(m3.volume, ring.volume * 0.6)
     cap_area = M.face_areas(V3, F3)[src3 < 0].sum()
     assert np.isclose(cap_area, ring.volume / 1.0, rtol=1e-9)  # section area = volume / height
+
+
+def test_poisson_prune_is_a_maximal_disk_set():
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(7)
+    pts = rng.random((5000, 3)) * [1.0, 1.0, 0.1]
+    keep = M._poisson_prune(pts, 0.08)
+    d, _ = cKDTree(pts[keep]).query(pts[keep], k=2)
+    assert d[:, 1].min() >= 0.08 * (1 - 1e-9)
+    # maximal: every dropped point has a kept point closer than the radius
+    d_all, _ = cKDTree(pts[keep]).query(pts)
+    assert d_all.max() < 0.08
+    np.testing.assert_array_equal(keep, M._poisson_prune(pts, 0.08))

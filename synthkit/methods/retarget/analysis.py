@@ -294,9 +294,10 @@ def refine_offset(
 
     Returns ``(t (3,), overlap, grip)``: the refined offset, the share of sources that land within
     ``inlier_radius`` of a compatible point (how much of the model the offset maps onto itself),
-    and the mean squared component along ``t`` of the matched normals, which is near 0 when the
+    and the ``grip``: the share of sources that land on a compatible point whose normal is within
+    60 degrees of ``t``, i.e. surface that pins the offset along ``t``. It is near 0 when the
     matched surface could slide along ``t`` (a continuous symmetry such as a long plank, not a
-    repetition) and 1/3 for normals spread evenly over all directions.
+    repetition), however small the pinning parts (window jambs, dividers) are otherwise.
     """
     P = np.asarray(P, dtype=np.float64)
     N = np.asarray(N, dtype=np.float64)
@@ -327,8 +328,9 @@ def refine_offset(
     if not ok.any():
         return t, 0.0, 0.0
     u = t / max(np.linalg.norm(t), 1e-300)
-    grip = float(np.mean((N[j[ok]] @ u) ** 2))
-    return t, float(ok.mean()), grip
+    pinned = np.zeros(len(S), bool)
+    pinned[ok] = np.abs(N[j[ok]] @ u) >= 0.5
+    return t, float(ok.mean()), float(pinned.mean())
 
 
 def reduce_to_generators(vectors, *, eligible=None, tol: float = 0.05, max_multiple: int = 6) -> np.ndarray:
@@ -437,7 +439,7 @@ def analyze(
     min_peak_share: float = 0.01,
     max_dominant: int = 20,
     min_overlap: float = 0.15,
-    min_grip: float = 0.02,
+    min_grip: float = 0.005,
     min_angle: float = np.pi / 3,
     max_principal: int = 3,
     dummy_length: float = 0.2,

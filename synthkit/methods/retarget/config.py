@@ -30,7 +30,7 @@ class AnalysisSection(StrictModel):
         0.15, ge=0, le=1, description="Share of the dense cloud a principal offset must map onto the surface."
     )
     min_grip: float = Field(
-        0.02, ge=0, le=1, description="Mean squared normal component along a principal offset (rejects sliding)."
+        0.005, ge=0, le=1, description="Share of the surface that must pin a principal offset (rejects sliding)."
     )
     min_angle_deg: float = Field(60.0, gt=0, le=90, description="Minimum angle between principal offsets (theta).")
     max_principal: int = Field(3, ge=0, le=3, description="At most this many principal offsets.")

@@ -124,7 +124,7 @@ def run(cfg: SymtexConfig, ctx) -> None:
     else:
         from synthkit.methods.symtex import deform as deform_mod
 
-        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective, preview_fn=_preview_rep)
+        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective)
 
 
 def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> None:

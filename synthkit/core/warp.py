@@ -1,0 +1,233 @@
+"""As-rigid-as-possible 2-D warping of images over a triangle mesh (Igarashi, Moscovich, Hughes 2005).
+
+Meshes are ``V (n, 2) float64`` vertex positions as ``(x, y)`` pixels and ``F (m, 3) int64``
+triangles. :class:`ARAP2D` prefactors Igarashi's two least-squares steps for a fixed set of handle
+vertices and maps handle positions to positions of every vertex:
+
+1. scale-free construction: every triangle corner is expressed in the frame of its opposite edge,
+   ``v2 = v0 + x (v1 - v0) + y R90 (v1 - v0)`` with ``(x, y)`` from the rest mesh; minimize the
+   residuals of all corners subject to the handles;
+2. scale adjustment: fit a rotation (no scale) of each rest triangle to its step-1 result, then
+   solve for positions whose triangle edge vectors best match the fitted triangles' edges.
+
+Handles are soft constraints of weight ``handle_weight`` (1000 by default, relative to unit-weight
+shape rows), so each step is one sparse least-squares system factored once
+(:class:`synthkit.core.lsq.LeastSquares`).
+
+:class:`MeshSampler` renders a warp given as a *backward* map: the mesh lies on the output image
+at rest and ``U (n, 2)`` says where each vertex samples the input; pixels interpolate ``U``
+barycentrically and read the input bilinearly. :func:`mean_value_coordinates` gives Floater's
+weights of points with respect to a closed polygon.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import Delaunay
+
+from synthkit.core.lsq import LeastSquares
+
+__all__ = ["ARAP2D", "MeshSampler", "mean_value_coordinates", "arap_deform"]
+
+_R90 = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+def _check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 2 or len(V) < 3:
+        raise ValueError(f"V must be (n >= 3, 2), got {V.shape}")
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
+        raise ValueError(f"F must be (m >= 1, 3), got {F.shape}")
+    if F.min() < 0 or F.max() >= len(V):
+        raise ValueError("F indexes vertices outside V")
+    return V, F
+
+
+class ARAP2D:
+    """Igarashi-style ARAP deformation of a 2-D mesh with a fixed handle set (factor once).
+
+    Parameters
+    ----------
+    V : (n, 2) rest positions. F : (m, 3) triangles (non-degenerate).
+    handles : (h,) vertex indices, h >= 2 (two handles fix translation, rotation and scale).
+    handle_weight : weight of the soft handle constraints.
+    """
+
+    def __init__(self, V, F, handles, *, handle_weight: float = 1000.0):
+        V, F = _check_mesh(V, F)
+        handles = np.asarray(handles, dtype=np.int64).reshape(-1)
+        if len(handles) < 2 or len(np.unique(handles)) != len(handles):
+            raise ValueError("need at least two distinct handles")
+        if handles.min() < 0 or handles.max() >= len(V):
+            raise ValueError("handle index outside V")
+        self.V, self.F, self.handles = V, F, handles
+        n, m = len(V), len(F)
+        # step 1 rows: for each triangle corner c with opposite edge (a, b):
+        # v_c - v_a - x (v_b - v_a) - y R90 (v_b - v_a) = 0, two rows (x and y components)
+        rows, cols, vals = [], [], []
+        self._local = np.zeros((m, 3, 2))
+        r = 0
+        for t in range(3):
+            a, b, c = F[:, t], F[:, (t + 1) % 3], F[:, (t + 2) % 3]
+            e = V[b] - V[a]
+            d = V[c] - V[a]
+            ee = (e * e).sum(axis=1)
+            if np.any(ee <= 1e-20):
+                raise ValueError("mesh has a zero-length edge")
+            x = (d * e).sum(axis=1) / ee
+            y = (d * (e @ _R90.T)).sum(axis=1) / ee
+            self._local[:, t] = np.stack([x, y], axis=1)
+            # component k of: v_c - (1 - x) v_a - x v_b - y R90 (v_b - v_a)
+            # R90 (p) = (-p_y, p_x)
+            for k in range(2):
+                idx = r + 2 * np.arange(m) + k
+                other = 1 - k
+                sign = -1.0 if k == 0 else 1.0  # (R90 p)_0 = -p_1, (R90 p)_1 = p_0
+                rows += [idx, idx, idx, idx, idx]
+                cols += [2 * c + k, 2 * a + k, 2 * b + k, 2 * b + other, 2 * a + other]
+                vals += [np.ones(m), -(1 - x), -x, -y * sign, y * sign]
+            r += 2 * m
+        hrows = r + np.arange(2 * len(handles))
+        hcols = (2 * handles[:, None] + np.arange(2)[None, :]).ravel()
+        rows.append(hrows)
+        cols.append(hcols)
+        vals.append(np.ones(2 * len(handles)))
+        A1 = sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r + 2 * len(handles), 2 * n)
+        )
+        w1 = np.concatenate([np.ones(r), np.full(2 * len(handles), handle_weight)])
+        self._n_shape1 = r
+        self._step1 = LeastSquares(A1, weights=w1)
+        # step 2 rows: for each triangle edge (i, j): v_j - v_i = fitted edge, per component
+        ei = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
+        ej = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+        ne = len(ei)
+        rows2, cols2, vals2 = [], [], []
+        for k in range(2):
+            idx = 2 * np.arange(ne) + k
+            rows2 += [idx, idx]
+            cols2 += [2 * ej + k, 2 * ei + k]
+            vals2 += [np.ones(ne), -np.ones(ne)]
+        rows2.append(2 * ne + np.arange(2 * len(handles)))
+        cols2.append(hcols)
+        vals2.append(np.ones(2 * len(handles)))
+        A2 = sp.csr_matrix(
+            (np.concatenate(vals2), (np.concatenate(rows2), np.concatenate(cols2))),
+            shape=(2 * ne + 2 * len(handles), 2 * n),
+        )
+        w2 = np.concatenate([np.ones(2 * ne), np.full(2 * len(handles), handle_weight)])
+        self._step2 = LeastSquares(A2, weights=w2)
+        self._edges = (ei, ej)
+
+    def solve(self, handle_positions: np.ndarray) -> np.ndarray:
+        """Positions ``(n, 2)`` of all vertices for ``handle_positions (h, 2)``."""
+        P = np.asarray(handle_positions, dtype=np.float64)
+        if P.shape != (len(self.handles), 2):
+            raise ValueError(f"handle_positions must be ({len(self.handles)}, 2), got {P.shape}")
+        b1 = np.concatenate([np.zeros(self._n_shape1), P.ravel()])
+        U1 = self._step1.solve(b1).reshape(-1, 2)
+        # fit a rotation + translation of each rest triangle to its step-1 triangle
+        F = self.F
+        rest = self.V[F]  # (m, 3, 2)
+        cur = U1[F]
+        rc = rest - rest.mean(axis=1, keepdims=True)
+        cc = cur - cur.mean(axis=1, keepdims=True)
+        a = (rc * cc).sum(axis=(1, 2))
+        b = (rc[..., 0] * cc[..., 1] - rc[..., 1] * cc[..., 0]).sum(axis=1)
+        norm = np.hypot(a, b)
+        norm = np.where(norm > 0, norm, 1.0)
+        cos, sin = a / norm, b / norm
+        fitted = np.stack(
+            [cos[:, None] * rc[..., 0] - sin[:, None] * rc[..., 1], sin[:, None] * rc[..., 0] + cos[:, None] * rc[..., 1]],
+            axis=2,
+        )
+        d = np.concatenate(
+            [fitted[:, 1] - fitted[:, 0], fitted[:, 2] - fitted[:, 1], fitted[:, 0] - fitted[:, 2]], axis=0
+        )
+        b2 = np.concatenate([d.ravel(), P.ravel()])
+        return self._step2.solve(b2).reshape(-1, 2)
+
+
+def arap_deform(V, F, handles, handle_positions) -> np.ndarray:
+    """One-shot :class:`ARAP2D` solve: positions ``(n, 2)`` of all vertices."""
+    return ARAP2D(V, F, handles).solve(handle_positions)
+
+
+class MeshSampler:
+    """Backward warping of images of ``shape`` ``(H, W)`` over the Delaunay mesh of ``V_rest (n, 2)``.
+
+    The triangulation must cover every pixel centre (include the image corners). Each pixel's
+    containing triangle and barycentric coordinates are computed once; :meth:`coords` then maps
+    vertex sample positions ``U (n, 2)`` to per-pixel sample positions by one sparse product.
+    """
+
+    def __init__(self, V_rest: np.ndarray, shape: tuple[int, int]):
+        V = np.asarray(V_rest, dtype=np.float64)
+        H, W = int(shape[0]), int(shape[1])
+        self.tri = Delaunay(V)
+        self.V = V
+        self.F = self.tri.simplices.astype(np.int64)
+        self.shape = (H, W)
+        yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+        pts = np.stack([xx.ravel(), yy.ravel()], axis=1)
+        simplex = self.tri.find_simplex(pts, tol=1e-9)
+        if np.any(simplex < 0):
+            raise ValueError("the mesh does not cover every pixel (add the image corners to V_rest)")
+        T = self.tri.transform[simplex]
+        b01 = np.einsum("nij,nj->ni", T[:, :2, :], pts - T[:, 2, :])
+        bary = np.column_stack([b01, 1.0 - b01.sum(axis=1)])
+        verts = self.tri.simplices[simplex]
+        n_pix = len(pts)
+        self.B = sp.csr_matrix(
+            (bary.ravel(), (np.repeat(np.arange(n_pix), 3), verts.ravel())), shape=(n_pix, len(V))
+        )
+
+    def coords(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``."""
+        P = self.B @ np.asarray(U, dtype=np.float64)
+        H, W = self.shape
+        return P[:, 0].reshape(H, W).astype(np.float32), P[:, 1].reshape(H, W).astype(np.float32)
+
+    def warp(self, img: np.ndarray, U: np.ndarray, *, border: str = "reflect") -> np.ndarray:
+        """``out(p) = img(sum_i b_i(p) U_i)`` bilinearly; ``border`` "reflect" or "wrap"."""
+        mx, my = self.coords(U)
+        mode = cv2.BORDER_WRAP if border == "wrap" else cv2.BORDER_REFLECT
+        return cv2.remap(np.asarray(img, dtype=np.float32), mx, my, cv2.INTER_LINEAR, borderMode=mode)
+
+
+def mean_value_coordinates(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Floater's mean value coordinates ``(k, n)`` of ``points (k, 2)`` inside ``polygon (n, 2)``.
+
+    ``w_i = (tan(a_{i-1} / 2) + tan(a_i / 2)) / |v_i - x|`` with ``a_i`` the angle at ``x`` between
+    ``v_i`` and ``v_{i+1}``, normalized to sum 1. A point on a polygon vertex gets that vertex's
+    unit weight; points on an edge get the linear interpolation of its two end points.
+    """
+    X = np.asarray(points, dtype=np.float64)
+    P = np.asarray(polygon, dtype=np.float64)
+    d = P[None, :, :] - X[:, None, :]  # (k, n, 2)
+    r = np.hypot(d[..., 0], d[..., 1])
+    dn = np.roll(d, -1, axis=1)
+    rn = np.roll(r, -1, axis=1)
+    cross = d[..., 0] * dn[..., 1] - d[..., 1] * dn[..., 0]
+    dot = (d * dn).sum(axis=2)
+    # tan(a/2) = sin a / (1 + cos a) = cross / (r rn + dot)
+    denom = r * rn + dot
+    on_edge = (np.abs(cross) <= 1e-12 * np.maximum(r * rn, 1e-300)) & (dot < 0)
+    tan_half = np.divide(cross, denom, out=np.zeros_like(cross), where=np.abs(denom) > 1e-300)
+    w = (np.roll(tan_half, 1, axis=1) + tan_half) / np.maximum(r, 1e-300)
+    weights = w / w.sum(axis=1, keepdims=True)
+    at_vertex = r <= 1e-12
+    rows_v = at_vertex.any(axis=1)
+    if rows_v.any():
+        weights[rows_v] = at_vertex[rows_v].astype(np.float64)
+    rows_e = on_edge.any(axis=1) & ~rows_v
+    for k in np.flatnonzero(rows_e):
+        i = int(np.argmax(on_edge[k]))
+        j = (i + 1) % len(P)
+        t = r[k, i] / (r[k, i] + r[k, j])
+        weights[k] = 0.0
+        weights[k, i], weights[k, j] = 1.0 - t, t
+    return weights

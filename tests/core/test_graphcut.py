@@ -394,12 +394,41 @@ def test_infinite_pairwise_empty_voxels():
         return out
 
     unary = np.zeros((n, n_labels))
-    init = rng.integers(0, n_labels, n)
-    res = alpha_expansion(unary, edges, V, init=init, rng=0)
     ref = lambda k, a, b: float(V(k, a, b)[0])  # noqa: E731
-    check_result(res, unary, edges, V, ref)
+    opt = brute_optimum(unary, edges, ref)
+    # from an infeasible start (infinite terms present) and from a feasible one (all label 0),
+    # where moves first fix the nodes whose switch would meet an infinite cost
+    for init in (rng.integers(0, n_labels, n), np.zeros(n, dtype=int)):
+        res = alpha_expansion(unary, edges, V, init=init, rng=0)
+        check_result(res, unary, edges, V, ref)
+        assert np.isfinite(res.energy)
+        assert res.energy >= opt - 1e-9
+        # every move is submodular here (V(a, a) = 0, finite current terms), so the result is a
+        # local minimum of every expansion move
+        check_local_optimum(res, unary, edges, ref, n_labels)
+    assert np.isinf(energy(np.array([0, 1, 2, 0, 1, 2, 0]), unary, edges, V))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_forced_nodes_with_infinite_pairwise_grid(seed):
+    # 2 x 4 grid, 3 labels, random finite/inf pairwise per edge with V(a, a) = 0: brute-force moves.
+    rng = np.random.default_rng(600 + seed)
+    ids = np.arange(8).reshape(2, 4)
+    edges = np.concatenate([np.stack([ids[:, :-1].ravel(), ids[:, 1:].ravel()], 1),
+                            np.stack([ids[:-1].ravel(), ids[1:].ravel()], 1)])
+    n_labels = 3
+    table = np.stack([metric_table(rng, n_labels) for _ in edges])
+    forbid = rng.random(table.shape) < 0.25
+    forbid = forbid | forbid.transpose(0, 2, 1)
+    forbid[:, np.arange(n_labels), np.arange(n_labels)] = False
+    table[forbid] = np.inf
+    unary = rng.random((8, n_labels))
+    unary[:, 1:][rng.random((8, n_labels - 1)) < 0.3] = np.inf  # label 0 stays feasible everywhere
+    V = table_fn(table)
+    res = alpha_expansion(unary, edges, table, init=np.zeros(8, dtype=int), rng=seed)
+    check_result(res, unary, edges, table, V)
+    check_local_optimum(res, unary, edges, V, n_labels)
     assert np.isfinite(res.energy)
-    assert res.energy >= brute_optimum(unary, edges, ref) - 1e-9
 
 
 def test_infeasible_problem_raises_or_returns_infinite():
@@ -454,3 +483,47 @@ def test_max_cycles_bounds_the_run():
     res = alpha_expansion(unary, edges, table, max_cycles=1)
     assert res.cycles == 1 and len(res.history) == 2
     assert res.energy == energy(res.labels, unary, edges, table)
+
+
+def reference_move(labels, alpha, unary, edges, V, big=1e6):
+    """One expansion move built edge by edge (plain Kolmogorov-Zabih form) and solved by mincut."""
+    n = len(labels)
+    fin = lambda v: big if np.isinf(v) else v  # noqa: E731
+    src, snk = np.zeros(n), np.zeros(n)  # cost of x = 1 (sink side), of x = 0
+    can = np.array([labels[p] != alpha and np.isfinite(unary[p][alpha]) for p in range(n)])
+    for p in range(n):
+        snk[p] += fin(unary[p][labels[p]])
+        src[p] += fin(unary[p][alpha]) if can[p] else big
+    pairs, caps = [], []
+    for k, (p, q) in enumerate(edges):
+        a, b = labels[p], labels[q]
+        e00, e01, e10, e11 = (fin(V(k, a, b)), fin(V(k, a, alpha)), fin(V(k, alpha, b)),
+                              fin(V(k, alpha, alpha)))
+        snk[p] += e00
+        src[p] += e10 - e00
+        src[q] += e11 - e10
+        pairs.append((p, q))
+        caps.append(max(e01 + e10 - e00 - e11, 0.0))
+    shift = np.minimum(src, snk)
+    side, _ = mincut(n, np.array(pairs), np.array(caps), np.zeros(len(caps)), src - shift, snk - shift)
+    return np.where(side & can, alpha, labels)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_result_is_fixed_point_of_reference_moves(seed):
+    rng = np.random.default_rng(700 + seed)
+    n, n_labels = 40, 5
+    edges = random_graph(rng, n, 110)
+    table = np.stack([metric_table(rng, n_labels) for _ in edges])
+    forbid = rng.random(table.shape) < 0.15
+    forbid = forbid | forbid.transpose(0, 2, 1)
+    forbid[:, np.arange(n_labels), np.arange(n_labels)] = False
+    table[forbid] = np.inf
+    unary = rng.random((n, n_labels)) * 2
+    unary[:, 1:][rng.random((n, n_labels - 1)) < 0.2] = np.inf
+    V = table_fn(table)
+    res = alpha_expansion(unary, edges, table, init=np.zeros(n, dtype=int), rng=seed)
+    check_result(res, unary, edges, table, V)
+    for alpha in range(n_labels):
+        moved = reference_move(res.labels, alpha, unary, edges, V)
+        assert ref_energy(moved, unary, edges, V) >= res.energy - 1e-9

@@ -426,3 +426,30 @@ output:
     ex = trimesh.load(glb, force="mesh")
     np.testing.assert_allclose(mesh.bounds, ex.bounds, atol=1e-6)
     assert np.isclose(face_areas(mesh.vertices, mesh.faces).sum(), ex.area, rtol=1e-6)
+
+
+def test_restart_after_contradiction_then_success():
+    # a 2-D example on which forced choices can run into a contradiction (found by search)
+    rng = np.random.default_rng(19)
+    g = rng.integers(0, 4, size=(4, 4, 1))
+    _, g = np.unique(g, return_inverse=True)
+    g = g.reshape(4, 4, 1)
+    cons = analysis.adjacency_constraints(g, int(g.max()) + 1, boundary=False)
+    net = ColouredPetriNet((7, 7, 1), cons.allowed, cons.n_labels, boundary=False)
+    cleared = []
+    restarts = net.infer(
+        np.random.default_rng(4), origin_labels=[int(g[0, 0, 0])], max_restarts=30, on_restart=lambda: cleared.append(1)
+    )
+    assert restarts == 2 and len(cleared) == 2
+    assert adjacency_violations(net.label_grid(), cons.allowed, cons.n_labels, boundary=False) == 0
+    with pytest.raises(InputError, match="after 1 restarts"):
+        ColouredPetriNet((7, 7, 1), cons.allowed, cons.n_labels, boundary=False).infer(
+            np.random.default_rng(4), origin_labels=[int(g[0, 0, 0])], max_restarts=1
+        )
+
+
+@pytest.mark.parametrize("fmt", ["obj", "glb"])
+def test_other_mesh_formats(building, tmp_path, fmt):
+    report, out = run(building, tmp_path, points=[[0, 0], [8, 0]], extra=f"  mesh_format: {fmt}\n")
+    mesh = trimesh.load(out / f"result.{fmt}", force="mesh")
+    assert len(mesh.faces) == report["metrics"]["result_faces"]

@@ -141,7 +141,10 @@ class ARAP2D:
         norm = np.where(norm > 0, norm, 1.0)
         cos, sin = a / norm, b / norm
         fitted = np.stack(
-            [cos[:, None] * rc[..., 0] - sin[:, None] * rc[..., 1], sin[:, None] * rc[..., 0] + cos[:, None] * rc[..., 1]],
+            [
+                cos[:, None] * rc[..., 0] - sin[:, None] * rc[..., 1],
+                sin[:, None] * rc[..., 0] + cos[:, None] * rc[..., 1],
+            ],
             axis=2,
         )
         d = np.concatenate(
@@ -181,9 +184,7 @@ class MeshSampler:
         bary = np.column_stack([b01, 1.0 - b01.sum(axis=1)])
         verts = self.tri.simplices[simplex]
         n_pix = len(pts)
-        self.B = sp.csr_matrix(
-            (bary.ravel(), (np.repeat(np.arange(n_pix), 3), verts.ravel())), shape=(n_pix, len(V))
-        )
+        self.B = sp.csr_matrix((bary.ravel(), (np.repeat(np.arange(n_pix), 3), verts.ravel())), shape=(n_pix, len(V)))
 
     def coords(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``."""

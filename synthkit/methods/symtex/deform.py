@@ -77,8 +77,22 @@ class DeformOptimizer:
     backward map (identity or the tile zoom). Evaluations are counted in ``evaluations``.
     """
 
-    def __init__(self, img, loss, *, rest, U0, n_control, levels, step, min_step, max_cycles, max_evaluations,
-                 border="reflect", progress=None):
+    def __init__(
+        self,
+        img,
+        loss,
+        *,
+        rest,
+        U0,
+        n_control,
+        levels,
+        step,
+        min_step,
+        max_cycles,
+        max_evaluations,
+        border="reflect",
+        progress=None,
+    ):
         self.img = np.asarray(img, dtype=np.float32)
         self.loss = loss
         self.sampler = MeshSampler(rest, self.img.shape[:2])

@@ -209,7 +209,10 @@ def _write_common(cfg, ctx, src, image, objective: Objective, targets) -> None:
     rep_out = objective.represent(sy.signal(image, cfg.symmetry.signals[0]), standardize=True)
     _preview_rep(ctx.path("s_result", "s_result.png"), rep_out, f"{name} result")
     if rep_out.ndim == 2:
-        ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))
+        try:
+            ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))
+        except ValueError:
+            ctx.metrics["result_peak"] = None  # a window too small to hold a peak
 
 
 def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:

@@ -1,0 +1,70 @@
+"""ARAP warping, backward mesh sampling and mean value coordinates."""
+
+import numpy as np
+import pytest
+from scipy.spatial import Delaunay
+
+from synthkit.core import warp
+
+
+@pytest.fixture
+def mesh():
+    rng = np.random.default_rng(0)
+    V = np.concatenate([[[0, 0], [10, 0], [0, 10], [10, 10]], rng.random((20, 2)) * 8 + 1])
+    return V, Delaunay(V).simplices.astype(np.int64)
+
+
+def test_rigid_handles_give_rigid_motion(mesh):
+    V, F = mesh
+    solver = warp.ARAP2D(V, F, [0, 3, 7])
+    t = 0.4
+    R = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    shift = np.array([3.0, -2.0])
+    U = solver.solve(V[[0, 3, 7]] @ R.T + shift)
+    np.testing.assert_allclose(U, V @ R.T + shift, atol=1e-9)
+    np.testing.assert_allclose(solver.solve(V[[0, 3, 7]]), V, atol=1e-9)
+
+
+def test_handles_are_followed_and_shape_kept(mesh):
+    V, F = mesh
+    target = V[[0, 3]] + np.array([[0.0, 0.0], [2.0, 0.0]])
+    U = warp.arap_deform(V, F, [0, 3], target)
+    np.testing.assert_allclose(U[[0, 3]], target, atol=0.05)
+    # edge lengths change far less than a uniform stretch of the same handle motion would
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    rest = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    new = np.linalg.norm(U[e[:, 0]] - U[e[:, 1]], axis=1)
+    assert np.median(np.abs(new / rest - 1)) < 0.2
+
+
+def test_arap_errors(mesh):
+    V, F = mesh
+    with pytest.raises(ValueError, match="two distinct handles"):
+        warp.ARAP2D(V, F, [1])
+    with pytest.raises(ValueError, match="outside"):
+        warp.ARAP2D(V, F + 100, [0, 1])
+    with pytest.raises(ValueError, match="handle_positions"):
+        warp.ARAP2D(V, F, [0, 1]).solve(np.zeros((3, 2)))
+
+
+def test_mesh_sampler_identity_and_shift():
+    rng = np.random.default_rng(1)
+    img = rng.random((20, 24)).astype(np.float32)
+    V = np.concatenate([[[0, 0], [23, 0], [0, 19], [23, 19]], rng.random((10, 2)) * [20, 16] + 2])
+    s = warp.MeshSampler(V, img.shape)
+    np.testing.assert_allclose(s.warp(img, V), img, atol=1e-5)
+    shifted = s.warp(img, V + [2.0, 1.0], border="wrap")
+    np.testing.assert_allclose(shifted, np.roll(img, (-1, -2), axis=(0, 1)), atol=1e-5)
+    with pytest.raises(ValueError, match="cover"):
+        warp.MeshSampler(V[4:], img.shape)
+
+
+def test_mean_value_coordinates_properties():
+    square = np.array([[0, 0], [2, 0], [2, 1], [0, 1.0]])
+    pts = np.array([[1.0, 0.5], [0.3, 0.2], [0.0, 0.0], [1.0, 0.0]])
+    w = warp.mean_value_coordinates(pts, square)
+    np.testing.assert_allclose(w.sum(axis=1), 1.0)
+    np.testing.assert_allclose(w @ square, pts, atol=1e-12)  # linear precision
+    np.testing.assert_allclose(w[2], [1, 0, 0, 0])
+    np.testing.assert_allclose(w[3], [0.5, 0.5, 0, 0])
+    assert np.all(w[:2] > 0)

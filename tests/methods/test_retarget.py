@@ -21,9 +21,16 @@ from synthkit.methods.retarget.analysis import (
     reduce_to_generators,
     select_principal,
     share_in_top,
+    snap_to_vertices,
     sparsity_curve,
 )
-from synthkit.methods.retarget.synthesis import RetargetProblem, grid_phase, label_set
+from synthkit.methods.retarget.synthesis import (
+    RetargetProblem,
+    grid_phase,
+    label_set,
+    repair_t_junctions,
+    seam_planes,
+)
 from synthkit.runner import run_config
 from synthkit.samples import retarget as samples
 
@@ -118,6 +125,31 @@ def test_pairwise_rules_empty_and_same_label():
     # the first and last output voxels must copy the first and last input voxels
     assert np.isfinite(prob.unary[0, 0]) and np.isinf(prob.unary[0, 1])
     assert np.isinf(prob.unary[3, 0]) and np.isfinite(prob.unary[3, 1])
+
+
+def test_repair_t_junctions_splits_edge_at_hanging_vertex():
+    V = np.array([[0, 0, 0], [2, 0, 0], [1, 1, 0], [1, -1, 0], [1, 0, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [0, 4, 3], [4, 1, 3]])
+    V2, F2, src = repair_t_junctions(V, F, tol=1e-9)
+    assert len(F2) == 4 and sorted(src.tolist()) == [0, 0, 1, 2]
+    E = np.sort(np.concatenate([F2[:, [0, 1]], F2[:, [1, 2]], F2[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(E, axis=0, return_counts=True)
+    assert (counts == 2).sum() == 4  # 0-4, 4-1, 4-2 (new) and 4-3 shared
+    area = lambda T: 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1).sum()  # noqa: E731
+    assert area(V2[F2]) == pytest.approx(area(V[F]))
+
+
+def test_snap_to_vertices_recovers_exact_period():
+    grid = np.array([[i * 0.3, j * 0.2, 0.0] for i in range(5) for j in range(3)])
+    t, pairs = snap_to_vertices(grid, [0.3004, -0.0003, 0.0002], radius=0.005)
+    np.testing.assert_allclose(t, [0.3, 0, 0], atol=1e-12)
+    assert pairs == 12
+
+
+def test_seam_planes_only_between_regions():
+    regions = {0: np.array([True, True, False, False]), 1: np.array([False, False, True, True])}
+    normals, offsets = seam_planes(regions, (4, 1, 1))
+    assert normals.tolist() == [[1.0, 0.0, 0.0]] and offsets.tolist() == [2.0]
 
 
 def test_grid_phase_avoids_parallel_surface():
@@ -275,6 +307,24 @@ def test_sheared_grid_retargets_in_canonical_space(tmp_path, sample_dir):
     assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
     grow = np.array(rep["metrics"]["growth"])
     np.testing.assert_allclose(grow, [0.42, 0.0, 0.30], atol=0.005)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("steps", [3, -2])
+def test_railing_copies_join_watertight(tmp_path, sample_dir, steps):
+    cfg = _config(tmp_path, sample_dir, "railing", target={"steps": [steps]})
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    res = load_mesh(tmp_path / "out" / "retargeted.obj")
+    inp = load_mesh(sample_dir / "retarget-railing.obj")
+    truth = json.loads((sample_dir / "retarget-railing.truth.json").read_text())
+    # every seam closes (the input is closed), and each baluster is a stack of 5 closed boxes
+    assert res.is_watertight
+    parts = res.split(only_watertight=False)
+    rails = 2
+    assert len(parts) == rails + 5 * (truth["counts"]["balusters"] + steps)
+    grow = np.ptp(res.vertices, axis=0)[0] - np.ptp(inp.vertices, axis=0)[0]
+    assert grow == pytest.approx(steps * truth["lattice"][0][0], abs=1e-9)
+    assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
 
 
 def test_analyze_only_writes_statistics(tmp_path, sample_dir):

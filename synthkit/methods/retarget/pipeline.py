@@ -24,7 +24,7 @@ from synthkit.core.mesh import normalize_unit, weld
 from synthkit.errors import InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
-from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, voxel_pieces
+from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, repair_t_junctions
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
 __all__ = ["run", "Retargeted", "synthesize", "resolve_steps"]
@@ -47,10 +47,11 @@ class Retargeted:
     cycles: int
 
 
-def _voxel_sets(an: Analysis, grid: VoxelGrid, pieces: dict, *, descriptor: str, radius: float) -> list[np.ndarray]:
-    """Descriptor set G of every input voxel (flat C order): the features inside it. A voxel the
-    surface reaches but that holds no feature (a sliver thinner than the feature spacing) gets up
-    to 8 of its dense samples, described the same way, so that it is not mistaken for empty."""
+def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float) -> list[np.ndarray]:
+    """Descriptor set G of every input voxel (flat C order): the features inside it. A voxel that
+    holds dense samples but no feature (a sliver thinner than the feature spacing) gets up to 8
+    of its dense samples, described the same way, so that it is not mistaken for empty; a voxel
+    with no dense sample counts as empty (its surface is below the sampling resolution)."""
     fs = an.features
     shape = tuple(grid.shape)
     vox = grid.voxel_of(grid.to_canonical(fs.P))
@@ -58,19 +59,18 @@ def _voxel_sets(an: Analysis, grid: VoxelGrid, pieces: dict, *, descriptor: str,
     flat = np.full(len(vox), -1)
     flat[ok] = np.ravel_multi_index(tuple(vox[ok].T), shape)
     sets = [fs.D[flat == i] for i in range(grid.n_voxels)]
-    missing = [i for i in pieces if len(sets[i]) == 0]
-    if missing:
-        dvox = grid.voxel_of(grid.to_canonical(fs.dense_P))
-        dok = np.all((dvox >= 0) & (dvox < grid.shape), axis=1)
-        dflat = np.full(len(dvox), -1)
-        dflat[dok] = np.ravel_multi_index(tuple(dvox[dok].T), shape)
-        for i in missing:
+    dvox = grid.voxel_of(grid.to_canonical(fs.dense_P))
+    dok = np.all((dvox >= 0) & (dvox < grid.shape), axis=1)
+    dflat = np.full(len(dvox), -1)
+    dflat[dok] = np.ravel_multi_index(tuple(dvox[dok].T), shape)
+    occupied = np.unique(dflat[dflat >= 0])
+    for i in occupied:
+        if len(sets[i]) == 0:
             idx = np.flatnonzero(dflat == i)
-            if len(idx):
-                idx = idx[np.linspace(0, len(idx) - 1, min(8, len(idx))).astype(int)]
-                sets[i] = describe(
-                    fs.dense_P[idx], fs.dense_N[idx], fs.dense_P, fs.dense_N, descriptor=descriptor, radius=radius
-                )
+            idx = idx[np.linspace(0, len(idx) - 1, min(8, len(idx))).astype(int)]
+            sets[i] = describe(
+                fs.dense_P[idx], fs.dense_N[idx], fs.dense_P, fs.dense_N, descriptor=descriptor, radius=radius
+            )
     return sets
 
 
@@ -81,8 +81,7 @@ def synthesize(Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "")
     a = cfg.analysis
     with ctx.stage(f"{prefix}synthesis"):
         grid = make_grid(basis, an.features.dense_P, an.features.dense_N, Vn, dense_radius=a.dense_radius)
-        pieces = voxel_pieces(grid.to_canonical(Vn), F, grid)
-        sets = _voxel_sets(an, grid, pieces, descriptor=a.descriptor, radius=a.descriptor_radius)
+        sets = _voxel_sets(an, grid, descriptor=a.descriptor, radius=a.descriptor_radius)
         steps = np.asarray(steps, dtype=np.int64)
         out_shape = grid.shape + steps
         for axis in np.flatnonzero(steps):
@@ -108,15 +107,16 @@ def synthesize(Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "")
             "to a non-empty one (try other steps)"
         )
     with ctx.stage(f"{prefix}assemble"):
-        Vc, Fo, fl = assemble(pieces, problem, result.labels)
-        Vo = grid.to_normalised(Vc)
-        Vw, Fw, old_to_new = weld(Vo, Fo, cfg.weld_tolerance, return_index=True)
-        Fmapped = old_to_new[Fo]
-        keep = (Fmapped[:, 0] != Fmapped[:, 1]) & (Fmapped[:, 1] != Fmapped[:, 2]) & (Fmapped[:, 2] != Fmapped[:, 0])
+        Vc, Fo, fl = assemble(grid.to_canonical(Vn), F, grid, problem, result.labels)
+        Vw, Fw, old_to_new = weld(grid.to_normalised(Vc), Fo, cfg.weld_tolerance, return_index=True)
+        Fm = old_to_new[Fo]
+        fl = fl[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])]
+        Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
+        fl = fl[src]
         used = np.unique(Fw)
         remap = np.full(len(Vw), -1)
         remap[used] = np.arange(len(used))
-    return Retargeted(Vw[used], remap[Fw], fl[keep], grid, problem, result.labels, result.energy, result.cycles)
+    return Retargeted(Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles)
 
 
 def resolve_steps(target, an: Analysis, Vn, *, source) -> np.ndarray:

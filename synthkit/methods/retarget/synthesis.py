@@ -9,7 +9,8 @@ principal offset is one unit step along a canonical axis and a voxel is a unit c
 - :func:`label_set`: the offset space Phi (eq. 2) as integer shifts, one label per copy.
 - :class:`RetargetProblem`: unary (0 / inf) and pairwise (eq. 4) terms on the 26-connected output
   grid; :meth:`RetargetProblem.solve` runs alpha-expansion.
-- :func:`voxel_pieces` / :func:`assemble`: clip the input to each voxel and place the pieces.
+- :func:`assemble`: cut the input along the seams of the labeling and place each label's region;
+  :func:`repair_t_junctions` closes seams between differently tessellated copies.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import descriptor_distances
 from synthkit.core.graphcut import ExpansionResult, alpha_expansion
@@ -30,8 +32,10 @@ __all__ = [
     "label_set",
     "hausdorff",
     "RetargetProblem",
-    "voxel_pieces",
+    "label_regions",
+    "seam_planes",
     "assemble",
+    "repair_t_junctions",
 ]
 
 
@@ -269,57 +273,124 @@ class RetargetProblem:
         return np.asarray(labeling).reshape(tuple(self.out_shape))
 
 
-def voxel_pieces(Vc, F, grid: VoxelGrid) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """The input cut into its voxels: flat voxel index -> ``(V (k, 3) canonical, F (m, 3))``.
+def label_regions(problem: RetargetProblem, labeling) -> dict[int, np.ndarray]:
+    """Label index -> ``(n_in,) bool`` mask of the input voxels its output voxels copy from."""
+    labeling = np.asarray(labeling, dtype=np.int64)
+    n_in = int(np.prod(problem.in_shape))
+    regions = {}
+    for lab in np.unique(labeling):
+        src = problem.source[labeling == lab, lab]
+        mask = np.zeros(n_in, bool)
+        mask[src[src >= 0]] = True
+        regions[int(lab)] = mask
+    return regions
 
-    ``Vc (#V, 3)`` are canonical vertex positions. The whole mesh is split once along every inner
-    face plane of the grid (:func:`synthkit.core.mesh.split_by_planes`, exact splits, shared cut
-    vertices), then faces are grouped by the voxel of their centroid, so the pieces of neighbouring
-    voxels meet vertex to vertex with no T-junctions. Voxels the surface does not reach are absent.
+
+def seam_planes(regions: dict[int, np.ndarray], shape) -> tuple[np.ndarray, np.ndarray]:
+    """Canonical-axis planes ``(normals (k, 3), positions (k,))`` relative to the grid origin that
+    separate a voxel of some label's region from a voxel outside it: the only cuts needed."""
+    shape = tuple(int(n) for n in shape)
+    normals, offsets = [], []
+    for axis in range(3):
+        for k in range(1, shape[axis]):
+            for mask in regions.values():
+                m = mask.reshape(shape)
+                if np.any(np.take(m, k - 1, axis=axis) != np.take(m, k, axis=axis)):
+                    normals.append(np.eye(3)[axis])
+                    offsets.append(float(k))
+                    break
+    return np.array(normals).reshape(-1, 3), np.array(offsets)
+
+
+def assemble(Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The output mesh: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int)``, not welded.
+
+    Output voxel ``x`` with label ``l`` takes the input inside voxel ``x - l`` translated by ``l``
+    (canonical units), so copies stay aligned with the grid. Done per label: the input is split once
+    (:func:`synthkit.core.mesh.split_by_planes`, exact, shared cut vertices) along the planes of
+    :func:`seam_planes` only, faces are assigned to voxels by their centroid, and each label takes
+    the faces in its region. Neighbouring voxels with one label keep their faces uncut, and pieces
+    that meet across a cut share its vertices, so copies of one label join without T-junctions.
     """
     Vc = np.asarray(Vc, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    normals, offsets = [], []
-    for axis in range(3):
-        for k in range(1, int(grid.shape[axis])):
-            normals.append(np.eye(3)[axis])
-            offsets.append(grid.origin[axis] + k)
-    if normals:
-        V2, F2, _ = split_by_planes(Vc, F, np.array(normals), np.array(offsets))
+    regions = label_regions(problem, labeling)
+    normals, offsets = seam_planes(regions, grid.shape)
+    if len(normals):
+        V2, F2, _ = split_by_planes(Vc, F, normals, offsets + normals @ grid.origin)
     else:
         V2, F2 = Vc, F
     vox = np.clip(grid.voxel_of(V2[F2].mean(axis=1)), 0, grid.shape - 1)
     flat = np.ravel_multi_index(tuple(vox.T), tuple(grid.shape))
-    pieces = {}
-    order = np.argsort(flat, kind="stable")
-    bounds = np.flatnonzero(np.diff(flat[order])) + 1
-    for group in np.split(order, bounds):
-        if len(group) == 0:
-            continue
-        Fg = F2[group]
-        used, inv = np.unique(Fg, return_inverse=True)
-        pieces[int(flat[group[0]])] = (V2[used], inv.reshape(-1, 3))
-    return pieces
-
-
-def assemble(pieces, problem: RetargetProblem, labeling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Place every output voxel's copy: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int)``.
-
-    Output voxel ``x`` with label ``l`` takes the piece of input voxel ``x - l`` translated by ``l``
-    (canonical units), so copies stay aligned with the grid. Vertices are not welded here.
-    """
-    labeling = np.asarray(labeling, dtype=np.int64)
     Vs, Fs, Ls = [], [], []
     off = 0
-    for node, lab in enumerate(labeling):
-        s = int(problem.source[node, lab])
-        if s < 0 or s not in pieces:
+    for lab, mask in regions.items():
+        Fl = F2[mask[flat]]
+        if len(Fl) == 0:
             continue
-        V, F = pieces[s]
-        Vs.append(V + problem.labels[lab])
-        Fs.append(F + off)
-        Ls.append(np.full(len(F), lab, dtype=np.int64))
-        off += len(V)
+        used, inv = np.unique(Fl, return_inverse=True)
+        Vs.append(V2[used] + problem.labels[lab])
+        Fs.append(inv.reshape(-1, 3) + off)
+        Ls.append(np.full(len(Fl), lab, dtype=np.int64))
+        off += len(used)
     if not Vs:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
     return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls)
+
+
+def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Split boundary edges at boundary vertices lying on them (within ``tol``), so that two
+    copies cut by the same seam plane but tessellated differently share their seam vertices.
+
+    ``V (n, 3)``, ``F (m, 3)`` welded. Each round splits, for every face with such an edge, that
+    edge into a fan from the opposite corner; rounds repeat until nothing changes. Returns
+    ``(V, F2 (m2, 3), src (m2,))`` with the new faces' source face. Vertices are not moved, so no
+    geometry is invented.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    src = np.arange(len(F))
+    for _ in range(max_rounds):
+        E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        key = np.sort(E, axis=1)
+        uniq, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.reshape(-1)
+        boundary = counts[inv] == 1
+        if not boundary.any():
+            break
+        bverts = np.unique(E[boundary])
+        tree = cKDTree(V[bverts])
+        splits: dict[int, list[tuple[float, int]]] = {}
+        for row in np.flatnonzero(boundary):
+            a, b = E[row]
+            pa, pb = V[a], V[b]
+            length = np.linalg.norm(pb - pa)
+            if length <= tol:
+                continue
+            near = tree.query_ball_point((pa + pb) / 2, length / 2 + tol)
+            d = (pb - pa) / length
+            hits = []
+            for j in near:
+                v = int(bverts[j])
+                if v in (a, b):
+                    continue
+                t = (V[v] - pa) @ d
+                if tol < t < length - tol and np.linalg.norm(V[v] - pa - t * d) <= tol:
+                    hits.append((t, v))
+            if hits:
+                face = row % len(F)
+                splits.setdefault(face, [(row // len(F), sorted(hits))])
+        if not splits:
+            break
+        keep = np.ones(len(F), bool)
+        new_faces, new_src = [], []
+        for face, [(corner, hits)] in splits.items():
+            keep[face] = False
+            a, b, c = F[face, corner], F[face, (corner + 1) % 3], F[face, (corner + 2) % 3]
+            chain = [a] + [v for _, v in hits] + [b]
+            for p, q in zip(chain[:-1], chain[1:], strict=True):
+                new_faces.append([p, q, c])
+                new_src.append(src[face])
+        F = np.concatenate([F[keep], np.array(new_faces, dtype=np.int64)])
+        src = np.concatenate([src[keep], np.array(new_src, dtype=np.int64)])
+    return V, F, src

@@ -38,11 +38,15 @@ def trilinear_weights(points) -> np.ndarray:
     """Weights ``(n, 8)`` of the eight corners for local ``points (n, 3)``; corner ``i + 2j + 4k`` sits at
     ``(i, j, k)``. Rows sum to 1; points outside [0, 1]^3 extrapolate linearly."""
     P = _points(points)
-    s, t, u = P[:, 0:1], P[:, 1:2], P[:, 2:3]
-    i = np.array([0, 1, 0, 1, 0, 1, 0, 1])
-    j = np.array([0, 0, 1, 1, 0, 0, 1, 1])
-    k = np.array([0, 0, 0, 0, 1, 1, 1, 1])
-    return np.where(i, s, 1 - s) * np.where(j, t, 1 - t) * np.where(k, u, 1 - u)
+    s, t, u = P[:, 0], P[:, 1], P[:, 2]
+    s0, t0, u0 = 1.0 - s, 1.0 - t, 1.0 - u
+    W = np.empty((len(P), 8))
+    for k, uk in ((0, u0), (1, u)):
+        for j, tj in ((0, t0), (1, t)):
+            tu = tj * uk
+            W[:, 4 * k + 2 * j] = s0 * tu
+            W[:, 4 * k + 2 * j + 1] = s * tu
+    return W
 
 
 def trilinear_ffd(points, corners) -> np.ndarray:

@@ -645,37 +645,45 @@ def triangulate_polygons(P2, loops: list[np.ndarray]) -> np.ndarray:
 
 
 def _ear_clip(P2: np.ndarray, poly: list[int]) -> list[list[int]]:
-    idx = list(poly)
+    """Ear clipping of the simple polygon ``poly`` (counter-clockwise); [] when it gets stuck."""
+    n = len(poly)
+    Q = P2[poly]
+    e = np.roll(Q, -1, axis=0) - Q
+    turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    if len(set(poly)) == n and np.all(turn > 0):  # strictly convex: a fan is valid
+        return [[poly[0], poly[k], poly[k + 1]] for k in range(1, n - 1)]
+    nxt = np.roll(np.arange(n), -1)
+    prv = np.roll(np.arange(n), 1)
+    alive = np.ones(n, bool)
     out: list[list[int]] = []
-    guard = 0
-    while len(idx) > 3 and guard < 4 * len(poly) ** 2:
-        guard += 1
-        n = len(idx)
-        clipped = False
-        for k in range(n):
-            a, b, c = idx[k - 1], idx[k], idx[(k + 1) % n]
-            A, B, C = P2[a], P2[b], P2[c]
-            cross = (B[0] - A[0]) * (C[1] - A[1]) - (B[1] - A[1]) * (C[0] - A[0])
-            if cross <= 0:
-                continue
-            others = [v for v in idx if v not in (a, b, c)]
-            if others:
-                Q = P2[others]
-                same = np.all(Q == A, axis=1) | np.all(Q == B, axis=1) | np.all(Q == C, axis=1)
-                Q = Q[~same]
-                d1 = (B[0] - A[0]) * (Q[:, 1] - A[1]) - (B[1] - A[1]) * (Q[:, 0] - A[0])
-                d2 = (C[0] - B[0]) * (Q[:, 1] - B[1]) - (C[1] - B[1]) * (Q[:, 0] - B[0])
-                d3 = (A[0] - C[0]) * (Q[:, 1] - C[1]) - (A[1] - C[1]) * (Q[:, 0] - C[0])
-                if np.any((d1 >= 0) & (d2 >= 0) & (d3 >= 0)):
-                    continue
-            out.append([a, b, c])
-            del idx[k]
-            clipped = True
-            break
-        if not clipped:
+    remaining, k, since_clip = n, 0, 0
+    while remaining > 3:
+        if since_clip > remaining:
             return []
-    if len(idx) == 3:
-        out.append(idx)
+        a, c = prv[k], nxt[k]
+        A, B, C = Q[a], Q[k], Q[c]
+        cross = (B[0] - A[0]) * (C[1] - A[1]) - (B[1] - A[1]) * (C[0] - A[0])
+        ear = cross > 0
+        if ear:
+            R = Q[alive]
+            same = np.all(R == A, axis=1) | np.all(R == B, axis=1) | np.all(R == C, axis=1)
+            R = R[~same]
+            d1 = (B[0] - A[0]) * (R[:, 1] - A[1]) - (B[1] - A[1]) * (R[:, 0] - A[0])
+            d2 = (C[0] - B[0]) * (R[:, 1] - B[1]) - (C[1] - B[1]) * (R[:, 0] - B[0])
+            d3 = (A[0] - C[0]) * (R[:, 1] - C[1]) - (A[1] - C[1]) * (R[:, 0] - C[0])
+            ear = not np.any((d1 >= 0) & (d2 >= 0) & (d3 >= 0))
+        if ear:
+            out.append([poly[a], poly[k], poly[c]])
+            alive[k] = False
+            nxt[a], prv[c] = c, a
+            remaining -= 1
+            since_clip = 0
+            k = a
+        else:
+            since_clip += 1
+            k = c
+    k = int(np.flatnonzero(alive)[0])
+    out.append([poly[prv[k]], poly[k], poly[nxt[k]]])
     return out
 
 

@@ -327,9 +327,35 @@ def test_railing_copies_join_watertight(tmp_path, sample_dir, steps):
     assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
 
 
-def test_analyze_only_writes_statistics(tmp_path, sample_dir):
-    cfg = _config(tmp_path, sample_dir, "bridge", analyze_only=True)
+@pytest.mark.slow
+def test_pinned_voxel_keeps_its_label(tmp_path, sample_dir):
+    pin = {"voxel": [2, 3, 1], "shift": [0, 1, 0]}
+    cfg = _config(tmp_path, sample_dir, "bookshelf", target={"axis_steps": {"y": 2}}, pins=[pin])
     rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    vol = np.load(tmp_path / "out" / "labels.npy")
+    shifts = [tuple(s) for s in rep["metrics"]["label_shifts"]]
+    assert shifts[vol[2, 3, 1]] == (0, 1, 0)
+    assert np.isfinite(rep["metrics"]["energy"])
+
+
+def test_fpfh_descriptor_finds_the_railing_period():
+    V, F, truth = samples.build_railing()
+    Vn, _, scale = normalize_unit(V)
+    an = analyze(Vn, F, descriptor="fpfh", descriptor_radius=0.1, rng=0)
+    assert an.n_principal == 1
+    np.testing.assert_allclose(np.abs(an.principal[0]) * scale, truth["lattice"][0], atol=1e-6)
+
+
+def test_scale_target_rounds_to_steps(tmp_path, sample_dir):
+    cfg = _config(tmp_path, sample_dir, "bridge", target={"scale": [1.45]})
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False, overrides=["analyze_only=false"])
+    # the bridge spans about 5.4 periods (3.24 / 0.6): 45% more is round(2.43) = 2 steps
+    assert rep["metrics"]["steps"] == [2, 0, 0]
+
+
+def test_analyze_only_writes_statistics(tmp_path, sample_dir):
+    cfg = _config(tmp_path, sample_dir, "bridge")
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False, overrides=["analyze_only=true"])
     m = rep["metrics"]
     assert "graph_nodes" not in m and m["analyze_only"]
     np.testing.assert_allclose(np.abs(m["principal_offsets"][0]), [0.6, 0, 0], atol=0.006)

@@ -345,5 +345,7 @@ def run(cfg, ctx) -> None:
             else:
                 ctx.metrics.update(metrics)
                 ctx.metrics["growth"] = (growth * scale).tolist()
-            titles.append(f"{prefix or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels")
+            titles.append(
+                f"{prefix.rstrip('_') or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels"
+            )
         montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)

@@ -458,15 +458,21 @@ def alpha_expansion(
     improvement or ``max_cycles`` cycles have run. A move on alpha is skipped when alpha's previous
     move failed and no label has changed since (it would fail again); this does not change the result.
 
-    For metric ``V_pq`` every move is exact and the result is within a factor 2 of the optimum
-    (for Potts within 2x); non-submodular move terms (``E00 + E11 > E01 + E10``) are truncated as in
-    Rother et al. 2005 (``E01`` raised until submodular), which overestimates the move energy
-    everywhere except at the current labeling, so moves can still only lower the energy.
+    For metric ``V_pq`` every move is solved exactly, and with non-negative unary costs the result
+    is within a factor ``2c`` of the optimum, ``c`` the ratio of the largest to the smallest non-zero
+    ``V`` (``2`` for Potts). Non-submodular move terms (``E00 + E11 > E01 + E10``) are truncated as
+    in Rother et al. 2005 (``E01`` raised until submodular), which overestimates the move energy
+    everywhere except at the current labeling, so such moves can still only lower the energy.
 
     Infinite costs: the initial labeling is the per-node cheapest unary label when ``init`` is not
     given. Within a move every infinite term becomes a finite constant larger than twice the sum
     of all finite terms of that move, so a move first minimises the number of infinite terms and then
-    the finite energy; nodes whose unary cost for alpha is infinite do not take part in alpha's move.
+    the finite energy. Nodes whose unary cost for alpha is infinite do not take part in alpha's move;
+    once the energy is finite, neither do nodes whose switch would meet an infinite pairwise cost
+    with a node that cannot switch (they keep their label in every finite move result), found
+    repeatedly until none is left. From a labeling with infinite terms, expansion can stop in a
+    labeling that still has some (a local minimum of their number): then ``ValueError`` is raised
+    unless ``allow_infinite``.
 
     Parameters
     ----------
@@ -492,6 +498,8 @@ def alpha_expansion(
     Returns
     -------
     ExpansionResult
+        ``labels`` (N,) int64, ``energy`` (equal to :func:`energy` of ``labels``), ``cycles``,
+        ``history`` (initial energy, then the energy after each cycle) and ``moves`` (successful moves).
     """
     u, e, pw = _check_problem(unary, edges, pairwise)
     n, n_labels = u.shape

@@ -255,8 +255,9 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     )
 
 
-def _result_metrics(res: Retargeted, steps, graphcut_seconds: float) -> dict:
+def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: float) -> dict:
     return {
+        "growth": (res.grid.basis @ np.asarray(steps) * scale).tolist(),
         "graph_nodes": int(res.problem.n_nodes),
         "graph_labels": int(res.problem.n_labels),
         "graph_edges": int(len(res.problem.edges)),
@@ -284,6 +285,7 @@ def run(cfg, ctx) -> None:
         except ValueError as exc:
             raise InputError(f"{cfg.input}: {exc}") from None
         Vn = (V - center) / scale
+        ctx.metrics["input_faces"] = int(len(F))
         suffix = Path(cfg.input).suffix.lower()
         suffix = suffix if suffix in _MESH_OUT else ".ply"
     a = cfg.analysis
@@ -339,12 +341,11 @@ def run(cfg, ctx) -> None:
         titles = ["input"]
         for prefix, res, st, secs in results:
             renders.append(_save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix))
-            metrics = _result_metrics(res, st, secs)
+            metrics = _result_metrics(res, st, secs, scale)
             if prefix:
                 ctx.metrics["baseline"] = metrics
             else:
                 ctx.metrics.update(metrics)
-                ctx.metrics["growth"] = (growth * scale).tolist()
             titles.append(
                 f"{prefix.rstrip('_') or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels"
             )

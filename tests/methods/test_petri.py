@@ -453,3 +453,26 @@ def test_other_mesh_formats(building, tmp_path, fmt):
     report, out = run(building, tmp_path, points=[[0, 0], [8, 0]], extra=f"  mesh_format: {fmt}\n")
     mesh = trimesh.load(out / f"result.{fmt}", force="mesh")
     assert len(mesh.faces) == report["metrics"]["result_faces"]
+
+
+def l_shape():
+    V1, F1 = sample.box((0, 0, 0), (4, 1, 1), unit=(1, 1, 1))
+    V2, F2 = sample.box((0, 1, 0), (1, 2, 1), unit=(1, 1, 1))
+    return np.concatenate([V1, V2]), np.concatenate([F1, F2 + len(V1)])
+
+
+def test_faces_on_lattice_planes_stay_with_their_solid_and_geometry_match():
+    V, F = l_shape()
+    spec = analysis.resolve_lattice(V.min(0), V.max(0), unit=(1.0, 1.0, 1.0))
+    pieces = analysis.cut_pieces(V, F, spec)
+    grid_faces = np.array([len(f) for f in pieces.faces]).reshape(4, 2, 1)
+    # the roof of the long box lies on the plane y = 1 and belongs to the bottom row: the top row
+    # holds the tower only
+    assert grid_faces[1:, 1, 0].tolist() == [0, 0, 0]
+    fv = analysis.feature_vectors(pieces)
+    by_features, _ = analysis.classify(fv, tolerance=0.01)
+    by_geometry, _ = analysis.classify(fv, tolerance=0.01, pieces=pieces)
+    left, right = 0, 6  # pieces (0, 0, 0) and (3, 0, 0): mirror images of each other
+    assert by_features[left] == by_features[right]
+    assert by_geometry[left] != by_geometry[right]
+    assert len(set(by_geometry.tolist())) == 5

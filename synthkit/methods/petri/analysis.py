@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
 from synthkit.errors import InputError
@@ -130,7 +131,9 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
 
     Faces are split exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
     share their cut vertices bitwise; each face goes to the cell holding its centroid (clamped to the
-    lattice for faces just outside within the fit tolerance). ``caps="open"`` leaves cut faces open.
+    lattice for faces just outside within the fit tolerance). A face lying on a lattice plane goes to
+    the cell behind it (its centroid is moved 1e-7 units against its normal first), so the roof of a
+    box ending on a plane stays with the box. ``caps="open"`` leaves cut faces open.
     ``"capped"`` instead clips the example to each cell by the cell's interior lattice planes with
     :func:`synthkit.core.mesh.clip_by_planes` (``cap=True``), which closes every cut with planar caps
     (cap faces get ``src_face = -1``; meaningful for closed examples).
@@ -148,7 +151,13 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
         V2, F2, src = split_by_planes(V, F, np.array(normals), np.array(offsets))
     else:
         V2, F2, src = np.asarray(V, np.float64), np.asarray(F, np.int64), np.arange(len(F))
-    cent = V2[F2].mean(axis=1)
+    T = V2[F2]
+    cent = T.mean(axis=1)
+    # a face lying on a lattice plane belongs to the solid behind it: nudge centroids against the normal
+    nrm = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    nlen = np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm = np.divide(nrm, nlen, out=np.zeros_like(nrm), where=nlen > 0)
+    cent = cent - 1e-7 * lattice.unit * nrm
     cell = np.floor((cent - lattice.origin) / lattice.unit).astype(np.int64)
     cell = np.clip(cell, 0, lattice.counts - 1)
     flat = np.ravel_multi_index(cell.T, tuple(lattice.counts))
@@ -234,15 +243,34 @@ def feature_vectors(pieces: Pieces, *, corner_tol: float = 1e-6) -> np.ndarray:
     return out
 
 
-def classify(features: np.ndarray, *, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Labels from feature vectors: greedy, in piece order.
 
     A piece joins the first label whose representative (its first piece) has equal corner flags,
     an area within ``tolerance`` x the larger area, and bounding-box bounds within ``tolerance``
-    local units; otherwise it starts a new label. Returns ``(labels (P,), representative (L,))``.
+    local units; otherwise it starts a new label. With ``pieces`` given (the "geometry" match, an
+    addition to the paper: eq. 1 cannot tell a piece from its mirror image), the two pieces' vertices
+    and face centroids must also lie within ``tolerance`` local units of each other both ways.
+    Returns ``(labels (P,), representative (L,))``.
     """
     labels = np.full(len(features), -1, np.int64)
     reps: list[int] = []
+    trees: dict[int, cKDTree] = {}
+
+    def points(p: int) -> np.ndarray:
+        L, Fp = pieces.local[p], pieces.faces[p]
+        return np.concatenate([L, L[Fp].mean(axis=1)]) if len(Fp) else L
+
+    def same_shape(p: int, r: int) -> bool:
+        A, B = points(p), points(r)
+        if len(A) == 0 or len(B) == 0:
+            return len(A) == len(B)
+        if r not in trees:
+            trees[r] = cKDTree(B)
+        if p not in trees:
+            trees[p] = cKDTree(A)
+        return bool(trees[r].query(A)[0].max() <= tolerance + 1e-12 and trees[p].query(B)[0].max() <= tolerance + 1e-12)
+
     for p, fv in enumerate(features):
         if reps:
             R = features[reps]
@@ -251,6 +279,8 @@ def classify(features: np.ndarray, *, tolerance: float) -> tuple[np.ndarray, np.
             box_ok = np.all(np.abs(R[:, 1:7] - fv[1:7]) <= tolerance + 1e-12, axis=1)
             flag_ok = np.all(R[:, 7:] == fv[7:], axis=1)
             hit = np.flatnonzero(area_ok & box_ok & flag_ok)
+            if pieces is not None:
+                hit = [h for h in hit if same_shape(p, reps[h])]
             if len(hit):
                 labels[p] = hit[0]
                 continue

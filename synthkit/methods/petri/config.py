@@ -76,6 +76,11 @@ class Labels(StrictModel):
         description="Pieces share a label when their areas differ by at most this fraction and their "
         "bounding boxes by at most this fraction of the unit, with equal corner flags.",
     )
+    match: Literal["features", "geometry"] = Field(
+        "features",
+        description="'features': the paper's feature vector alone (eq. 1); 'geometry': also require the "
+        "pieces' vertices to coincide within the tolerance (tells mirror images apart).",
+    )
     boundary: bool = Field(
         True,
         description="Treat the outside of the lattice as a label, so pieces that end the example (walls, "

@@ -42,7 +42,9 @@ def analyse_example(V, F, cfg: PetriConfig):
     )
     pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps)
     features = analysis.feature_vectors(pieces)
-    labels, reps = analysis.classify(features, tolerance=cfg.labels.tolerance)
+    labels, reps = analysis.classify(
+        features, tolerance=cfg.labels.tolerance, pieces=pieces if cfg.labels.match == "geometry" else None
+    )
     grid = labels.reshape(tuple(spec.counts))
     cons = analysis.adjacency_constraints(grid, len(reps), boundary=cfg.labels.boundary)
     return spec, pieces, features, grid, reps, cons

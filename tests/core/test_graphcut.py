@@ -527,3 +527,13 @@ def test_result_is_fixed_point_of_reference_moves(seed):
     for alpha in range(n_labels):
         moved = reference_move(res.labels, alpha, unary, edges, V)
         assert ref_energy(moved, unary, edges, V) >= res.energy - 1e-9
+
+
+def test_expansion_without_edges_and_single_label():
+    unary = np.array([[3.0, 1.0, np.inf], [0.5, 2.0, 0.0], [np.inf, np.inf, 4.0]])
+    res = alpha_expansion(unary, np.zeros((0, 2), dtype=int), np.zeros((3, 3)))
+    assert res.labels.tolist() == [1, 2, 2]
+    assert res.energy == 5.0
+    res = alpha_expansion(np.array([[1.0], [2.0]]), [[0, 1]], np.array([[0.5]]))
+    assert res.labels.tolist() == [0, 0]
+    assert res.energy == 3.5 and res.cycles == 1 and res.moves == 0

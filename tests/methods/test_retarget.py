@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from synthkit.core.mesh import normalize_unit, weld
-from synthkit.errors import InputError
+from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_face_labels, load_mesh
 from synthkit.methods.retarget.analysis import (
     analyze,
@@ -250,7 +250,7 @@ def _boards(mesh, truth):
 def _no_invented_geometry(report, out, input_mesh):
     m = report["metrics"]
     center, scale = np.array(m["normalisation"]["center"]), m["normalisation"]["scale"]
-    basis = np.array(m["basis_normalised"]).T
+    basis = np.array(m["grid_basis_normalised"]).T
     shifts = np.array(m["label_shifts"])
     mesh = trimesh.load(out / "labels.ply", process=False)
     labels = load_face_labels(out / "labels.ply")
@@ -353,6 +353,19 @@ def test_scale_target_rounds_to_steps(tmp_path, sample_dir):
     assert rep["metrics"]["steps"] == [2, 0, 0]
 
 
+@pytest.mark.slow
+def test_regular_offsets_mode(tmp_path, sample_dir):
+    cfg = _config(tmp_path, sample_dir, "bridge", target={"steps": [1]}, offsets="regular")
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    m = rep["metrics"]
+    # 0.6 model units = 0.37 normalised: 4 regular steps of 0.1
+    assert m["steps"] == [4, 0, 0] and m["graph_labels"] == 5
+    np.testing.assert_allclose(m["growth"], [0.4 * 0.6 / 0.37037037, 0, 0], rtol=1e-6)
+    assert rep["timings"]["graphcut"] == rep["timings"]["regular_graphcut"]
+    inp = load_mesh(sample_dir / "retarget-bridge.obj")
+    assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
+
+
 def test_analyze_only_writes_statistics(tmp_path, sample_dir):
     cfg = _config(tmp_path, sample_dir, "bridge")
     rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False, overrides=["analyze_only=true"])
@@ -388,6 +401,18 @@ def test_shrink_below_one_cell_and_dummy_steps(tmp_path, sample_dir):
         run_config(_config(tmp_path, sample_dir, "bridge", target={"steps": [-6]}), out_dir=tmp_path / "a")
     with pytest.raises(InputError, match=r"target.steps\[1\]=1: only 1 principal"):
         run_config(_config(tmp_path, sample_dir, "bridge", target={"steps": [0, 1]}), out_dir=tmp_path / "b")
+
+
+def test_bad_pins_are_config_errors(tmp_path, sample_dir):
+    pins = [{"voxel": [0, 0, 0], "shift": [1, 0, 0]}]
+    cfg = _config(tmp_path, sample_dir, "bridge", target={"steps": [1]}, pins=pins)
+    with pytest.raises(ConfigError, match=r"pins: pinned voxel \[0, 0, 0\] with shift \[1, 0, 0\] copies from outside"):
+        run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    cfg = _config(
+        tmp_path, sample_dir, "bridge", target={"steps": [1]}, pins=[{"voxel": [99, 0, 0], "shift": [0, 0, 0]}]
+    )
+    with pytest.raises(ConfigError, match="outside the output grid"):
+        run_config(cfg, out_dir=tmp_path / "out2", show_progress=False)
 
 
 def test_nan_and_empty_meshes(tmp_path):

@@ -79,7 +79,9 @@ class RetargetConfig(RunConfig):
         "statistics", description="Label space: principal offsets, or the conventional regular grid (baseline)."
     )
     regular_spacing: float = Field(0.1, gt=0, le=1.0, description="Voxel size of the regular baseline.")
-    compare_baseline: bool = Field(False, description="Also run the regular baseline and report it.")
+    compare_baseline: bool = Field(
+        False, description="With offsets: statistics, also run the regular baseline and report it (metrics.baseline)."
+    )
     label_margin: int = Field(0, ge=0, le=4, description="Extra shifts beyond the steps on each side.")
     pins: list[Pin] = Field(default_factory=list, description="Voxels pinned to labels (interactive use).")
     max_cycles: int = Field(20, ge=1, le=1000, description="Alpha-expansion cycles at most.")

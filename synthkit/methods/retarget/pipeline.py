@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from synthkit.core.mesh import normalize_unit, weld
-from synthkit.errors import InputError
+from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
 from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, repair_t_junctions
@@ -90,12 +90,13 @@ def synthesize(Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "")
                     f"{cfg.input}: {int(steps[axis])} steps along grid axis {int(axis)} would shrink below one "
                     f"cell (the input spans {int(grid.shape[axis])} voxels; at least 2 must remain)"
                 )
-        margin = np.where(np.arange(3) < an.n_principal, cfg.label_margin, 0) if not prefix else [cfg.label_margin] * 3
-        pins = [(p.voxel, p.shift) for p in cfg.pins] if not prefix else []
+        regular = prefix in ("regular_", "baseline_")
+        margin = [cfg.label_margin] * 3 if regular else np.where(np.arange(3) < an.n_principal, cfg.label_margin, 0)
+        pins = [(p.voxel, p.shift) for p in cfg.pins] if prefix != "baseline_" else []
         try:
             problem = RetargetProblem(grid.shape, steps, sets, margin=margin, pins=pins)
         except ValueError as exc:
-            raise InputError(f"{cfg.input}: pins: {exc}") from None
+            raise ConfigError(f"{cfg.input}: pins: {exc}") from None
     with ctx.stage(f"{prefix}graphcut"):
         try:
             result = problem.solve(rng=ctx.rng, max_cycles=cfg.max_cycles)
@@ -258,6 +259,8 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
 def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: float) -> dict:
     return {
         "growth": (res.grid.basis @ np.asarray(steps) * scale).tolist(),
+        "grid_basis_normalised": res.grid.basis.T.tolist(),
+        "grid_origin": res.grid.origin.tolist(),
         "graph_nodes": int(res.problem.n_nodes),
         "graph_labels": int(res.problem.n_labels),
         "graph_edges": int(len(res.problem.edges)),
@@ -325,7 +328,7 @@ def run(cfg, ctx) -> None:
     steps = resolve_steps(cfg.target, an, Vn, source=cfg.input)
     growth = an.basis @ steps
     results = []
-    if cfg.offsets == "statistics" or cfg.compare_baseline:
+    if cfg.offsets == "statistics":
         res = synthesize(Vn, F, an, an.basis, steps, cfg=cfg, ctx=ctx)
         results.append(("", res, steps, ctx.timings["graphcut"]))
     if cfg.offsets == "regular" or cfg.compare_baseline:

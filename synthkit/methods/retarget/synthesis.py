@@ -203,6 +203,10 @@ class RetargetProblem:
                 raise ValueError(f"pinned shift {shift.tolist()} is not a label (labels span {self._span()})")
             row = int(np.ravel_multi_index(tuple(voxel), self.out_shape))
             keep = unary[row, hit[0]]
+            if not np.isfinite(keep):
+                raise ValueError(
+                    f"pinned voxel {voxel.tolist()} with shift {shift.tolist()} copies from outside the input"
+                )
             unary[row] = np.inf
             unary[row, hit[0]] = keep
         self.unary = unary

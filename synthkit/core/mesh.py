@@ -31,6 +31,7 @@ __all__ = [
     "clip_by_box",
     "split_by_planes",
     "weld",
+    "merge_vertices",
     "remove_unreferenced",
     "boundary_loops",
     "triangulate_polygons",
@@ -510,17 +511,27 @@ def weld(V, F, tol: float, *, return_index: bool = False):
     """Merge vertices closer than ``tol`` (transitively) and drop faces that collapse.
 
     Each cluster of vertices linked by distances ``<= tol`` becomes one vertex placed at the cluster's
-    lowest-index member. Returns ``(V2 (#V2, 3), F2 (#F2, 3))``, plus ``old_to_new (#V,)`` when
-    ``return_index``. Unreferenced vertices are kept (as their own clusters).
+    lowest-index member (see :func:`merge_vertices`). Returns ``(V2 (#V2, 3), F2 (#F2, 3))``, plus
+    ``old_to_new (#V,)`` when ``return_index``. Unreferenced vertices are kept (as their own clusters).
     """
     V, F = as_mesh_arrays(V, F)
     if not tol >= 0:
         raise ValueError(f"tol must be >= 0, got {tol}")
+    pairs = cKDTree(V).query_pairs(tol, output_type="ndarray") if len(V) else np.zeros((0, 2), np.int64)
+    return merge_vertices(V, F, pairs, return_index=return_index)
+
+
+def merge_vertices(V, F, pairs, *, return_index: bool = False):
+    """Merge the vertices linked by ``pairs (k, 2)`` (transitively) and drop faces that collapse.
+
+    Each connected cluster becomes one vertex at its lowest-index member's position; clusters are
+    numbered in the order of their lowest members. Returns ``(V2, F2)`` (+ ``old_to_new (#V,)``).
+    """
+    V, F = as_mesh_arrays(V, F)
     n = len(V)
-    pairs = cKDTree(V).query_pairs(tol, output_type="ndarray") if n else np.zeros((0, 2), np.int64)
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
     G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     ncomp, comp = connected_components(G, directed=False)
-    # renumber clusters by their lowest member so the output order follows the input order
     rep = np.full(ncomp, n, np.int64)
     np.minimum.at(rep, comp, np.arange(n))
     order = np.argsort(rep)
@@ -529,8 +540,7 @@ def weld(V, F, tol: float, *, return_index: bool = False):
     old_to_new = new_of_comp[comp]
     V2 = V[rep[order]]
     F2 = old_to_new[F]
-    good = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
-    F2 = F2[good]
+    F2 = F2[_nondegenerate(F2)]
     if return_index:
         return V2, F2, old_to_new
     return V2, F2

@@ -307,3 +307,13 @@ def test_poisson_prune_is_a_maximal_disk_set():
     d_all, _ = cKDTree(pts[keep]).query(pts)
     assert d_all.max() < 0.08
     np.testing.assert_array_equal(keep, M._poisson_prune(pts, 0.08))
+
+
+def test_merge_vertices_exact(square):
+    V, F = square
+    V3 = np.concatenate([V, V[[2]]])
+    F3 = np.array([[0, 1, 2], [0, 4, 3], [1, 2, 4]])
+    V2, F2, idx = M.merge_vertices(V3, F3, [[4, 2]], return_index=True)
+    assert idx.tolist() == [0, 1, 2, 3, 2]
+    assert F2.tolist() == [[0, 1, 2], [0, 2, 3]]  # the third face collapsed
+    np.testing.assert_array_equal(V2, V)

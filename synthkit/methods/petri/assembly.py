@@ -93,6 +93,15 @@ class Assembler:
     def clear(self) -> None:
         self.parts.clear()
 
+    def offsets(self, n_cells: int) -> np.ndarray:
+        """Index of each cell's first vertex in :meth:`mesh`'s ``V`` ``(n_cells,)`` (-1: not deformed)."""
+        out = np.full(n_cells, -1, np.int64)
+        off = 0
+        for cell, _, X in self.parts:
+            out[cell] = off
+            off += len(X)
+        return out
+
     def mesh(self):
         """``(V, F, face_label, face_cell)`` of all deformed pieces, in firing order."""
         Vs, Fs, labs, cells = [], [], [], []
@@ -110,22 +119,31 @@ class Assembler:
 
 
 def crack_measure(
-    library: PieceLibrary, label_grid: np.ndarray, corners: np.ndarray, *, periodic=(False,) * 3, tol: float = 1e-9
+    library: PieceLibrary,
+    label_grid: np.ndarray,
+    corners: np.ndarray,
+    *,
+    periodic=(False,) * 3,
+    tol: float = 1e-9,
+    offsets: np.ndarray | None = None,
 ):
     """Gaps between neighbouring deformed pieces where their example pieces met.
 
     For every pair of face-adjacent cells (p below q along construction axis t) with labels (A, B),
     the vertices of A's piece on its face ``t = 1`` are matched to those of B's piece on ``t = 0`` with
     the same other two local coordinates (within ``tol``): these are the boundary vertices the
-    example pieces shared. Returns ``(max_gap, unmatched)``: the largest world distance between
-    matched vertices after deformation, and the number of boundary vertices (summed over distinct
-    label pairs) that had no partner (pieces whose boundaries differ).
+    example pieces shared. Returns ``(max_gap, unmatched, seams)``: the largest world distance between
+    matched vertices after deformation, the number of vertices on shared cell faces (summed over
+    distinct label pairs) without a partner (differing boundaries, or faces lying on the cell face
+    such as a roof under an empty cell), and, when ``offsets (N,)`` (index of each cell's first vertex
+    in the assembled mesh) is given, the matched pairs as global vertex indices ``(k, 2)``.
     """
     lib = library
     shape = label_grid.shape
     flat = np.arange(label_grid.size).reshape(shape)
     max_gap, unmatched = 0.0, 0
     match_cache = {}
+    seams = []
     for t in range(3):
         p_cells = np.moveaxis(flat, t, 0)
         first, second = p_cells[:-1].ravel(), p_cells[1:].ravel()
@@ -161,7 +179,11 @@ def crack_measure(
             XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[first[ks]])
             XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[second[ks]])
             max_gap = max(max_gap, float(np.linalg.norm(XA - XB, axis=-1).max()))
-    return max_gap, unmatched
+            if offsets is not None:
+                oa, ob = offsets[first[ks]], offsets[second[ks]]
+                seams.append(np.stack([(oa[:, None] + ia[None]).ravel(), (ob[:, None] + ib[None]).ravel()], 1))
+    seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
+    return max_gap, unmatched, seams
 
 
 def label_colors(n: int) -> np.ndarray:

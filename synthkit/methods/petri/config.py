@@ -147,7 +147,11 @@ class Output(StrictModel):
         description="Also run Merrell-style model synthesis on the orthogonal lattice (a straight curve "
         "of the same length) and report its normal-histogram D beside the curved result's.",
     )
-    weld: bool = Field(True, description="Weld coincident vertices of neighbouring pieces in the output mesh.")
+    weld: bool = Field(
+        True,
+        description="Merge the vertices where neighbouring pieces meet in the output mesh (the boundary "
+        "vertices their example pieces shared), making the result one connected surface.",
+    )
 
 
 class PetriConfig(RunConfig):

@@ -8,7 +8,7 @@ import numpy as np
 import trimesh
 
 from synthkit import preview
-from synthkit.core.mesh import weld
+from synthkit.core.mesh import merge_vertices
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.petri import analysis, construction
 from synthkit.methods.petri.assembly import (
@@ -24,7 +24,7 @@ from synthkit.methods.petri.config import PetriConfig
 from synthkit.methods.petri.net import ColouredPetriNet, adjacency_violations, to_dot, to_pnml
 
 VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
-PREVIEW_FACES = 60_000
+PREVIEW_FACES = 40_000
 """Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
 
 
@@ -161,10 +161,12 @@ def run(cfg: PetriConfig, ctx) -> None:
 
     with ctx.stage("assembly"):
         RV, RF, face_label, face_cell = assembler.mesh()
-        gap, unmatched = crack_measure(library, labels_out, net.corners, periodic=net.periodic)
+        gap, unmatched, seams = crack_measure(
+            library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
+        )
         if cfg.output.weld:
             G = RF
-            RV, RF, old_to_new = weld(RV, RF, 1e-7 * float(spec.unit.min()), return_index=True)
+            RV, RF, old_to_new = merge_vertices(RV, RF, seams, return_index=True)
             G = old_to_new[G]
             keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
             face_label, face_cell = face_label[keep], face_cell[keep]
@@ -246,7 +248,7 @@ def run(cfg: PetriConfig, ctx) -> None:
         ex_corners = example_net(grid, cons, spec).corners
         EV, EF, e_label = assemble(lib_xyz, grid, ex_corners)
         PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
-        small, large = {"size": 320, "max_samples": 1_200_000}, {"size": 512, "max_samples": 2_500_000}
+        small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
         img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
         img_space = preview.rasterize_mesh(EV, EF, view=view, lines=_lines_of_space(space), **large)
         img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)

@@ -67,11 +67,12 @@ class Token:
 
 
 class Contradiction(Exception):
-    """An empty candidate set at ``cell`` (flat index)."""
+    """An empty candidate set at ``cell`` (flat index), after ``choices`` random forced selections."""
 
-    def __init__(self, cell: int):
+    def __init__(self, cell: int, choices: int = 0):
         super().__init__(cell)
         self.cell = cell
+        self.choices = choices
 
 
 class ColouredPetriNet:
@@ -211,6 +212,13 @@ class ColouredPetriNet:
         self._notify(cell, queue, queued)
 
     def _run(self, rng, origin_labels, deform, filled: deque) -> None:
+        try:
+            self._fire_all(rng, origin_labels, deform, filled)
+        except Contradiction as exc:
+            exc.choices = self.fired["forced_selecting"] - 1  # the origin's choice is not random
+            raise
+
+    def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
         cand, state, su, nbr, support = self.cand, self.state, self.su, self._nbr, self._support
         fired = self.fired
         queue: deque = deque(range(self.n_cells))
@@ -303,7 +311,8 @@ class ColouredPetriNet:
         ``origin_labels``: labels to try at the origin cell, best first (the example's e_000 first).
         ``deform(cell, label)`` is called by every deforming transition. ``on_restart()`` is called
         before each restart (to discard deformed pieces). Raises InputError naming the cell of the
-        last contradiction when ``max_restarts`` restarts all fail.
+        last contradiction when ``max_restarts`` restarts all fail, or at once when the contradiction
+        came before any random choice (then every restart would fail the same way).
         """
         restarts = 0
         attempt_rng = rng
@@ -313,8 +322,14 @@ class ColouredPetriNet:
                 self._run(attempt_rng, list(origin_labels), deform, deque())
                 return restarts
             except Contradiction as exc:
+                cell = tuple(int(v) for v in self.coords[exc.cell])
+                if exc.choices <= 0:
+                    raise InputError(
+                        f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
+                        f"contradiction (empty candidate set) at cell {cell} before any random choice, so no "
+                        f"restart can help (check the sizes S_Y, S_Z and labels.boundary)"
+                    ) from None
                 if restarts >= max_restarts:
-                    cell = tuple(int(v) for v in self.coords[exc.cell])
                     raise InputError(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
                         f"contradiction (empty candidate set) at cell {cell} after {restarts} restarts "

@@ -2,9 +2,9 @@
 
 A graph has ``n`` nodes numbered ``0..n-1`` and ``edges`` as an ``(E, 2) int`` array of node pairs.
 Costs are ``float64``. Infinite costs are written ``np.inf``; any value ``>= INF`` counts as infinite
-too, so callers may use either. Internally an infinite cost becomes a finite constant larger than every
-finite cost that can be compared with it (Kolmogorov and Zabih's usual device), and results are checked
-to be finite afterwards.
+too, so callers may use either. Internally an infinite cost becomes a finite constant larger than twice
+the sum of all finite costs of the same cut problem, so that one such cost outweighs any combination of
+finite ones, and results are checked to be finite afterwards.
 
 Min-cuts use PyMaxflow (Boykov-Kolmogorov max-flow, ``maxflow.Graph[float]``). Alpha-expansion
 (Boykov, Veksler and Zabih, PAMI 2001) is built on it here because the retargeting method needs
@@ -64,12 +64,6 @@ def _as_costs(values, shape: tuple[int, ...], name: str, *, nonnegative: bool) -
     if (v >= INF).any():
         v = np.where(v >= INF, np.inf, v)
     return v
-
-
-def _big_constant(finite_values: np.ndarray) -> float:
-    """A cost exceeding twice the total of all ``finite_values`` in magnitude: one such cost then
-    outweighs any combination of the finite ones."""
-    return 2.0 * float(np.abs(finite_values).sum()) + 1.0
 
 
 # --------------------------------------------------------------------------------------------------

@@ -162,7 +162,8 @@ def grid_mincut(source, sink, weights, *, structure=None) -> tuple[np.ndarray, f
         st = np.asarray(structure, dtype=np.float64)
         if st.shape != (3,) * nd:
             raise ValueError(f"structure must have shape {(3,) * nd}, got {st.shape}")
-        items = [(tuple(int(i) - 1 for i in o), weights * st[tuple(o)]) for o in np.argwhere(st != 0)]
+        w = np.asarray(weights, dtype=np.float64)
+        items = [(tuple(int(i) - 1 for i in o), w * st[tuple(o)]) for o in np.argwhere(st != 0)]
     ids = np.arange(src.size).reshape(shape)
     pairs, caps = [], []
     for off, w in items:

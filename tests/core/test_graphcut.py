@@ -166,11 +166,11 @@ def test_grid_mincut_matches_general_graph_and_enumeration():
     assert cut_value(side.ravel(), edges, w, w, src.ravel(), snk.ravel()) == pytest.approx(best)
 
 
-def test_grid_mincut_default_structure_and_scalar_weight():
+def test_grid_mincut_default_structure_list_and_scalar_weights():
     # 1 x 5 strip, seeds at both ends, uniform weight 2: one edge is cut.
     src = np.array([[np.inf, 0, 0, 0, 0]])
     snk = np.array([[0, 0, 0, 0, np.inf]])
-    side, flow = grid_mincut(src, snk, 2.0)
+    side, flow = grid_mincut(src, snk, [[2.0] * 5])
     assert flow == 2.0
     assert not side[0, 0] and side[0, 4]
     # a structure with diagonal offsets adds edges: 3 x 3 grid, 8-connected.

@@ -45,13 +45,15 @@ def rasterize_mesh(
     view: str = "iso",
     size: int = 512,
     lines: np.ndarray | None = None,
-    max_samples: int = 6_000_000,
+    max_samples: int | None = None,
 ) -> np.ndarray:
     """Render ``V (#V, 3)``, ``F (#F, 3)`` to an ``(size, size, 3) float32`` image in [0, 1].
 
     ``face_colors (#F, 3)`` in [0, 1] tint faces; ``lines (k, 2, 3)`` are segments drawn on top in
     red. Triangles are covered by a regular barycentric grid of samples fine enough for their
-    pixel size (total capped by ``max_samples``); the nearest sample wins per pixel.
+    pixel size; the nearest sample wins per pixel. Samples are processed in chunks, so memory stays
+    bounded; ``max_samples`` optionally caps their total for speed, at the price of holes in faces
+    larger than the coarsened sampling.
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -84,7 +86,7 @@ def rasterize_mesh(
     edge = np.linalg.norm(pix - np.roll(pix, 1, axis=1), axis=2).max(axis=1)
     n_sub = np.clip(np.ceil(edge * 1.5).astype(np.int64), 1, None)
     cost = (n_sub + 1) * (n_sub + 2) // 2
-    if cost.sum() > max_samples:
+    if max_samples is not None and cost.sum() > max_samples:
         n_sub = np.clip((n_sub * np.sqrt(max_samples / cost.sum())).astype(np.int64), 1, None)
     depth = np.full(size * size, -np.inf)
     face_at = np.full(size * size, -1, dtype=np.int64)

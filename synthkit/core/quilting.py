@@ -30,6 +30,8 @@ __all__ = [
     "overlap_costs",
     "candidates",
     "boundary_masks",
+    "graphcut_masks",
+    "seam_masks",
     "paste",
     "quilt",
     "QuiltResult",
@@ -183,6 +185,68 @@ def boundary_masks(
     return keep
 
 
+def graphcut_masks(
+    patches: np.ndarray,
+    canvas: np.ndarray,
+    filled: np.ndarray,
+    *,
+    overlaps: tuple[int, int, int, int],
+) -> np.ndarray:
+    """Graph-cut seams (Kwatra et al. 2003) instead of dynamic-programming cuts, ``(K, B, B) bool``.
+
+    Per candidate, a minimum s-t cut on the 4-connected ``B x B`` grid: filled pixels on the tile's
+    outer edge of each overlapping side are tied to the old content, pixels outside every overlap
+    band (and unfilled pixels) to the new patch; cutting between neighbours ``p, q`` costs
+    ``|A(p) - B(p)| + |A(q) - B(q)|`` (colour distance of old ``A`` and new ``B``). Same arguments
+    as :func:`boundary_masks`; uses :func:`synthkit.core.graphcut.grid_mincut`.
+    """
+    from synthkit.core.graphcut import grid_mincut
+
+    P = np.asarray(patches, dtype=np.float32)
+    if P.ndim == 3:
+        P = P[..., None]
+    C = _as3(canvas)
+    K, B = P.shape[0], P.shape[1]
+    top, left, bottom, right = (int(v) for v in overlaps)
+    band = np.zeros((B, B), dtype=bool)
+    edge = np.zeros((B, B), dtype=bool)
+    for width, rows, cols, e_rows, e_cols in (
+        (top, slice(0, top), slice(None), 0, slice(None)),
+        (left, slice(None), slice(0, left), slice(None), 0),
+        (bottom, slice(B - bottom, B), slice(None), B - 1, slice(None)),
+        (right, slice(None), slice(B - right, B), slice(None), B - 1),
+    ):
+        if width > 0:
+            band[rows, cols] = True
+            edge[e_rows, e_cols] = True
+    old_seed = edge & filled
+    new_seed = ~band | ~filled
+    source = np.where(old_seed, np.inf, 0.0)
+    sink = np.where(new_seed & ~old_seed, np.inf, 0.0)
+    keep = np.ones((K, B, B), dtype=bool)
+    if not old_seed.any():
+        return keep
+    dist = np.sqrt(((P - C[None]) ** 2).sum(axis=3))
+    for k in range(K):
+        d = dist[k]
+        right_w = np.zeros((B, B))
+        right_w[:, :-1] = d[:, :-1] + d[:, 1:]
+        down_w = np.zeros((B, B))
+        down_w[:-1, :] = d[:-1, :] + d[1:, :]
+        side, _ = grid_mincut(source, sink, {(0, 1): right_w + 1e-9, (1, 0): down_w + 1e-9})
+        keep[k] = side
+    return keep
+
+
+def seam_masks(patches, canvas, filled, *, overlaps, method: str = "dp") -> np.ndarray:
+    """Keep masks by minimum-error boundary cuts (``"dp"``) or graph cuts (``"graphcut"``)."""
+    if method == "dp":
+        return boundary_masks(patches, canvas, filled, overlaps=overlaps)
+    if method == "graphcut":
+        return graphcut_masks(patches, canvas, filled, overlaps=overlaps)
+    raise ValueError(f"seam method must be 'dp' or 'graphcut', got {method!r}")
+
+
 def paste(canvas: np.ndarray, patch: np.ndarray, keep: np.ndarray, y0: int, x0: int) -> None:
     """Write ``patch (B, B[, C])`` into toroidal ``canvas`` at ``(y0, x0)`` where ``keep (B, B)``."""
     B = patch.shape[0]
@@ -248,13 +312,15 @@ def quilt(
     patch: int = 32,
     overlap: int = 12,
     tol: float = 0.1,
+    seams: str = "dp",
     rng=None,
 ) -> QuiltResult:
     """Unguided image quilting of ``source (Hs, Ws[, C])`` into a toroidal ``shape`` ``(H, W)`` image.
 
     Tiles are placed in raster order; each takes a random patch among the source positions whose
     overlap error with the already-filled canvas is within ``(1 + tol)`` of the best (the first
-    tile is uniformly random), pasted inside its minimum-error boundary cuts. Randomness: ``rng``
+    tile is uniformly random), pasted inside its minimum-error boundary cuts (``seams="dp"``) or
+    graph-cut seams (``"graphcut"``). Randomness: ``rng``
     (anything ``np.random.default_rng`` accepts) picks among the candidates.
     """
     rng = np.random.default_rng(rng)
@@ -275,7 +341,8 @@ def quilt(
             cands = candidates(cost, tol=tol)
             pos = cands[rng.integers(len(cands))]
             p = source_patches(src, pos[None], patch)
-            keep = boundary_masks(p, region, weight, overlaps=tile_overlaps(ys, xs, i, j, patch, (H, W)))[0]
+            ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
+            keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
             paste(canvas, p[0], keep, y0, x0)
             filled[np.ix_(ry, rx)] = True
             origins[i, j] = pos

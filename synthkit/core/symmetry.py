@@ -434,36 +434,47 @@ def strongest_peak(S: np.ndarray, *, min_distance: float = 1.0) -> tuple[int, in
 class IncrementalAutocorrelation:
     """Windowed toroidal autocorrelation of ``f (H, W)`` kept up to date under block changes.
 
-    ``ac (2 wy + 1, 2 wx + 1)`` holds ``AC(d) = sum_p f(p) f(p + d)`` (indices mod ``(H, W)``) for
-    ``|dy| <= wy, |dx| <= wx``, centred like :func:`translational`. Replacing ``f`` by ``f + delta``
-    with ``delta`` supported on an ``h x w`` block ``B`` at ``(y0, x0)`` changes it by
+    ``ac (2 wy + 1, 2 wx + 1)`` holds ``AC(d) = sum_p g(p) g(p + d)`` of ``g = f - offset``
+    (indices mod ``(H, W)``) for ``|dy| <= wy, |dx| <= wx``, centred like :func:`translational`.
+    A constant ``offset`` changes the toroidal AC by a constant only, so the standardized ``S_T``
+    is the same for every offset; subtracting the mean keeps the sums small (better rounding).
+    Replacing ``f`` by ``f + delta`` with ``delta`` supported on an ``h x w`` block ``B`` at
+    ``(y0, x0)`` changes it by
 
-        dAC(d) = c(d) + c(-d) + a(d),  c(d) = sum_{p in B} delta(p) f(p + d),  a = autocorr(delta),
+        dAC(d) = c(d) + c(-d) + a(d),  c(d) = sum_{p in B} delta(p) g(p + d),  a = autocorr(delta),
 
-    which only involves ``f`` on ``B`` grown by the window: one FFT of size about
+    which only involves ``g`` on ``B`` grown by the window: one FFT of size about
     ``(h + 2 wy) x (w + 2 wx)`` per candidate instead of one of ``H x W`` (and the whole spectrum of
-    ``dAC`` is real, ``2 Re(conj(D) F) + |D|^2``, so one forward and one inverse transform suffice).
-    Candidates at the same block are evaluated in one batched FFT.
+    ``dAC`` is real, ``2 Re(conj(D) G) + |D|^2``, so one forward and one inverse transform suffice).
+    Candidates at the same block are evaluated in one batched FFT. :meth:`l2_of_changes` then gets
+    E_L2 of every candidate's standardized window from three inner products over the padded grid
+    (sum, sum of squares and correlation with the target) without extracting the windows.
 
     Requirements: ``wy <= (H - 1) // 2``, ``wx <= (W - 1) // 2`` (distinct displacements) and blocks
     at most half the image in each axis (so a block never meets its own toroidal copy).
-    Arithmetic is float64; :meth:`refresh` recomputes ``ac`` from scratch to drop rounding drift.
+    ``fft_dtype`` float32 runs the per-candidate transforms in single precision (about twice as
+    fast; sums and ``ac`` stay float64, the mean-subtracting ``offset`` keeps the relative error
+    near 1e-6). :meth:`refresh` recomputes ``ac`` from scratch to drop rounding drift.
     """
 
-    def __init__(self, f: np.ndarray, *, window: tuple[int, int]):
+    def __init__(self, f: np.ndarray, *, window: tuple[int, int], offset: float = 0.0, fft_dtype=np.float64):
         f = _check_signal(f).astype(np.float64)
         H, W = f.shape
         wy, wx = int(window[0]), int(window[1])
         if not (0 <= wy <= (H - 1) // 2 and 0 <= wx <= (W - 1) // 2):
             raise ValueError(f"window {window} must lie within ((H-1)//2, (W-1)//2) = {((H - 1) // 2, (W - 1) // 2)}")
         self.f = f.copy()
+        self.offset = float(offset)
+        self.fft_dtype = np.dtype(fft_dtype)
+        if self.fft_dtype not in (np.float32, np.float64):
+            raise ValueError(f"fft_dtype must be float32 or float64, got {fft_dtype}")
         self.window = (wy, wx)
         self._plans: dict[tuple[int, int], tuple[tuple[int, int], np.ndarray, np.ndarray]] = {}
         self.refresh()
 
     def refresh(self) -> None:
         """Recompute ``ac`` from ``f`` with one full-image FFT."""
-        spec = sfft.rfft2(self.f)
+        spec = sfft.rfft2(self.f - self.offset)
         ac = sfft.irfft2(spec.real**2 + spec.imag**2, s=self.f.shape)
         wy, wx = self.window
         H, W = self.f.shape
@@ -479,10 +490,10 @@ class IncrementalAutocorrelation:
             self._plans[key] = (shape, rows, cols)
         return self._plans[key]
 
-    def delta(self, y0: int, x0: int, deltas: np.ndarray) -> np.ndarray:
-        """``dAC (K, 2 wy + 1, 2 wx + 1)`` for each block change ``deltas (K, h, w)`` at ``(y0, x0)``.
+    def delta_grid(self, y0: int, x0: int, deltas: np.ndarray) -> np.ndarray:
+        """``dAC`` on the padded FFT grid, ``(K, M0, M1)``: displacement ``d`` sits at ``d mod M``.
 
-        ``(y0, x0)`` may be any integers: indices wrap toroidally.
+        Only displacements inside the window are meaningful; :meth:`window_of` extracts them.
         """
         deltas = np.asarray(deltas, dtype=np.float64)
         if deltas.ndim == 2:
@@ -492,23 +503,77 @@ class IncrementalAutocorrelation:
         if h > H // 2 or w > W // 2:
             raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
         wy, wx = self.window
-        shape, rows, cols = self._plan(h, w)
+        shape, _, _ = self._plan(h, w)
         ry = (y0 - wy + np.arange(h + 2 * wy)) % H
         rx = (x0 - wx + np.arange(w + 2 * wx)) % W
-        grown = np.zeros(shape)
-        grown[: h + 2 * wy, : w + 2 * wx] = self.f[np.ix_(ry, rx)]
+        grown = np.zeros(shape, dtype=self.fft_dtype)
+        grown[: h + 2 * wy, : w + 2 * wx] = self.f[np.ix_(ry, rx)] - self.offset
         Fg = sfft.rfft2(grown)
-        placed = np.zeros((K, *shape))
+        placed = np.zeros((K, *shape), dtype=self.fft_dtype)
         placed[:, wy : wy + h, wx : wx + w] = deltas
-        D = sfft.rfft2(placed, axes=(1, 2))
-        spec = 2.0 * (D.real * Fg.real + D.imag * Fg.imag) + D.real**2 + D.imag**2
-        out = sfft.irfft2(spec, s=shape, axes=(1, 2))
-        return out[:, rows][:, :, cols]
+        D = sfft.rfft2(placed, axes=(1, 2), overwrite_x=True)
+        spec = D.real * (2.0 * Fg.real + D.real)
+        spec += D.imag * (2.0 * Fg.imag + D.imag)
+        return sfft.irfft2(spec, s=shape, axes=(1, 2), overwrite_x=True).astype(np.float64, copy=False)
+
+    def window_of(self, grid: np.ndarray, block: tuple[int, int]) -> np.ndarray:
+        """Window ``(..., 2 wy + 1, 2 wx + 1)`` of a :meth:`delta_grid` result for ``block`` (h, w)."""
+        _, rows, cols = self._plan(*block)
+        return grid[..., rows, :][..., cols]
+
+    def delta(self, y0: int, x0: int, deltas: np.ndarray) -> np.ndarray:
+        """``dAC (K, 2 wy + 1, 2 wx + 1)`` for each block change ``deltas (K, h, w)`` at ``(y0, x0)``.
+
+        ``(y0, x0)`` may be any integers: indices wrap toroidally.
+        """
+        deltas = np.asarray(deltas, dtype=np.float64)
+        if deltas.ndim == 2:
+            deltas = deltas[None]
+        return self.window_of(self.delta_grid(y0, x0, deltas), deltas.shape[1:])
+
+    def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray):
+        """E_L2 ``(K,)`` of the standardized windows after each change, and the ``delta_grid``.
+
+        With ``n`` window entries, ``mean(z^2) = 1`` and ``mean(z) = 0`` give
+        ``E = 1 + mean(T^2) - 2 (<A, T> / n - mean(A) mean(T)) / std(A)`` for ``A = ac + dAC``;
+        the three sums of ``dAC`` are inner products with the target, the window indicator and
+        ``ac`` scattered onto the padded grid.
+        """
+        deltas = np.asarray(deltas, dtype=np.float64)
+        if deltas.ndim == 2:
+            deltas = deltas[None]
+        block = deltas.shape[1:]
+        shape, rows, cols = self._plan(*block)
+        G = self.delta_grid(y0, x0, deltas)
+        T = np.asarray(target, dtype=np.float64)
+        if T.shape != self.ac.shape:
+            raise ValueError(f"target shape {T.shape} differs from the window {self.ac.shape}")
+        n = T.size
+        mask = np.zeros(shape)
+        mask[np.ix_(rows, cols)] = 1.0
+        Tg = np.zeros(shape)
+        Tg[np.ix_(rows, cols)] = T
+        Ag = np.zeros(shape)
+        Ag[np.ix_(rows, cols)] = self.ac
+        flat = G.reshape(len(G), -1)
+        # einsum without BLAS: no thread start-up for these thin products
+        s1 = self.ac.sum() + np.einsum("kj,j->k", flat, mask.ravel())
+        s2 = (
+            (self.ac**2).sum()
+            + np.einsum("kj,j->k", flat, 2.0 * Ag.ravel())
+            + np.einsum("kj,kj,j->k", flat, flat, mask.ravel())
+        )
+        p = (self.ac * T).sum() + np.einsum("kj,j->k", flat, Tg.ravel())
+        mean = s1 / n
+        var = np.maximum(s2 / n - mean * mean, 0.0)
+        sd = np.where(var > 0, np.sqrt(var), np.inf)
+        corr = (p / n - mean * T.mean()) / sd
+        return 1.0 + (T * T).mean() - 2.0 * corr, G
 
     def apply(self, y0: int, x0: int, delta: np.ndarray, *, dac: np.ndarray | None = None) -> None:
         """Add ``delta (h, w)`` to ``f`` at ``(y0, x0)`` (wrapping) and update ``ac``.
 
-        ``dac`` is the matching output of :meth:`delta` when already computed.
+        ``dac`` is the matching window from :meth:`delta` (or :meth:`window_of`) when computed.
         """
         delta = np.asarray(delta, dtype=np.float64)
         if dac is None:

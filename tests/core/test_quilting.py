@@ -115,3 +115,27 @@ def test_quilt_errors(rng):
         q.quilt(src, (64, 64), patch=32, overlap=12)
     with pytest.raises(ValueError, match="smaller than one patch"):
         q.quilt(src, (10, 64), patch=16, overlap=4)
+
+
+def test_graphcut_masks_follow_the_seam():
+    B = 8
+    canvas = np.zeros((B, B), dtype=np.float32)
+    patch = np.ones((1, B, B), dtype=np.float32)
+    patch[0, :, 2] = 0.0  # agrees with the canvas in column 2 only
+    filled = np.zeros((B, B), dtype=bool)
+    filled[:, :4] = True
+    keep = q.graphcut_masks(patch, canvas, filled, overlaps=(0, 4, 0, 0))[0]
+    assert not keep[:, 0].any() and keep[:, 3:].all()
+    # the cut passes through the agreeing column: no kept pixel left of it, none lost right of it
+    assert not keep[:, :2].any()
+    keep_free = q.graphcut_masks(patch, canvas, np.zeros((B, B), bool), overlaps=(4, 4, 4, 4))[0]
+    assert keep_free.all()
+
+
+def test_quilt_with_graphcut_seams(rng):
+    src = rng.random((40, 40, 3)).astype(np.float32)
+    a = q.quilt(src, (48, 48), patch=16, overlap=6, seams="graphcut", rng=2)
+    values = {tuple(v) for v in src.reshape(-1, 3)}
+    assert all(tuple(v) in values for v in a.image.reshape(-1, 3)[::5])
+    with pytest.raises(ValueError, match="seam method"):
+        q.seam_masks(src[None, :16, :16], src[:16, :16], np.ones((16, 16), bool), overlaps=(6, 6, 6, 6), method="x")

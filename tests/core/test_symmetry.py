@@ -244,3 +244,23 @@ def test_incremental_rejects_large_blocks_and_windows(rng):
     inc = sy.IncrementalAutocorrelation(rng.random((10, 10)), window=(2, 2))
     with pytest.raises(ValueError, match="half"):
         inc.delta(0, 0, np.ones((6, 2)))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_l2_of_changes_matches_full_objective(rng, dtype):
+    f = rng.random((48, 40))
+    T = sy.translational(rng.random((48, 40)), window=(7, 6))
+    inc = sy.IncrementalAutocorrelation(f, window=(7, 6), offset=f.mean(), fft_dtype=dtype)
+    deltas = 0.3 * rng.standard_normal((5, 9, 8))
+    values, grid = inc.l2_of_changes(44, 3, deltas, T)
+    ry, rx = (44 + np.arange(9)) % 48, (3 + np.arange(8)) % 40
+    for k in range(5):
+        g = f.copy()
+        g[np.ix_(ry, rx)] += deltas[k]
+        ref = sy.e_l2(sy.translational(g, window=(7, 6)), T)
+        assert values[k] == pytest.approx(ref, abs=1e-9 if dtype == np.float64 else 1e-5)
+    # the window of the grid is the windowed change, with the offset-independent standardization
+    dac = inc.window_of(grid, (9, 8))
+    np.testing.assert_allclose(dac, inc.delta(44, 3, deltas), atol=1e-9 if dtype == np.float64 else 1e-3)
+    with pytest.raises(ValueError, match="target shape"):
+        inc.l2_of_changes(0, 0, deltas, T[:-1])

@@ -208,3 +208,39 @@ def test_bundled_configs_validate(name):
     method, cfg, _ = load_method_config(path)
     assert method == "symmetry-texture"
     assert json.loads(cfg.model_dump_json())["mode"] in {"transfer", "filter", "quilt", "symmetrize", "tile"}
+
+
+FIG14 = {
+    "fig1-3 transfer synth": dict(mode="transfer", target="dots.png", symmetry={"signals": ["lum"]}),
+    "fig4 S_R transfer deform": dict(
+        mode="transfer", target="dots.png", perturbation="deform", symmetry={"kind": "rotational", "signals": ["1-lum"]}
+    ),
+    "fig5 filter deform": dict(mode="filter", perturbation="deform", filter={"kind": "blur", "sigma": 2.0}),
+    "fig6 filter synth": dict(mode="filter", filter={"kind": "contrast", "amount": 2.0}),
+    "fig8 lens": dict(mode="symmetrize", perturbation="lens"),
+    "fig9a S_Ref edge": dict(mode="symmetrize", symmetry={"kind": "reflective", "signals": ["edge"]}),
+    "fig9b S_R edge": dict(mode="symmetrize", symmetry={"kind": "rotational", "signals": ["edge"]}),
+    "fig9c S_T edge": dict(mode="symmetrize", symmetry={"kind": "translational", "signals": ["edge"]}),
+    "fig10 transfer deform": dict(mode="transfer", target="dots.png", perturbation="deform"),
+    "fig7 tile": dict(mode="tile", symmetry={"signals": ["lum", "1-lum"]}),
+}
+
+SMALL_DEFORM = {"points": 12, "levels": 1, "step": 3.0, "max_cycles": 1, "max_evaluations": 40}
+
+
+@pytest.mark.parametrize("name", sorted(FIG14))
+def test_fig14_combinations_run(tmp_path, name):
+    save_image(tmp_path / "src.png", textures.dots(48, period=12)[:, :, :] * 0.9 + 0.05)
+    save_image(tmp_path / "dots.png", textures.dots(48, period=16))
+    cfg = dict(source="src.png", deform=SMALL_DEFORM, synth={"patch": 12, "overlap": 4, "candidates": 4, "sweeps": 1})
+    cfg.update(FIG14[name])
+    cfg.setdefault("symmetry", {})
+    cfg["symmetry"] = dict(cfg["symmetry"], n_angles=90)
+    report = run_config(write_config(tmp_path, "c", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    if m["objective"] == "E_L2":
+        assert m["objective_end"] <= m["objective_start"] + 1e-9
+    elif cfg["mode"] != "tile":
+        assert m["objective_end"] >= m["objective_start"] - 1e-12
+    assert m["iterations"] >= 1
+    assert {"result", "s_input", "s_result"} <= set(report["outputs"])

@@ -75,6 +75,9 @@ class SynthSection(StrictModel):
     init: Literal["random", "quilt"] = Field(
         "random", description="Start from random patches (paper) or from the unguided quilting result."
     )
+    seams: Literal["dp", "graphcut"] = Field(
+        "dp", description="Seams: minimum-error boundary cuts (Efros-Freeman) or graph cuts (Kwatra 2003)."
+    )
     evaluation: Literal["incremental", "full"] = Field(
         "incremental",
         description="Candidate evaluation: incremental dS_T of the changed block, or a full S_T per candidate.",

@@ -11,18 +11,36 @@ grid value (the paper's search method is not stated; this is a derivative-free 1
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import cv2
 import numpy as np
 
+TABLE = 4096
+
 
 def _grid(shape, center):
     H, W = shape[:2]
-    cy, cx = ((H - 1) / 2.0, (W - 1) / 2.0) if center is None else (float(center[0]), float(center[1]))
+    key = None if center is None else (float(center[0]), float(center[1]))
+    return _grid_cached(int(H), int(W), key)
+
+
+@functools.lru_cache(maxsize=4)
+def _grid_cached(H: int, W: int, center):
+    """Normalized coordinates ``v, u`` (read-only), their radius, the centre and the scale."""
+    cy, cx = ((H - 1) / 2.0, (W - 1) / 2.0) if center is None else center
     s = max(H, W) / 2.0
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    return (yy - cy) / s, (xx - cx) / s, cy, cx, s
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    v, u = (yy - np.float32(cy)) / np.float32(s), (xx - np.float32(cx)) / np.float32(s)
+    ru = np.hypot(u, v)
+    # lookup of ru in a table of TABLE + 1 radii over [0, max ru]: index and linear weight
+    pos = ru * np.float32(TABLE / max(float(ru.max()), 1e-9))
+    idx = np.minimum(pos.astype(np.int32), TABLE - 1)
+    frac = pos - idx
+    for arr in (v, u, ru, idx, frac):
+        arr.setflags(write=False)
+    return v, u, ru, cy, cx, s, idx, frac
 
 
 def _remap(img: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
@@ -32,8 +50,8 @@ def _remap(img: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
 
 def distort(img: np.ndarray, k1: float, *, center=None) -> np.ndarray:
     """Apply radial distortion ``k1`` to ``img (H, W[, C])``: output ``p_d`` shows input ``p_u``."""
-    v, u, cy, cx, s = _grid(img.shape, center)
-    g = 1.0 + k1 * (u * u + v * v)
+    v, u, ru, cy, cx, s, _, _ = _grid(img.shape, center)
+    g = 1.0 + k1 * ru * ru
     return _remap(img, cy + v * g * s, cx + u * g * s)
 
 
@@ -42,17 +60,20 @@ def undistort(img: np.ndarray, k1: float, *, center=None, iterations: int = 8) -
 
     For negative ``k1`` the model is monotonic only up to ``r* = sqrt(-1 / (3 k1))``; distorted
     radii are clamped there (pixels beyond the model's valid range show the edge of that disc).
+    The cubic is solved by Newton steps on a table of ``TABLE + 1`` radii, interpolated per pixel.
     """
-    v, u, cy, cx, s = _grid(img.shape, center)
-    ru = np.hypot(u, v)
+    v, u, ru, cy, cx, s, idx, frac = _grid(img.shape, center)
+    # the radial map is 1-D: solve the cubic on a fine table of radii, interpolate per pixel
+    table = np.linspace(0.0, float(ru.max()), TABLE + 1)
     r_cap = np.sqrt(-1.0 / (3.0 * k1)) if k1 < 0 else np.inf
-    rd = np.minimum(ru, r_cap)
+    rd = np.minimum(table, r_cap)
     for _ in range(iterations):
-        g = rd + k1 * rd**3 - ru
+        g = rd + k1 * rd**3 - table
         dg = np.maximum(1.0 + 3.0 * k1 * rd * rd, 1e-3)
         rd = np.clip(rd - g / dg, 0.0, r_cap)
-    ratio = np.divide(rd, ru, out=np.ones_like(ru), where=ru > 0)
-    return _remap(img, cy + v * ratio * s, cx + u * ratio * s)
+    ratio_table = (np.divide(rd, table, out=np.ones_like(table), where=table > 0) * s).astype(np.float32)
+    ratio = ratio_table[idx] * (1.0 - frac) + ratio_table[idx + 1] * frac
+    return _remap(img, cy + v * ratio, cx + u * ratio)
 
 
 def search_k1(

@@ -141,7 +141,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         objective = _objective(cfg, out_shape, targets)
     base_rng, walk_rng = ctx.rng.spawn(2)
     with ctx.stage("baseline"):
-        baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, rng=base_rng)
+        baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams, rng=base_rng)
         baseline_value = objective.value(baseline.image)
     if cfg.mode == "quilt":
         image = baseline.image
@@ -153,7 +153,9 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
             if sc.init == "quilt":
                 init = baseline
             else:
-                init = synth_mod.random_init(src, out_shape, patch=sc.patch, overlap=sc.overlap, rng=walk_rng)
+                init = synth_mod.random_init(
+                    src, out_shape, patch=sc.patch, overlap=sc.overlap, rng=walk_rng, seams=sc.seams
+                )
             walk = synth_mod.guided_walk(
                 src,
                 init,
@@ -164,6 +166,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
                 candidates=sc.candidates,
                 sweeps=sc.sweeps,
                 evaluation=sc.evaluation,
+                seams=sc.seams,
                 progress=ctx.progress,
             )
         image = walk.image

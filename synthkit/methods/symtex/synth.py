@@ -40,7 +40,7 @@ class WalkResult:
     candidates_evaluated: int = 0
 
 
-def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng) -> q.QuiltResult:
+def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng, seams: str = "dp") -> q.QuiltResult:
     """Toroidal tiling with uniformly random source patches, each cut into its filled neighbours."""
     src = np.asarray(source, dtype=np.float32)
     q.check_sizes(src.shape, shape, patch, overlap)
@@ -56,7 +56,8 @@ def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng) -> 
             p = q.source_patches(src, pos[None], patch)
             region = canvas[np.ix_(ry, rx)]
             weight = filled[np.ix_(ry, rx)]
-            keep = q.boundary_masks(p, region, weight, overlaps=q.tile_overlaps(ys, xs, i, j, patch, (H, W)))[0]
+            ov = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
+            keep = q.seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
             q.paste(canvas, p[0], keep, y0, x0)
             filled[np.ix_(ry, rx)] = True
             origins[i, j] = pos
@@ -96,6 +97,7 @@ def guided_walk(
     candidates: int,
     sweeps: int,
     evaluation: str = "incremental",
+    seams: str = "dp",
     progress: Callable | None = None,
 ) -> WalkResult:
     """Improve ``init`` by the paper's walk over tiles toward standardized S_T ``targets``.
@@ -110,6 +112,7 @@ def guided_walk(
     sweeps : passes over the tiles; the walk stops early after a pass that changes no tile.
     evaluation : "incremental" (block update of S_T) or "full" (S_T of the whole image per candidate).
         Blocks larger than half the output force "full".
+    seams : "dp" (minimum-error boundary cuts) or "graphcut" (graph-cut seams) for every candidate.
     progress : optional wrapper ``progress(iterable, total=, desc=)`` for a progress bar.
     """
     src = np.asarray(source, dtype=np.float32)
@@ -130,7 +133,12 @@ def guided_walk(
         )
 
     states = (
-        [sy.IncrementalAutocorrelation(f, window=window) for f in sig(canvas)] if evaluation == "incremental" else []
+        [
+            sy.IncrementalAutocorrelation(f, window=window, offset=float(f.mean()), fft_dtype=np.float32)
+            for f in sig(canvas)
+        ]
+        if evaluation == "incremental"
+        else []
     )
 
     def current_value():
@@ -154,7 +162,7 @@ def guided_walk(
             cost = q.overlap_costs(src, region, band.astype(np.float32))
             pos = q.candidates(cost, tol=None, k=candidates)
             patches = q.source_patches(src, pos, patch)
-            keep = q.boundary_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps)
+            keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
             k = keep[..., None] if patches.ndim == 4 else keep
             news = np.where(k, patches, region[None])
             result.iterations += 1
@@ -162,12 +170,12 @@ def guided_walk(
             if states:
                 old_sig = sig(region)
                 values = np.zeros(len(pos))
-                dacs = []
+                grids = []
                 for st, T, s_name, f_old in zip(states, targets, signals, old_sig, strict=True):
                     deltas = np.stack([sy.signal(n, s_name) for n in news]).astype(np.float64) - f_old[None]
-                    dac = st.delta(y0, x0, deltas)
-                    values += l2_of_autocorrelations(st.ac[None] + dac, T)
-                    dacs.append((dac, deltas))
+                    vals, grid = st.l2_of_changes(y0, x0, deltas, T)
+                    values += vals
+                    grids.append((grid, deltas))
             else:
                 values = np.empty(len(pos))
                 for c in range(len(pos)):
@@ -178,8 +186,8 @@ def guided_walk(
             if values[best] < value - 1e-12 * max(1.0, abs(value)):
                 canvas[np.ix_(ry, rx)] = news[best]
                 origins[i, j] = pos[best]
-                for st, (dac, deltas) in zip(states, dacs if states else [], strict=False):
-                    st.apply(y0, x0, deltas[best], dac=dac[best])
+                for st, (grid, deltas) in zip(states, grids if states else [], strict=False):
+                    st.apply(y0, x0, deltas[best], dac=st.window_of(grid[best], (patch, patch)))
                 value = float(values[best])
                 changed += 1
         for st in states:

@@ -85,6 +85,19 @@ def main() -> int:
         for name in names:
             rep, _ = _run(tmp, name, "statistics")
             reg, _ = _run(tmp, name, "regular")
+            if reg["metrics"]["infinite_terms"]:
+                print(
+                    f"{name}: regular baseline joins empty to non-empty voxels on "
+                    f"{reg['metrics']['infinite_terms']} edges",
+                    file=sys.stderr,
+                )
+            record(
+                AREA,
+                f"{name}_infinite_seams",
+                rep["metrics"]["infinite_terms"],
+                "count",
+                baseline=reg["metrics"]["infinite_terms"],
+            )
             cut = statistics.median(
                 [rep["timings"]["graphcut"]]
                 + [_run(tmp, name, "statistics")[0]["timings"]["graphcut"] for _ in range(repeats - 1)]

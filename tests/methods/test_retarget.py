@@ -338,6 +338,14 @@ def test_pinned_voxel_keeps_its_label(tmp_path, sample_dir):
     assert np.isfinite(rep["metrics"]["energy"])
 
 
+def test_analysis_is_deterministic_for_a_seed():
+    V, F, _ = samples.build_bridge()
+    Vn, _, _ = normalize_unit(V)
+    a, b = analyze(Vn, F, rng=3), analyze(Vn, F, rng=3)
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+    np.testing.assert_array_equal(a.basis, b.basis)
+
+
 def test_fpfh_descriptor_finds_the_railing_period():
     V, F, truth = samples.build_railing()
     Vn, _, scale = normalize_unit(V)

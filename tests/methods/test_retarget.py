@@ -299,6 +299,32 @@ def test_bookshelf_shrinks_by_one_row(tmp_path, sample_dir):
     assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
 
 
+def _windows(mesh, truth):
+    """Complete windows: lattice cells whose sill front (the +z faces 0.08 in front of the wall,
+    below the cornice) is whole."""
+    (wx, _, _), (_, wy, _) = truth["lattice"]
+    n, c, area = mesh.face_normals, mesh.triangles_center, mesh.area_faces
+    sill = (n[:, 2] > 0.99) & (np.abs(c[:, 2] - 0.08) < 1e-6) & (c[:, 1] < mesh.bounds[1, 1] - 0.07)
+    cells = np.floor(c[sill, :2] / [wx, wy]).astype(int)
+    keys, inv = np.unique(cells, axis=0, return_inverse=True)
+    per_cell = np.bincount(inv.reshape(-1), weights=area[sill])
+    return int((per_cell >= 0.999 * 0.32 * 0.04).sum())
+
+
+@pytest.mark.slow
+def test_facade_gains_two_columns_and_loses_a_floor(tmp_path, sample_dir):
+    cfg = _config(tmp_path, sample_dir, "facade", target={"axis_steps": {"x": 2, "y": -1}})
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    truth = json.loads((sample_dir / "retarget-facade.truth.json").read_text())
+    inp = load_mesh(sample_dir / "retarget-facade.ply")
+    res = load_mesh(tmp_path / "out" / "retargeted.ply")
+    assert _windows(inp, truth) == truth["counts"]["windows"] == 15
+    assert _windows(res, truth) == (5 + 2) * (3 - 1)
+    grow = np.ptp(res.vertices, axis=0) - np.ptp(inp.vertices, axis=0)
+    np.testing.assert_allclose(grow, [1.0, -0.6, 0.0], atol=1e-6)
+    assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
+
+
 @pytest.mark.slow
 def test_sheared_grid_retargets_in_canonical_space(tmp_path, sample_dir):
     cfg = _config(tmp_path, sample_dir, "sheared_grid", target={"steps": [1, 1]})

@@ -88,7 +88,8 @@ def synthesize(
     yields its best labeling, whose infinite seams are counted in the metrics)."""
     a = cfg.analysis
     with ctx.stage(f"{prefix}synthesis"):
-        grid = make_grid(basis, an.features.dense_P, an.features.dense_N, Vn, dense_radius=a.dense_radius)
+        used = np.unique(F)
+        grid = make_grid(basis, an.features.dense_P, an.features.dense_N, Vn[used], dense_radius=a.dense_radius)
         sets = _voxel_sets(an, grid, descriptor=a.descriptor, radius=a.descriptor_radius)
         steps = np.asarray(steps, dtype=np.int64)
         out_shape = grid.shape + steps

@@ -16,6 +16,7 @@ FPFH (Rusu, Blodow and Beetz, ICRA 2009): three Darboux-frame angles in 11 bins 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 __all__ = ["SHOT_SIZE", "FPFH_SIZE", "shot", "fpfh", "descriptor_distances"]
@@ -182,8 +183,8 @@ def fpfh(keypoints, key_normals, support, support_normals, *, radius: float = 0.
     wts = np.zeros(len(rows))
     wts[ok] = 1.0 / dist[ok]
     k = np.bincount(rows[ok], minlength=len(keys)).astype(np.float64)
-    acc = np.zeros((len(keys), FPFH_SIZE))
-    np.add.at(acc, rows, spfh_sup[cols] * wts[:, None])
+    weights = sp.csr_matrix((wts, (rows, cols)), shape=(len(keys), len(sup)))
+    acc = np.asarray(weights @ spfh_sup)
     out = spfh_key + np.divide(acc, k[:, None], out=np.zeros_like(acc), where=k[:, None] > 0)
     norms = np.linalg.norm(out, axis=1, keepdims=True)
     out = np.divide(out, norms, out=np.zeros_like(out), where=norms > 0)

@@ -18,7 +18,9 @@ class AnalysisSection(StrictModel):
     feature_radius: float = Field(0.06, gt=0, le=0.5, description="Poisson-disk spacing of the feature samples.")
     use_vertices: bool = Field(True, description="Add the mesh vertices as features.")
     descriptor: Literal["shot", "fpfh"] = Field("shot", description="Feature descriptor (SHOT 352-d or FPFH 33-d).")
-    descriptor_radius: float = Field(0.2, gt=0, le=1.0, description="Support radius of the descriptor.")
+    descriptor_radius: float = Field(
+        0.2, gt=0, le=1.0, description="Support radius of the descriptor (0.2 for SHOT; about 0.1 suits FPFH)."
+    )
     tau: float = Field(0.15, ge=0, le=2.0, description="Minimum offset length of a match (eq. 1).")
     bin_size: float = Field(0.05, gt=0, le=0.5, description="Side of a cubic offset-histogram bin.")
     nms_window: float = Field(0.15, gt=0, le=1.0, description="Non-maximum suppression window.")

@@ -215,7 +215,7 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
         an.curve_y * 100.0,
         xlabel="% of occupied bins (sorted)",
         ylabel="% of offsets",
-        title=f"offset sparsity: top 7% {an.top7:.1%}, top 20% {an.top20:.1%}",
+        title=f"top 7%: {an.top7:.0%}  top 20%: {an.top20:.0%}",
     )
     keys, counts = an.bin_keys, an.bin_counts
     views = []

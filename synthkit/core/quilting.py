@@ -114,18 +114,22 @@ def candidates(
 
 
 def _dp_left_cut(err: np.ndarray) -> np.ndarray:
-    """Min-cost vertical path through ``err (K, B, w)``; returns the column per row ``(K, B)``."""
+    """Min-cost vertical path through ``err (K, B, w)``; returns the column per row ``(K, B)``.
+
+    Each step moves at most one column; ties prefer the left neighbour, then straight down.
+    Columns holding ``inf`` are never entered (used to stack cuts of different widths).
+    """
     K, B, w = err.shape
-    acc = err[:, 0, :].astype(np.float64).copy()
+    acc = err[:, 0, :].astype(np.float64)
     back = np.zeros((K, B, w), dtype=np.int8)
-    big = np.full((K, 1), np.inf)
+    left = np.full((K, w), np.inf)
+    right = np.full((K, w), np.inf)
     for y in range(1, B):
-        left = np.concatenate([big, acc[:, :-1]], axis=1)
-        right = np.concatenate([acc[:, 1:], big], axis=1)
-        stack = np.stack([left, acc, right], axis=0)
-        choice = np.argmin(stack, axis=0)
-        acc = np.take_along_axis(stack, choice[None], axis=0)[0] + err[:, y, :]
-        back[:, y, :] = choice.astype(np.int8) - 1
+        left[:, 1:] = acc[:, :-1]
+        right[:, :-1] = acc[:, 1:]
+        best = np.minimum(np.minimum(left, acc), right)
+        back[:, y, :] = np.where(left == best, -1, np.where(acc == best, 0, 1))
+        acc = best + err[:, y, :]
     path = np.zeros((K, B), dtype=np.int64)
     path[:, B - 1] = np.argmin(acc, axis=1)
     rows = np.arange(K)
@@ -134,15 +138,21 @@ def _dp_left_cut(err: np.ndarray) -> np.ndarray:
     return path
 
 
-def _left_mask(err: np.ndarray, width: int) -> np.ndarray:
-    """Keep-new mask ``(K, B, B)`` of a cut through the left ``width`` columns of ``err (K, B, B)``."""
-    K, B, _ = err.shape
-    if width <= 0:
-        return np.ones((K, B, B), dtype=bool)
-    width = min(width, B)
-    path = _dp_left_cut(err[:, :, :width])
+def _side_masks(strips: list[np.ndarray], widths: list[int], B: int) -> list[np.ndarray]:
+    """Keep-new masks ``(K, B, B)`` of left-side cuts through each ``strips[i] (K, B, B)`` at once.
+
+    The strips' first ``widths[i]`` columns are stacked (padded with ``inf``) into one batched
+    dynamic program.
+    """
+    wmax = max(widths)
+    K = strips[0].shape[0]
+    stacked = np.full((len(strips) * K, B, wmax), np.inf)
+    for i, (e, w) in enumerate(zip(strips, widths, strict=True)):
+        stacked[i * K : (i + 1) * K, :, :w] = e[:, :, :w]
+    path = _dp_left_cut(stacked)
     cols = np.arange(B)
-    return cols[None, None, :] >= path[:, :, None]
+    masks = cols[None, None, :] >= path[:, :, None]
+    return [masks[i * K : (i + 1) * K] for i in range(len(strips))]
 
 
 def boundary_masks(
@@ -172,15 +182,24 @@ def boundary_masks(
     K, B = P.shape[0], P.shape[1]
     err = ((P - C[None]) ** 2).sum(axis=3)
     keep = np.ones((K, B, B), dtype=bool)
-    top, left, bottom, right = (int(v) for v in overlaps)
-    if left > 0 and filled[:, :left].any():
-        keep &= _left_mask(err, left)
-    if right > 0 and filled[:, B - right :].any():
-        keep &= _left_mask(err[:, :, ::-1], right)[:, :, ::-1]
-    if top > 0 and filled[:top, :].any():
-        keep &= _left_mask(err.transpose(0, 2, 1), top).transpose(0, 2, 1)
-    if bottom > 0 and filled[B - bottom :, :].any():
-        keep &= _left_mask(err[:, ::-1, :].transpose(0, 2, 1), bottom).transpose(0, 2, 1)[:, ::-1, :]
+    top, left, bottom, right = (min(int(v), B) for v in overlaps)
+    # each side's cut runs as a "left" cut on a flipped/transposed view; undo maps back
+    sides = [
+        (left, filled[:, :left], err, lambda m: m),
+        (right, filled[:, B - right :], err[:, :, ::-1], lambda m: m[:, :, ::-1]),
+        (top, filled[:top, :], err.transpose(0, 2, 1), lambda m: m.transpose(0, 2, 1)),
+        (
+            bottom,
+            filled[B - bottom :, :],
+            err[:, ::-1, :].transpose(0, 2, 1),
+            lambda m: m.transpose(0, 2, 1)[:, ::-1, :],
+        ),
+    ]
+    active = [(w, view, undo) for w, band, view, undo in sides if w > 0 and band.any()]
+    if active:
+        masks = _side_masks([v for _, v, _ in active], [w for w, _, _ in active], B)
+        for (_, _, undo), m in zip(active, masks, strict=True):
+            keep &= undo(m)
     keep |= ~filled[None]
     return keep
 

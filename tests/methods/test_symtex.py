@@ -244,3 +244,12 @@ def test_fig14_combinations_run(tmp_path, name):
         assert m["objective_end"] >= m["objective_start"] - 1e-12
     assert m["iterations"] >= 1
     assert {"result", "s_input", "s_result"} <= set(report["outputs"])
+
+
+def test_deform_determinism(tmp_path):
+    save_image(tmp_path / "w.png", textures.smooth_warp(textures.dots(48, period=12), 2.0))
+    cfg = dict(mode="symmetrize", source="w.png", deform=SMALL_DEFORM)
+    path = write_config(tmp_path, "s", **cfg)
+    run_config(path, out_dir=tmp_path / "a", show_progress=False)
+    run_config(path, out_dir=tmp_path / "b", show_progress=False)
+    assert (tmp_path / "a" / "result.png").read_bytes() == (tmp_path / "b" / "result.png").read_bytes()

@@ -93,7 +93,7 @@ def bench_symmetrize(quick: bool) -> None:
     ctrl = deform.control_points(img, n_points, rng)
     rest = np.vstack([ctrl, deform.border_points((256, 256), max(4.0, np.sqrt(256 * 256 / n_points)))])
     opt = deform.DeformOptimizer(
-        img,
+        sy.f_lum(img),  # as the pipeline does for f_lum / f_1-lum
         obj.loss,
         rest=rest,
         U0=rest,

@@ -224,8 +224,11 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
             m = cfg.tile.margin
             c = np.array([(W - 1) / 2.0, (H - 1) / 2.0])
             U0 = c + (rest - c) * (1.0 - 2.0 * m)
+    # f_lum and f_1-lum are linear in the colour channels and bilinear sampling commutes with
+    # them, so the optimizer may warp the one-channel luminance instead of the colour image
+    pointwise = set(cfg.symmetry.signals) <= {"lum", "1-lum"}
     opt = DeformOptimizer(
-        src,
+        sy.f_lum(src) if pointwise else src,
         objective.loss,
         rest=rest,
         U0=U0,
@@ -237,9 +240,10 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
         max_evaluations=dc.max_evaluations,
         progress=ctx.progress,
     )
-    start_img = opt.render()
+    start_img = opt.sampler.warp(src, U0)
     with ctx.stage("optimize"):
-        image = opt.run()
+        opt.run()
+        image = opt.sampler.warp(src, opt.U)
     start = objective.value(start_img)
     end = objective.value(image)
     metrics = {

@@ -207,7 +207,7 @@ def plot_curve_png(
     ys = np.asarray(ys, dtype=np.float64)
     w, h = size
     img = np.full((h, w, 3), 255, dtype=np.uint8)
-    left, right, top, bottom = 56, 16, 30, 44
+    left, right, top, bottom = 56, 16, 44, 44
     x0, x1 = float(xs.min()), float(xs.max())
     y0, y1 = float(min(ys.min(), 0.0)), float(ys.max())
     x1 = x1 if x1 > x0 else x0 + 1.0
@@ -232,6 +232,6 @@ def plot_curve_png(
     cv2.polylines(img, [pts], False, (25, 80, 200), 2, cv2.LINE_AA)
     cv2.putText(img, title, (left, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv2.LINE_AA)
     cv2.putText(img, xlabel, (w // 2 - 40, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
-    cv2.putText(img, ylabel, (4, top - 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
+    cv2.putText(img, ylabel, (4, top - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
     save_image(path, img)
     return img.astype(np.float32) / 255.0

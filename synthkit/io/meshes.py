@@ -31,7 +31,7 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
     -------
     mesh : trimesh.Trimesh with ``vertices (#V, 3) float64`` and ``faces (#F, 3) int64``. Scenes
         are merged into one mesh in world coordinates (UVs and textures are kept only for a single
-        geometry).
+        geometry); ``mesh.metadata["merged_geometries"]`` says how many geometries were merged.
 
     Raises
     ------
@@ -51,8 +51,10 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
         if not geoms:
             raise InputError(f"{path}: file holds no triangle mesh")
         mesh = geoms[0] if len(geoms) == 1 else trimesh.util.concatenate(geoms)
+        mesh.metadata["merged_geometries"] = len(geoms)
     elif isinstance(loaded, trimesh.Trimesh):
         mesh = loaded
+        mesh.metadata["merged_geometries"] = 1
     else:
         raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
     check_mesh(mesh.vertices, mesh.faces, source=path)

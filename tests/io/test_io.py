@@ -22,6 +22,7 @@ def test_roundtrip_formats(tmp_path, tetra, suffix):
     save_mesh(tetra, path)
     mesh = load_mesh(path, process=True)
     assert len(mesh.faces) == 4
+    assert mesh.metadata["merged_geometries"] == 1
     assert mesh.volume == pytest.approx(1 / 6)
 
 
@@ -48,6 +49,7 @@ def test_scene_is_merged(tmp_path, tetra):
     scene.export(path)
     mesh = load_mesh(path)
     assert len(mesh.faces) == 8
+    assert mesh.metadata["merged_geometries"] == 2
     assert mesh.bounds[1][0] == pytest.approx(6.0)
 
 

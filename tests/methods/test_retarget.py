@@ -449,6 +449,32 @@ def test_bad_pins_are_config_errors(tmp_path, sample_dir):
         run_config(cfg, out_dir=tmp_path / "out2", show_progress=False)
 
 
+def test_multi_mesh_scene_is_merged_and_said(tmp_path, caplog):
+    V, F, truth = samples.build_bridge()
+    half = len(F) // 2
+    parts = [trimesh.Trimesh(V, F[:half], process=False), trimesh.Trimesh(V, F[half:], process=False)]
+    for p in parts:
+        p.remove_unreferenced_vertices()
+    path = tmp_path / "two.glb"
+    trimesh.Scene(parts).export(path)
+    cfg = tmp_path / "two.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": str(path), "analyze_only": True, "seed": 0}))
+    with caplog.at_level("WARNING", logger="synthkit"):
+        rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    m = rep["metrics"]
+    assert m["merged_meshes"] == 2 and m["input_faces"] == len(F)
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [f"merged 2 meshes of {path}"]
+    np.testing.assert_allclose(np.abs(m["principal_offsets"][0]), truth["lattice"][0], atol=0.006)
+
+
+def test_single_mesh_reports_one_merged(tmp_path, sample_dir, caplog):
+    with caplog.at_level("WARNING", logger="synthkit"):
+        cfg = _config(tmp_path, sample_dir, "railing", analyze_only=True)
+        rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    assert rep["metrics"]["merged_meshes"] == 1
+    assert not [r for r in caplog.records if "merged" in r.getMessage()]
+
+
 def test_nan_and_empty_meshes(tmp_path):
     bad = tmp_path / "nan.obj"
     bad.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")

@@ -11,6 +11,10 @@ The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its be
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
 seams in ``infinite_terms``), as the paper's conventional MRF shows its artifacts.
 
+A file holding several meshes (a scene) is merged into one by ``load_mesh``; the number merged is
+``metrics.merged_meshes`` (1 for a single mesh) and a merge logs the warning "merged N meshes of
+<file>" on the ``synthkit`` logger.
+
 No repetition (no principal offset): the statistics and previews are written, ``ctx.metrics`` is
 filled, then :class:`~synthkit.errors.InputError` is raised with ``keep_outputs=True`` (exit 3; the
 runner keeps the folder, ``report.json`` has ``"status": "refused"``).
@@ -18,6 +22,7 @@ runner keeps the folder, ``report.json`` has ``"status": "refused"``).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +39,7 @@ from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_me
 __all__ = ["run", "Retargeted", "synthesize", "resolve_steps"]
 
 _MESH_OUT = (".obj", ".ply", ".glb", ".off", ".stl")
+log = logging.getLogger("synthkit")
 
 
 @dataclass
@@ -297,6 +303,10 @@ def run(cfg, ctx) -> None:
         mesh = load_mesh(cfg.input)
         V = np.asarray(mesh.vertices, dtype=np.float64)
         F = np.asarray(mesh.faces, dtype=np.int64)
+        merged = int(mesh.metadata.get("merged_geometries", 1))
+        ctx.metrics["merged_meshes"] = merged
+        if merged > 1:
+            log.warning("merged %d meshes of %s", merged, cfg.input)
         try:
             Vn, center, scale = normalize_unit(V[np.unique(F)])
         except ValueError as exc:

@@ -198,7 +198,9 @@ def test_bad_inputs(tmp_path, inputs):
         assert not (tmp_path / f"o{k}").exists()
 
 
-@pytest.mark.parametrize("name", ["transfer", "filter", "quilt", "symmetrize", "symmetrize-lens", "tile"])
+@pytest.mark.parametrize(
+    "name", ["transfer", "transfer-sketch", "filter", "quilt", "symmetrize", "symmetrize-lens", "tile"]
+)
 def test_bundled_configs_validate(name):
     from synthkit.runner import load_method_config
 

@@ -248,12 +248,19 @@ def _poisson_prune(pool: np.ndarray, radius: float) -> np.ndarray:
     rank_of[order] = rank
     cell_of = np.empty(len(pool), np.int64)
     cell_of[order] = group
-    filled = np.zeros(int(group[-1]) + 1, bool)
+    n_cells = int(group[-1]) + 1
+    filled = np.zeros(n_cells, bool)
+    by_rank = np.argsort(rank_of, kind="stable")  # round k offers by_rank[bounds[k]:bounds[k + 1]], pool order
+    bounds = np.searchsorted(rank_of[by_rank], np.arange(int(rank.max()) + 2))
     accepted: list[np.ndarray] = []
+    n_filled = 0
     tree = None
     r_test = radius * (1 - 1e-12)
     for k in range(int(rank.max()) + 1):
-        cand = np.flatnonzero((rank_of == k) & ~filled[cell_of])
+        if n_filled == n_cells:
+            break
+        cand = by_rank[bounds[k] : bounds[k + 1]]
+        cand = cand[~filled[cell_of[cand]]]
         if len(cand) == 0:
             continue
         if tree is not None:
@@ -263,6 +270,7 @@ def _poisson_prune(pool: np.ndarray, radius: float) -> np.ndarray:
                 continue
         win = cand[_greedy_independent_set(pool[cand], radius, cand)]
         filled[cell_of[win]] = True
+        n_filled += len(win)
         accepted.append(win)
         tree = cKDTree(pool[np.concatenate(accepted)])
     return np.sort(np.concatenate(accepted)) if accepted else np.zeros(0, np.int64)

@@ -255,3 +255,38 @@ def test_deform_determinism(tmp_path):
     run_config(path, out_dir=tmp_path / "a", show_progress=False)
     run_config(path, out_dir=tmp_path / "b", show_progress=False)
     assert (tmp_path / "a" / "result.png").read_bytes() == (tmp_path / "b" / "result.png").read_bytes()
+
+
+def test_search_k1_finds_maximum_of_known_function():
+    best, history = lens.search_k1(lambda k: -((k - 0.137) ** 2), k1_min=-0.5, k1_max=0.5, samples=11, tol=1e-5)
+    assert best == pytest.approx(0.137, abs=1e-4)
+    assert len(history) > 11
+
+
+def test_toroidal_blend_matches_opposite_borders():
+    from synthkit.methods.symtex import deform
+
+    img = textures.noise(64)[:48, :40]
+    out = deform.toroidal_blend(img)
+    np.testing.assert_allclose(out[:, 0], out[:, -1], atol=1e-6)
+    np.testing.assert_allclose(out[0, :], out[-1, :], atol=1e-6)
+    assert deform.seam_ratio(out) < 1e-6 < deform.seam_ratio(img)
+    # the correction fades towards the centre: the middle changes far less than the borders
+    centre = np.abs(out[20:28, 16:24] - img[20:28, 16:24]).mean()
+    border = np.abs(out[:, 0] - img[:, 0]).mean()
+    assert centre < 0.5 * border
+
+
+def test_control_points_count_spacing_and_determinism():
+    from synthkit.methods.symtex import deform
+
+    img = textures.dots(96)
+    a = deform.control_points(img, 40, np.random.default_rng(3))
+    b = deform.control_points(img, 40, np.random.default_rng(3))
+    np.testing.assert_array_equal(a, b)
+    assert len(a) == 40
+    d = np.hypot(*(a[:, None] - a[None]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    assert d.min() >= np.sqrt(96 * 96 / 40) / 2 - 1e-6
+    order = deform.farthest_order(a)
+    assert sorted(order.tolist()) == list(range(40))

@@ -225,6 +225,11 @@ FIG14 = {
     "fig9c S_T edge": dict(mode="symmetrize", symmetry={"kind": "translational", "signals": ["edge"]}),
     "fig10 transfer deform": dict(mode="transfer", target="dots.png", perturbation="deform"),
     "fig7 tile": dict(mode="tile", symmetry={"signals": ["lum", "1-lum"]}),
+    "graph-cut seams": dict(
+        mode="transfer",
+        target="dots.png",
+        synth={"patch": 12, "overlap": 4, "candidates": 4, "sweeps": 1, "seams": "graphcut"},
+    ),
 }
 
 SMALL_DEFORM = {"points": 12, "levels": 1, "step": 3.0, "max_cycles": 1, "max_evaluations": 40}

@@ -115,11 +115,11 @@ class TileSection(StrictModel):
     margin: float = Field(
         0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%)."
     )
-    blend: float = Field(
-        0.15,
-        ge=0.0,
-        le=0.5,
-        description="Width of the mean-value-coordinate blend across the toroidal boundary (fraction).",
+    mvc_spacing: int = Field(
+        4,
+        ge=1,
+        le=64,
+        description="Spacing in pixels of the boundary samples of the MVC interpolation across the torus seam.",
     )
 
 

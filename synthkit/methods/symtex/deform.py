@@ -257,7 +257,7 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
     }
     if cfg.mode == "tile":
         with ctx.stage("blend"):
-            image = toroidal_blend(image)
+            image = toroidal_blend(image, spacing=cfg.tile.mvc_spacing)
         metrics.update(
             objective_end=objective.value(image),
             seam_ratio=seam_ratio(image),

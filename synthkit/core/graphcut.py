@@ -40,30 +40,52 @@ def _as_edges(edges, n: int, name: str = "edges") -> np.ndarray:
         raise ValueError(f"{name} must have shape (E, 2), got {e.shape}")
     if not np.issubdtype(e.dtype, np.integer):
         raise ValueError(f"{name} must be integers, got dtype {e.dtype}")
-    e = e.astype(np.int64, copy=False)
     lo, hi = int(e.min()), int(e.max())
     if lo < 0 or hi >= n:
         raise ValueError(f"{name} index out of range [0, {n}): found {lo if lo < 0 else hi}")
-    if np.any(e[:, 0] == e[:, 1]):
-        k = int(np.flatnonzero(e[:, 0] == e[:, 1])[0])
+    e = e.astype(np.int64, copy=False)
+    loops = e[:, 0] == e[:, 1]
+    if loops.any():
+        k = int(np.flatnonzero(loops)[0])
         raise ValueError(f"{name}[{k}] is a self-loop ({e[k, 0]}, {e[k, 1]})")
     return e
 
 
 def _as_costs(values, shape: tuple[int, ...], name: str, *, nonnegative: bool) -> np.ndarray:
-    """Return ``values`` as a float64 array of ``shape`` with every value ``>= INF`` set to ``np.inf``."""
+    """Return ``values`` as a float64 array of ``shape`` with every value ``>= INF`` set to ``np.inf``.
+
+    The input array itself is returned (no copy) when it is already float64 and has no value in
+    ``[INF, inf)``; one min and one max pass check NaN, negative values and ``-inf``.
+    """
     v = np.asarray(values, dtype=np.float64)
     if v.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
-    if np.isnan(v).any():
+    if v.size == 0:
+        return v
+    lo, hi = v.min(), v.max()
+    if np.isnan(lo):
         raise ValueError(f"{name} contains NaN")
-    if nonnegative and (v < 0).any():
-        raise ValueError(f"{name} must be non-negative, found {float(v.min())}")
-    if (v == -np.inf).any():
+    if nonnegative and lo < 0:
+        raise ValueError(f"{name} must be non-negative, found {float(lo)}")
+    if lo == -np.inf:
         raise ValueError(f"{name} contains -inf")
-    if (v >= INF).any():
+    if hi >= INF and not np.isinf(v[v >= INF]).all():
         v = np.where(v >= INF, np.inf, v)
     return v
+
+
+def _finite_sum(v: np.ndarray) -> float:
+    """Sum of the finite entries of a cost array without NaN and ``-inf``."""
+    if v.size == 0 or v.max() < np.inf:
+        return float(v.sum())
+    return float(v[np.isfinite(v)].sum())
+
+
+def _finite_or(v: np.ndarray, big: float) -> np.ndarray:
+    """``v`` with ``np.inf`` replaced by ``big`` (``v`` itself when it has no infinite entry)."""
+    if v.size == 0 or v.max() < np.inf:
+        return v
+    return np.where(np.isinf(v), big, v)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -103,15 +125,18 @@ def mincut(n: int, edges, cap, rev_cap, source, sink) -> tuple[np.ndarray, float
     r = _as_costs(rev_cap, (m,), "rev_cap", nonnegative=True)
     s = _as_costs(source, (n,), "source", nonnegative=True)
     t = _as_costs(sink, (n,), "sink", nonnegative=True)
-    arrays = (c, r, s, t)
-    finite_total = sum(float(a[np.isfinite(a)].sum()) for a in arrays)
+    same = r is c
+    finite_total = _finite_sum(s) + _finite_sum(t) + _finite_sum(c) * (2 if same else 1)
+    if not same:
+        finite_total += _finite_sum(r)
     big = 2.0 * finite_total + 1.0
-    c, r, s, t = (np.where(np.isinf(a), big, a) for a in arrays)
+    s, t, c = _finite_or(s, big), _finite_or(t, big), _finite_or(c, big)
+    r = c if same else _finite_or(r, big)
     g = maxflow.Graph[float](n, max(m, 1))
     ids = g.add_nodes(n)
     g.add_grid_tedges(ids, s, t)
     if m:
-        g.add_edges(e[:, 0], e[:, 1], c, r)
+        g.add_edges(np.ascontiguousarray(e[:, 0]), np.ascontiguousarray(e[:, 1]), c, r)
     flow = float(g.maxflow())
     side = g.get_grid_segments(ids)
     if flow > 1.5 * finite_total + 0.5:

@@ -4,6 +4,9 @@ Every sample is a union of closed boxes (and a few hexahedra) laid out on an exa
 repetition the method must find is known: ``<name>.truth.json`` beside each mesh holds the lattice
 vectors in model units, the number of repetitions along each, the counts of the repeated elements
 and the expected number of principal offsets. Models are in metres-like units, not normalised.
+The bookshelf and the facade are tessellated the way modelled assets are (faces cut on a grid
+whose spacings divide the lattice periods, so each cell repeats the same vertex layout); the
+other samples are plain 8-vertex boxes.
 
 :func:`generate` writes them all (PLY or OBJ); ``build_<name>`` functions return the arrays, so
 tests can use the same geometry without files.
@@ -54,14 +57,43 @@ def hexahedron(corners) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(corners, dtype=np.float64).reshape(8, 3), _BOX_FACES.copy()
 
 
-def box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned closed box ``lo (3,) .. hi (3,)`` as ``(V (8, 3), F (12, 3))``, outward normals."""
-    (x0, y0, z0), (x1, y1, z1) = np.asarray(lo, float), np.asarray(hi, float)
-    corners = [
-        [x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
-        [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1],
-    ]  # fmt: skip
-    return hexahedron(corners)
+def box(lo, hi, *, step=None) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned closed box ``lo (3,) .. hi (3,)`` as ``(V, F)``, outward normals.
+
+    Without ``step``: 8 vertices, 12 triangles. With ``step (3,)`` (spacing per axis, ``None`` for
+    no cut along that axis): every face is cut by the planes ``x = i * step[0]``, ``y = j *
+    step[1]``, ``z = k * step[2]`` (integers ``i, j, k``) that cross it, a grid of rectangles split
+    into two triangles each. The grid is global, so two boxes that differ by a translation made of
+    whole steps get the same vertex layout; faces of one box share their cut edges and vertices (closed, welded).
+    """
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if step is None:
+        (x0, y0, z0), (x1, y1, z1) = lo, hi
+        corners = [
+            [x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+            [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1],
+        ]  # fmt: skip
+        return hexahedron(corners)
+    cuts = []
+    for a in range(3):
+        s = step[a]
+        inner = np.zeros(0) if s is None else np.arange(np.floor(lo[a] / s) + 1, np.ceil(hi[a] / s)) * s
+        inner = inner[(inner > lo[a] + 1e-9) & (inner < hi[a] - 1e-9)]
+        cuts.append(np.concatenate([[lo[a]], inner, [hi[a]]]))
+    Vs, Fs, off = [], [], 0
+    for a, (b, c) in enumerate([(1, 2), (2, 0), (0, 1)]):  # e_b x e_c = e_a
+        gb, gc = np.meshgrid(cuts[b], cuts[c], indexing="ij")
+        idx = np.arange(gb.size).reshape(gb.shape)
+        q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+        tri = np.concatenate([np.stack([q0, q1, q2], -1).reshape(-1, 3), np.stack([q0, q2, q3], -1).reshape(-1, 3)])
+        for val, faces in ((lo[a], tri[:, ::-1]), (hi[a], tri)):
+            P = np.zeros((gb.size, 3))
+            P[:, a], P[:, b], P[:, c] = val, gb.ravel(), gc.ravel()
+            Vs.append(P)
+            Fs.append(faces + off)
+            off += len(P)
+    V, inv = np.unique(np.concatenate(Vs), axis=0, return_inverse=True)  # edge vertices are exact copies
+    return V, inv.reshape(-1)[np.concatenate(Fs)].astype(np.int64)
 
 
 def _outward(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -96,19 +128,23 @@ def _cylinder(center, radius: float, height: float, sections: int) -> tuple[np.n
     return V, np.concatenate([side, caps]).astype(np.int64)
 
 
-def build_bookshelf(cols: int = 4, rows: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
+def build_bookshelf(cols: int = 4, rows: int = 3, *, step=(0.05, 0.05, 0.05)) -> tuple[np.ndarray, np.ndarray, dict]:
     """A bookshelf: ``rows`` x ``cols`` cells between full-width boards and per-row dividers,
-    on a plinth, with a crown on top. Lattice: (0.40, 0, 0) per column, (0, 0.35, 0) per row."""
+    on a plinth, with a crown on top. Lattice: (0.40, 0, 0) per column, (0, 0.35, 0) per row.
+
+    Tessellated like a modelled asset (see :func:`box`, ``step``; ``None`` gives plain 8-vertex
+    boxes): the default spacings divide the lattice periods, so every cell carries the same vertex
+    layout, the exactly repeated vertices the paper's real models bring as features."""
     px, py, t, depth = 0.40, 0.35, 0.02, 0.30
     width = cols * px
-    parts = [box([-t, -0.08, 0.0], [width + t, 0.0, depth])]  # plinth
+    parts = [box([-t, -0.08, 0.0], [width + t, 0.0, depth], step=step)]  # plinth
     for j in range(rows + 1):
-        parts.append(box([-t, j * py, 0.0], [width + t, j * py + t, depth]))  # board j
+        parts.append(box([-t, j * py, 0.0], [width + t, j * py + t, depth], step=step))  # board j
     for j in range(rows):
         for i in range(cols + 1):
-            parts.append(box([i * px - t / 2, j * py + t, 0.0], [i * px + t / 2, (j + 1) * py, depth]))
+            parts.append(box([i * px - t / 2, j * py + t, 0.0], [i * px + t / 2, (j + 1) * py, depth], step=step))
     top = rows * py + t
-    parts.append(box([-t - 0.02, top, -0.02], [width + t + 0.02, top + 0.04, depth + 0.02]))  # crown
+    parts.append(box([-t - 0.02, top, -0.02], [width + t + 0.02, top + 0.04, depth + 0.02], step=step))  # crown
     V, F = _merge(parts)
     truth = {
         "lattice": [[px, 0.0, 0.0], [0.0, py, 0.0]],
@@ -121,27 +157,31 @@ def build_bookshelf(cols: int = 4, rows: int = 3) -> tuple[np.ndarray, np.ndarra
     return V, F, truth
 
 
-def build_facade(cols: int = 5, floors: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
+def build_facade(cols: int = 5, floors: int = 3, *, step=(0.0625, 0.075, None)) -> tuple[np.ndarray, np.ndarray, dict]:
     """A wall with a ``floors`` x ``cols`` lattice of framed windows with sills, on a base band
-    with a cornice. Lattice: (0.5, 0, 0), (0, 0.6, 0)."""
+    with a cornice. Lattice: (0.5, 0, 0), (0, 0.6, 0).
+
+    Tessellated like a modelled asset (see :func:`box`, ``step``; ``None`` gives plain 8-vertex
+    boxes): the default spacings divide the lattice periods (8 steps each), so every cell carries
+    the same vertex layout."""
     wx, wy = 0.5, 0.6
     wall_t, fw, fd = 0.10, 0.03, 0.04
     width, height = cols * wx, floors * wy
-    parts = [box([0.0, 0.0, -wall_t], [width, height, 0.0])]
-    parts.append(box([-0.02, -0.10, -wall_t], [width + 0.02, 0.0, 0.05]))  # base band
-    parts.append(box([-0.04, height, -wall_t], [width + 0.04, height + 0.06, 0.08]))  # cornice
+    parts = [box([0.0, 0.0, -wall_t], [width, height, 0.0], step=step)]
+    parts.append(box([-0.02, -0.10, -wall_t], [width + 0.02, 0.0, 0.05], step=step))  # base band
+    parts.append(box([-0.04, height, -wall_t], [width + 0.04, height + 0.06, 0.08], step=step))  # cornice
     win_w, win_h = 0.26, 0.34
     for j in range(floors):
         for i in range(cols):
             x0, y0 = i * wx + (wx - win_w) / 2, j * wy + 0.15
             x1, y1 = x0 + win_w, y0 + win_h
             parts += [
-                box([x0, y0, 0.0], [x1, y0 + fw, fd]),
-                box([x0, y1 - fw, 0.0], [x1, y1, fd]),
-                box([x0, y0 + fw, 0.0], [x0 + fw, y1 - fw, fd]),
-                box([x1 - fw, y0 + fw, 0.0], [x1, y1 - fw, fd]),
-                box([(x0 + x1) / 2 - 0.01, y0 + fw, 0.0], [(x0 + x1) / 2 + 0.01, y1 - fw, fd / 2]),
-                box([x0 - 0.03, y0 - 0.04, 0.0], [x1 + 0.03, y0, fd + 0.04]),  # sill
+                box([x0, y0, 0.0], [x1, y0 + fw, fd], step=step),
+                box([x0, y1 - fw, 0.0], [x1, y1, fd], step=step),
+                box([x0, y0 + fw, 0.0], [x0 + fw, y1 - fw, fd], step=step),
+                box([x1 - fw, y0 + fw, 0.0], [x1, y1 - fw, fd], step=step),
+                box([(x0 + x1) / 2 - 0.01, y0 + fw, 0.0], [(x0 + x1) / 2 + 0.01, y1 - fw, fd / 2], step=step),
+                box([x0 - 0.03, y0 - 0.04, 0.0], [x1 + 0.03, y0, fd + 0.04], step=step),  # sill
             ]
     V, F = _merge(parts)
     truth = {
@@ -242,7 +282,7 @@ def build_bridge(spans: int = 5) -> tuple[np.ndarray, np.ndarray, dict]:
 def build_facade_large(cols: int = 6, floors: int = 4, sections: int = 24) -> tuple[np.ndarray, np.ndarray, dict]:
     """The benchmark input (about 20k triangles): the facade, each window with a balcony of eight
     round balusters (``sections``-sided cylinders) and a rail. Lattice: (0.5, 0, 0), (0, 0.6, 0)."""
-    V, F, truth = build_facade(cols, floors)
+    V, F, truth = build_facade(cols, floors, step=None)
     parts = [(V, F)]
     wx, wy = 0.5, 0.6
     for j in range(floors):

@@ -203,17 +203,26 @@ def test_sheared_grid_offsets_are_not_orthogonal():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["railing", "bookshelf", "facade", "sheared_grid"])
+@pytest.mark.parametrize("name", ["railing", "sheared_grid"])
 def test_offsets_are_sparse(name):
     an, _, _ = _analysed(name)
-    # far above a uniform histogram (7% / 20%); measured 0.46-0.58 / 0.71-0.83 on these samples
-    assert an.top7 >= 0.40 and an.top20 >= 0.65
+    # plain 8-vertex boxes: far above a uniform histogram (7% / 20%); measured 0.51-0.52 / 0.73-0.81
+    assert an.top7 >= 0.45 and an.top20 >= 0.65
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="box-only samples put 46-58% (not 70%) of offsets in the top 7% of bins")
-def test_issue_sparsity_threshold_top7():
-    assert all(_analysed(n)[0].top7 >= 0.70 for n in ("railing", "bookshelf", "facade"))
+@pytest.mark.parametrize("name", ["bookshelf", "facade"])
+def test_issue_sparsity_threshold_top7(name):
+    # the issue's check on the samples tessellated like modelled assets (measured 0.79 and 0.76)
+    an, truth, scale = _analysed(name)
+    assert an.top7 >= 0.70 and an.top20 >= 0.85
+    # and the lattice's offsets alone carry the threshold, not repeats made by the tessellation grid
+    lattice = np.array(truth["lattice"]) / scale
+    n_top = int(np.floor(0.07 * len(an.bin_counts)))
+    top = an.bin_keys[:n_top] * 0.05
+    coef = np.linalg.lstsq(lattice.T, top.T, rcond=None)[0]
+    on_lattice = np.abs(top - (lattice.T @ np.rint(coef)).T).max(axis=1) <= 0.05
+    assert an.bin_counts[:n_top][on_lattice].sum() / an.bin_counts.sum() >= 0.70
 
 
 # ---------------------------------------------------------------- end to end

@@ -26,6 +26,7 @@ INF = 1e12
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 _REL_TOL = 1e-12
+_SAME_CACHE = 1 << 22  # floats kept for V(alpha, alpha) per label (32 MB)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -209,6 +210,58 @@ def grid_mincut(source, sink, weights, *, structure=None) -> tuple[np.ndarray, f
     return side.reshape(shape), flow
 
 
+def _binary_cut(d: np.ndarray, p: np.ndarray, q: np.ndarray, c_pq: np.ndarray, c_qp: np.ndarray,
+                *, rounds: int = 3) -> np.ndarray:
+    """Minimiser ``x (n,) bool`` of ``sum_i d_i x_i + sum_k c_pq[k] (1 - x_p) x_q + c_qp[k] x_p (1 - x_q)``.
+
+    ``d`` (n,) finite, ``p, q`` (m,) int node pairs, ``c_pq, c_qp`` (m,) finite and non-negative.
+    Before the max-flow, nodes are fixed by the exact persistency test: ``x_i = 0`` is optimal
+    when ``d_i`` is at least the sum of the pair costs ``x_i = 0`` can meet, ``x_i = 1`` when
+    ``-d_i`` is at least the sum of those ``x_i = 1`` can meet (flipping such a node in any
+    labeling never costs more). Fixed nodes turn their pairs into unary terms of the other end,
+    and the test repeats (at most ``rounds`` times) on what is left; a min-cut solves the rest.
+    Ties go to ``x = 0``.
+    """
+    n = len(d)
+    fixed = np.full(n, -1, dtype=np.int8)
+    d = d.copy()
+    for _ in range(rounds):
+        if len(p) == 0:
+            break
+        meet0 = np.bincount(p, c_pq, n) + np.bincount(q, c_qp, n)  # costs x_i = 0 can meet
+        meet1 = np.bincount(p, c_qp, n) + np.bincount(q, c_pq, n)
+        free = fixed < 0
+        to0 = free & (d >= meet0)
+        to1 = free & ~to0 & (-d >= meet1)
+        if not (to0.any() or to1.any()):
+            break
+        fixed[to0] = 0
+        fixed[to1] = 1
+        fp, fq = fixed[p], fixed[q]
+        # a fixed end adds its pair's cost to the free end: x_p = 0 with x_q = 1 costs c_pq, ...
+        m = (fp >= 0) & (fq < 0)
+        d += np.bincount(q[m], np.where(fp[m] == 0, c_pq[m], -c_qp[m]), n)
+        m = (fq >= 0) & (fp < 0)
+        d += np.bincount(p[m], np.where(fq[m] == 0, c_qp[m], -c_pq[m]), n)
+        live = (fp < 0) & (fq < 0)
+        p, q, c_pq, c_qp = p[live], q[live], c_pq[live], c_qp[live]
+    x = fixed == 1
+    free = np.flatnonzero(fixed < 0)
+    if len(free) == 0:
+        return x
+    pos = np.zeros(n, dtype=np.int64)
+    pos[free] = np.arange(len(free))
+    g = maxflow.Graph[float](len(free), max(len(p), 1))
+    ids = g.add_nodes(len(free))
+    df = d[free]
+    g.add_grid_tedges(ids, np.maximum(df, 0.0), np.maximum(-df, 0.0))
+    if len(p):
+        g.add_edges(pos[p], pos[q], c_pq, c_qp)
+    g.maxflow()
+    x[free] = g.get_grid_segments(ids)
+    return x
+
+
 # --------------------------------------------------------------------------------------------------
 # multi-label energies
 
@@ -338,6 +391,25 @@ class _Expansion:
         self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
         self.pos = np.zeros(self.n, dtype=np.int64)
         self.buf = np.zeros(len(e))
+        self.same: dict[int, np.ndarray] = {}
+
+    def _same_label(self, alpha: int, bi: np.ndarray) -> np.ndarray:
+        """``V_e(alpha, alpha)`` for edges ``bi``. For a pairwise function these values do not depend
+        on the labeling, so they are evaluated once per label for every edge both of whose ends can
+        take alpha and kept (while the kept values stay within ``_SAME_CACHE`` floats)."""
+        full = np.full(len(bi), alpha)
+        if self.pw.fn is None:
+            return self.pw(bi, full, full)
+        cached = self.same.get(alpha)
+        if cached is None:
+            n_edges = len(self.e0)
+            if (len(self.same) + 1) * n_edges > _SAME_CACHE:
+                return self.pw(bi, full, full)
+            idx = np.flatnonzero(self.okT[alpha][self.e0] & self.okT[alpha][self.e1])
+            cached = np.zeros(n_edges)
+            cached[idx] = self.pw(idx, np.full(len(idx), alpha), np.full(len(idx), alpha))
+            self.same[alpha] = cached
+        return cached[bi]
 
     def energy(self) -> float:
         return _sum_terms(self.un, self.pv)
@@ -387,21 +459,22 @@ class _Expansion:
         bi = np.flatnonzero(act[e0] & act[e1])
         nb = len(bi)
         bp, bq = e0[bi], e1[bi]
-        # V(alpha, alpha), V(l_p, alpha), V(alpha, l_q) for edges with both ends active, one call
+        # V(l_p, alpha), V(alpha, l_q) for edges with both ends active, one call; V(alpha, alpha)
         if nb:
             full = np.full(nb, alpha)
-            vals = self.pw(np.concatenate([bi, bi, bi]), np.concatenate([full, lab[bp], full]),
-                           np.concatenate([full, full, lab[bq]]))
+            vals = self.pw(np.concatenate([bi, bi]), np.concatenate([lab[bp], full]),
+                           np.concatenate([full, lab[bq]]))
         else:
             vals = np.zeros(0)
-        e11, e01, e10 = vals[:nb], vals[nb : 2 * nb], vals[2 * nb :]
+        e01, e10 = vals[:nb], vals[nb:]
+        e11 = self._same_label(alpha, bi)
         e00 = self.pv[bi]
         o00 = self.pv[oi]
         c0 = self.un[nodes]
         c1 = self.uT[alpha, nodes]
         bp, bq = pos[bp], pos[bq]
 
-        raw = (c0, c1, e00, vals, o00, ov)
+        raw = (c0, c1, e00, e11, e01, e10, o00, ov)
         fin_total = sum(float(np.abs(r[np.isfinite(r)]).sum()) for r in raw)
         if all(np.isfinite(r).all() for r in raw):
             c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = c0, c1, e00, e11, e01, e10, o00, ov
@@ -425,13 +498,7 @@ class _Expansion:
         d += np.bincount(bp, weights=e10f - e00f - c_qp, minlength=na)
         d += np.bincount(bq, weights=e11f - e10f + c_qp, minlength=na)
         keep = np.flatnonzero(cap > 0)
-        g = maxflow.Graph[float](na, len(keep) or 1)
-        ids = g.add_nodes(na)
-        g.add_grid_tedges(ids, np.maximum(d, 0.0), np.maximum(-d, 0.0))
-        if len(keep):
-            g.add_edges(bp[keep], bq[keep], c_pq[keep], c_qp[keep])
-        g.maxflow()
-        x = g.get_grid_segments(ids)
+        x = _binary_cut(d, bp[keep], bq[keep], c_pq[keep], c_qp[keep])
         if not x.any():
             return False
 

@@ -5,7 +5,16 @@ import itertools
 import numpy as np
 import pytest
 
-from synthkit.core.graphcut import INF, ExpansionResult, alpha_expansion, energy, grid_mincut, mincut
+from synthkit.core import graphcut
+from synthkit.core.graphcut import (
+    INF,
+    ExpansionResult,
+    _binary_cut,
+    alpha_expansion,
+    energy,
+    grid_mincut,
+    mincut,
+)
 
 # --------------------------------------------------------------------------------------------------
 # references written independently of the module: plain loops over every configuration
@@ -146,6 +155,43 @@ def test_mincut_without_edges():
 def test_mincut_errors(args, match):
     with pytest.raises(ValueError, match=match):
         mincut(*args)
+
+
+def binary_objective(x, d, p, q, c_pq, c_qp):
+    x = np.asarray(x, dtype=bool)
+    return float(np.sum(d[x]) + np.sum(c_pq[~x[p] & x[q]]) + np.sum(c_qp[x[p] & ~x[q]]))
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_binary_cut_with_fixed_nodes_matches_enumeration(seed):
+    # Move energies as alpha-expansion builds them: unary d of any sign, non-negative pair costs.
+    # Large |d| lets the persistency test fix nodes over several rounds before the min-cut.
+    rng = np.random.default_rng(900 + seed)
+    n = 9
+    edges = random_graph(rng, n, 14)
+    p, q = edges[:, 0], edges[:, 1]
+    c_pq = rng.random(len(edges)) * 2
+    c_qp = rng.random(len(edges)) * 2
+    c_pq[rng.random(len(edges)) < 0.3] = 0.0
+    d = rng.normal(size=n) * (3.0 if seed % 2 else 0.7)
+    x = _binary_cut(d, p, q, c_pq, c_qp)
+    best = min(binary_objective(bits, d, p, q, c_pq, c_qp) for bits in itertools.product([0, 1], repeat=n))
+    assert x.dtype == bool and x.shape == (n,)
+    assert binary_objective(x, d, p, q, c_pq, c_qp) == pytest.approx(best, abs=1e-12)
+
+
+def test_binary_cut_fixes_a_chain_round_by_round():
+    # Chain 0 - 1 - 2 - 3 with unit pair costs both ways: only node 0 passes the persistency test
+    # at first (-d = 3 >= 1); each fixed node turns its pair into a unary term (-1) of the next
+    # one, which then passes too; the min-cut finishes what the rounds leave.
+    p, q = np.array([0, 1, 2]), np.array([1, 2, 3])
+    c = np.ones(3)
+    d = np.array([-3.0, -0.2, -0.2, -0.2])
+    x = _binary_cut(d, p, q, c, c)
+    assert x.tolist() == [True, True, True, True]
+    assert binary_objective(x, d, p, q, c, c) == pytest.approx(-3.6)
+    x = _binary_cut(-d, p, q, c, c)  # the mirror problem: every node keeps x = 0
+    assert x.tolist() == [False, False, False, False]
 
 
 def test_grid_mincut_matches_general_graph_and_enumeration():
@@ -331,6 +377,22 @@ def test_callable_matches_table(seed):
     np.testing.assert_array_equal(a.labels, b.labels)
     assert a.energy == b.energy
     assert a.history == b.history
+
+
+def test_callable_without_room_to_keep_same_label_costs(monkeypatch):
+    # V(alpha, alpha) of a callable is kept per label within a float budget; past it, it is
+    # evaluated in every move instead, with the same result.
+    rng = np.random.default_rng(310)
+    n, n_labels = 12, 5
+    edges = random_graph(rng, n, 30)
+    unary = rng.random((n, n_labels)) * 3
+    table = np.stack([metric_table(rng, n_labels) for _ in edges]) + 0.2  # V(a, a) = 0.2, not 0
+    a = alpha_expansion(unary, edges, table_fn(table), rng=1)
+    monkeypatch.setattr(graphcut, "_SAME_CACHE", 2 * len(edges))
+    b = alpha_expansion(unary, edges, table_fn(table), rng=1)
+    np.testing.assert_array_equal(a.labels, b.labels)
+    assert a.history == b.history
+    assert a.energy == energy(a.labels, unary, edges, table)
 
 
 @pytest.mark.parametrize("seed", range(6))

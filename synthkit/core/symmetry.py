@@ -135,6 +135,9 @@ def standardize(S: np.ndarray) -> np.ndarray:
     return (S - mu) / sd
 
 
+_standardized = standardize  # reachable where a parameter named ``standardize`` shadows it
+
+
 def _window_of(shape: tuple[int, int], window, mode: str) -> tuple[int, int]:
     H, W = shape
     full = ((H - 1) // 2, (W - 1) // 2) if mode == "toroidal" else (H - 1, W - 1)
@@ -195,7 +198,7 @@ def translational(
     S = ac[np.ix_(rows, cols)]
     S = S / ac[0, 0]
     if standardize:
-        S = globals()["standardize"](S)
+        S = _standardized(S)
     return S.astype(dtype, copy=False)
 
 
@@ -255,7 +258,7 @@ def _polar_descriptor(f, kind, *, center, n_angles, n_radii, standardize):
         raise ValueError("signal is zero on the polar grid: its symmetry descriptor is undefined")
     S = (r[:, None] * per_radius).sum(axis=0) / norm
     if standardize:
-        S = globals()["standardize"](S)
+        S = _standardized(S)
     return S
 
 

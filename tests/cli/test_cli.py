@@ -3,15 +3,9 @@
 import json
 
 import pytest
-from click.testing import CliRunner
 
 from synthkit import __version__
 from synthkit.cli.main import cli
-
-
-@pytest.fixture
-def runner():
-    return CliRunner()
 
 
 def test_help_lists_commands(runner):

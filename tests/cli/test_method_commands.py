@@ -4,19 +4,12 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
-from click.testing import CliRunner
 
 from synthkit.cli.main import cli
 from synthkit.io.images import save_image
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = REPO / "configs"
-
-
-@pytest.fixture
-def runner():
-    return CliRunner()
 
 
 def test_help_lists_implemented_methods(runner):

@@ -26,7 +26,7 @@ INF = 1e12
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 _REL_TOL = 1e-12
-_SAME_CACHE = 1 << 22  # floats kept for V(alpha, alpha) per label (32 MB)
+_KEPT_EDGES = 1 << 21  # pairwise entries kept across moves: 4 numbers each, 64 MB at most
 
 
 # --------------------------------------------------------------------------------------------------
@@ -375,6 +375,19 @@ class ExpansionResult:
     moves: int = 0
 
 
+@dataclass
+class _Kept:
+    """Pairwise values of one label's move kept across moves, for the edges ``idx`` (k,) int32
+    both of whose ends can take the label: ``V(l_p, alpha)``, ``V(alpha, l_q)``, ``V(alpha, alpha)``
+    (k,) each; the first two hold for the labels of move ``at`` (k,) int32 (0: never evaluated)."""
+
+    idx: np.ndarray
+    v01: np.ndarray
+    v10: np.ndarray
+    v11: np.ndarray
+    at: np.ndarray
+
+
 class _Expansion:
     """State of an alpha-expansion run: current labels, their unary and pairwise terms."""
 
@@ -391,31 +404,60 @@ class _Expansion:
         self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
         self.pos = np.zeros(self.n, dtype=np.int64)
         self.buf = np.zeros(len(e))
-        self.same: dict[int, np.ndarray] = {}
+        self.changed_at = np.zeros(self.n, dtype=np.int64)
+        self.step = 0
+        self.kept: dict[int, _Kept] = {}
+        self.n_kept = 0
 
-    def _same_label(self, alpha: int, bi: np.ndarray) -> np.ndarray:
-        """``V_e(alpha, alpha)`` for edges ``bi``. For a pairwise function these values do not depend
-        on the labeling, so they are evaluated once per label for every edge both of whose ends can
-        take alpha and kept (while the kept values stay within ``_SAME_CACHE`` floats)."""
-        full = np.full(len(bi), alpha)
-        if self.pw.fn is None:
-            return self.pw(bi, full, full)
-        cached = self.same.get(alpha)
-        if cached is None:
-            n_edges = len(self.e0)
-            if (len(self.same) + 1) * n_edges > _SAME_CACHE:
-                return self.pw(bi, full, full)
-            idx = np.flatnonzero(self.okT[alpha][self.e0] & self.okT[alpha][self.e1])
-            cached = np.zeros(n_edges)
-            cached[idx] = self.pw(idx, np.full(len(idx), alpha), np.full(len(idx), alpha))
-            self.same[alpha] = cached
-        return cached[bi]
+    def _both_sided(self, alpha: int, act: np.ndarray, a0: np.ndarray):
+        """Edges ``bi`` with both ends active and their ``V(l_p, alpha), V(alpha, l_q), V(alpha, alpha)``.
+
+        For a pairwise function the values are kept per label for the edges both of whose ends
+        can take alpha (while at most ``_KEPT_EDGES`` such entries are kept in all): ``V(alpha,
+        alpha)`` never changes, ``V(l_p, alpha)`` and ``V(alpha, l_q)`` only when ``l_p`` or ``l_q``
+        does, so each move evaluates the function only on the edges one of whose ends changed label
+        since their values were evaluated (moves are numbered from 1, changes carry their move's
+        number, so an edge evaluated at move ``at`` is stale once an end has ``changed_at >= at``).
+        """
+        lab, e0, e1, pw = self.lab, self.e0, self.e1, self.pw
+        kept = self.kept.get(alpha)
+        if kept is None and pw.fn is not None:
+            idx = np.flatnonzero(self.okT[alpha][e0] & self.okT[alpha][e1])
+            if self.n_kept + len(idx) <= _KEPT_EDGES:
+                full = np.full(len(idx), alpha)
+                kept = _Kept(idx.astype(np.int32), np.empty(len(idx)), np.empty(len(idx)),
+                             pw(idx, full, full), np.zeros(len(idx), dtype=np.int32))
+                self.kept[alpha] = kept
+                self.n_kept += len(idx)
+        if kept is None:
+            bi = np.flatnonzero(a0 & act[e1])
+            nb = len(bi)
+            full = np.full(nb, alpha)
+            vals = pw(np.concatenate([bi, bi, bi]), np.concatenate([lab[e0[bi]], full, full]),
+                      np.concatenate([full, lab[e1[bi]], full]))
+            return bi, vals[:nb], vals[nb : 2 * nb], vals[2 * nb :]
+        p, q = e0[kept.idx], e1[kept.idx]
+        sel = np.flatnonzero(act[p] & act[q])
+        bi = kept.idx[sel].astype(np.int64)
+        bp, bq = p[sel], q[sel]
+        at = kept.at[sel]
+        stale = sel[(self.changed_at[bp] >= at) | (self.changed_at[bq] >= at)]
+        if len(stale):
+            k = kept.idx[stale]
+            full = np.full(len(k), alpha)
+            vals = pw(np.concatenate([k, k]), np.concatenate([lab[e0[k]], full]),
+                      np.concatenate([full, lab[e1[k]]]))
+            kept.v01[stale] = vals[: len(k)]
+            kept.v10[stale] = vals[len(k) :]
+            kept.at[stale] = self.step
+        return bi, kept.v01[sel], kept.v10[sel], kept.v11[sel]
 
     def energy(self) -> float:
         return _sum_terms(self.un, self.pv)
 
-    def _one_sided(self, act: np.ndarray, alpha: int) -> tuple[np.ndarray, np.ndarray]:
-        """Edges with exactly one active end, and their cost after that end switches to alpha.
+    def _one_sided(self, act: np.ndarray, alpha: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Edges with exactly one active end, their cost after that end switches to alpha, and
+        ``act[e0]`` for the final ``act``.
 
         When the current energy is finite, an active node whose switch would meet an infinite
         cost with a fixed neighbour keeps its label in every finite move result: it is made fixed
@@ -440,34 +482,26 @@ class _Expansion:
             new = np.flatnonzero(now & ~one)
             one = now
         oi = np.flatnonzero(one)
-        return oi, buf[oi]
+        return oi, buf[oi], a0
 
     def move(self, alpha: int) -> bool:
         """One expansion move on ``alpha``; applies it and returns True when it lowers the energy."""
         lab, e0, e1 = self.lab, self.e0, self.e1
+        self.step += 1
         act = self.okT[alpha] & (lab != alpha)
         if not act.any():
             return False
-        oi, ov = self._one_sided(act, alpha)
+        oi, ov, a0 = self._one_sided(act, alpha)
         nodes = np.flatnonzero(act)
         na = len(nodes)
         if na == 0:
             return False
         pos = self.pos
         pos[nodes] = np.arange(na)
-        on = pos[np.where(act[e0[oi]], e0[oi], e1[oi])]  # the active end of each one-sided edge
-        bi = np.flatnonzero(act[e0] & act[e1])
-        nb = len(bi)
+        o0 = a0[oi]
+        on = pos[np.where(o0, e0[oi], e1[oi])]  # the active end of each one-sided edge
+        bi, e01, e10, e11 = self._both_sided(alpha, act, a0)
         bp, bq = e0[bi], e1[bi]
-        # V(l_p, alpha), V(alpha, l_q) for edges with both ends active, one call; V(alpha, alpha)
-        if nb:
-            full = np.full(nb, alpha)
-            vals = self.pw(np.concatenate([bi, bi]), np.concatenate([lab[bp], full]),
-                           np.concatenate([full, lab[bq]]))
-        else:
-            vals = np.zeros(0)
-        e01, e10 = vals[:nb], vals[nb:]
-        e11 = self._same_label(alpha, bi)
         e00 = self.pv[bi]
         o00 = self.pv[oi]
         c0 = self.un[nodes]
@@ -475,14 +509,14 @@ class _Expansion:
         bp, bq = pos[bp], pos[bq]
 
         raw = (c0, c1, e00, e11, e01, e10, o00, ov)
-        fin_total = sum(float(np.abs(r[np.isfinite(r)]).sum()) for r in raw)
-        if all(np.isfinite(r).all() for r in raw):
-            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = c0, c1, e00, e11, e01, e10, o00, ov
+        sums = [float(np.abs(r).sum()) for r in raw]
+        if np.isfinite(sums).all():
+            fin_total = sum(sums)
+            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = raw
         else:
+            fin_total = sum(_finite_sum(np.abs(r)) for r in raw)
             big = 2.0 * fin_total + 1.0
-            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = (
-                np.where(np.isinf(r), big, r) for r in (c0, c1, e00, e11, e01, e10, o00, ov)
-            )
+            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = (_finite_or(r, big) for r in raw)
 
         # Kolmogorov-Zabih: x = 1 switches to alpha. One-sided edges are unary terms of their
         # active end; two-sided edges give E00 + a x_p + b x_q + c_pq (1 - x_p) x_q + c_qp x_p (1 - x_q).
@@ -519,6 +553,7 @@ class _Expansion:
             if not f_new < f_old - _REL_TOL * (fin_total + 1.0):
                 return False
         lab[nodes[x]] = alpha
+        self.changed_at[nodes[x]] = self.step
         self.un[nodes[x]] = new_terms[0]
         self.pv[oi[xo]] = new_terms[1]
         self.pv[bi[bch]] = new_b

@@ -379,17 +379,39 @@ def test_callable_matches_table(seed):
     assert a.history == b.history
 
 
-def test_callable_without_room_to_keep_same_label_costs(monkeypatch):
-    # V(alpha, alpha) of a callable is kept per label within a float budget; past it, it is
-    # evaluated in every move instead, with the same result.
+def test_callable_values_kept_across_moves_or_not(monkeypatch):
+    # A callable's values on edges both of whose ends can take alpha are kept per label within a
+    # budget and re-evaluated only where a label changed; past the budget every move evaluates
+    # them afresh. Same labels, same history, either way; the kept values equal fresh ones.
     rng = np.random.default_rng(310)
-    n, n_labels = 12, 5
-    edges = random_graph(rng, n, 30)
+    n, n_labels = 14, 5
+    edges = random_graph(rng, n, 36)
     unary = rng.random((n, n_labels)) * 3
-    table = np.stack([metric_table(rng, n_labels) for _ in edges]) + 0.2  # V(a, a) = 0.2, not 0
-    a = alpha_expansion(unary, edges, table_fn(table), rng=1)
-    monkeypatch.setattr(graphcut, "_SAME_CACHE", 2 * len(edges))
-    b = alpha_expansion(unary, edges, table_fn(table), rng=1)
+    unary[rng.random((n, n_labels)) < 0.2] = np.inf
+    unary[:, 0] = 2.0
+    table = np.stack([metric_table(rng, n_labels) for _ in edges]) * 0.5 + 0.2  # V(a, a) = 0.2
+    both_sided = graphcut._Expansion._both_sided
+    checked = []
+
+    def checking(self, alpha, act, a0):
+        bi, v01, v10, v11 = both_sided(self, alpha, act, a0)
+        la, lb = self.lab[edges[bi, 0]], self.lab[edges[bi, 1]]
+        np.testing.assert_array_equal(v01, table[bi, la, alpha])
+        np.testing.assert_array_equal(v10, table[bi, alpha, lb])
+        np.testing.assert_array_equal(v11, table[bi, alpha, alpha])
+        checked.append(len(bi))
+        return bi, v01, v10, v11
+
+    monkeypatch.setattr(graphcut._Expansion, "_both_sided", checking)
+    a = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
+    assert a.cycles == 3 and len(checked) > n_labels  # labels met again after changes
+    monkeypatch.setattr(graphcut._Expansion, "_both_sided", both_sided)
+    monkeypatch.setattr(graphcut, "_KEPT_EDGES", 2 * len(edges))
+    b = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
+    monkeypatch.setattr(graphcut, "_KEPT_EDGES", 0)
+    c = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
+    np.testing.assert_array_equal(a.labels, c.labels)
+    assert a.history == c.history
     np.testing.assert_array_equal(a.labels, b.labels)
     assert a.history == b.history
     assert a.energy == energy(a.labels, unary, edges, table)

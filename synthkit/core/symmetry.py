@@ -30,6 +30,8 @@ transform raises ``ValueError`` for them.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage
@@ -59,6 +61,15 @@ LUMA = np.array([0.299, 0.587, 0.114])
 """Rec. 601 luma weights used by :func:`f_lum`."""
 
 _EPS = 1e-12
+_CHUNK = 4  # candidates per batched transform in IncrementalAutocorrelation.l2_of_changes
+_EXECUTORS: dict[int, ThreadPoolExecutor] = {}
+
+
+def _executor(threads: int) -> ThreadPoolExecutor:
+    """Shared thread pool of ``threads`` workers (numpy and scipy.fft release the GIL)."""
+    if threads not in _EXECUTORS:
+        _EXECUTORS[threads] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="symmetry")
+    return _EXECUTORS[threads]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -472,7 +483,9 @@ class IncrementalAutocorrelation:
         if self.fft_dtype not in (np.float32, np.float64):
             raise ValueError(f"fft_dtype must be float32 or float64, got {fft_dtype}")
         self.window = (wy, wx)
-        self._plans: dict[tuple[int, int], tuple[tuple[int, int], np.ndarray, np.ndarray]] = {}
+        self._plans: dict[tuple, tuple] = {}
+        self._weight_cache: dict[tuple[int, int], dict] = {}
+        self._ac_version = 0
         self.refresh()
 
     def refresh(self) -> None:
@@ -482,6 +495,7 @@ class IncrementalAutocorrelation:
         wy, wx = self.window
         H, W = self.f.shape
         self.ac = ac[np.ix_(np.arange(-wy, wy + 1) % H, np.arange(-wx, wx + 1) % W)]
+        self._ac_version += 1
 
     def _plan(self, h: int, w: int):
         key = (h, w)
@@ -534,44 +548,142 @@ class IncrementalAutocorrelation:
             deltas = deltas[None]
         return self.window_of(self.delta_grid(y0, x0, deltas), deltas.shape[1:])
 
-    def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray):
-        """E_L2 ``(K,)`` of the standardized windows after each change, and the ``delta_grid``.
+    def _half_plan(self, h: int, w: int):
+        """Grid ``(M0, M1)`` for a block ``h x w`` and the half-window layout ``(wy + 1, M1)``.
 
-        With ``n`` window entries, ``mean(z^2) = 1`` and ``mean(z) = 0`` give
-        ``E = 1 + mean(T^2) - 2 (<A, T> / n - mean(A) mean(T)) / std(A)`` for ``A = ac + dAC``;
-        the three sums of ``dAC`` are inner products with the target, the window indicator and
-        ``ac`` scattered onto the padded grid.
+        The block sits at grid rows ``0..h-1``, columns ``0..w-1``; the grown image occupies rows
+        ``-wy .. h + wy - 1`` (mod ``M0``), columns likewise, so the circular correlation on the grid
+        is exact for every displacement of the window. ``keep (M1,)`` marks the columns ``dx`` of the
+        window (``|dx| <= wx`` mod ``M1``), ``rows (wy + 1,)`` weighs row ``dy = 0`` once and rows
+        ``dy > 0`` twice (each stands for ``dy`` and ``-dy``: the change of AC is even).
         """
-        deltas = np.asarray(deltas, dtype=np.float64)
+        key = ("half", h, w)
+        if key not in self._plans:
+            wy, wx = self.window
+            shape = (sfft.next_fast_len(h + 2 * wy, real=True), sfft.next_fast_len(w + 2 * wx, real=True))
+            keep = np.zeros(shape[1], dtype=bool)
+            keep[np.arange(-wx, wx + 1) % shape[1]] = True
+            rows = np.full(wy + 1, 2.0)
+            rows[0] = 1.0
+            self._plans[key] = (shape, keep, rows)
+        return self._plans[key]
+
+    def _half_layout(self, X: np.ndarray, shape, keep, rows) -> np.ndarray:
+        """Even part of a window array ``X (2 wy + 1, 2 wx + 1)`` on the half layout ``(wy + 1, M1)``,
+        times the row weights, zero outside the window: ``sum_W s X = sum(half(s) * this)`` for even ``s``."""
+        wy, wx = self.window
+        even = 0.5 * (X + X[::-1, ::-1])
+        out = np.zeros((wy + 1, shape[1]))
+        out[:, np.arange(-wx, wx + 1) % shape[1]] = even[wy:] * rows[:, None]
+        return out
+
+    def _weights(self, h: int, w: int, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Half-layout weights ``(3, (wy + 1) M1)`` of the window indicator, ``T`` and ``ac``, and of
+        the squared sum, in ``fft_dtype``. Kept between calls: the target's rows are rebuilt when
+        another target comes, the ``ac`` row whenever ``ac`` changed (:meth:`apply`, :meth:`refresh`)."""
+        shape, keep, rows = self._half_plan(h, w)
+        cache = self._weight_cache.get((h, w))
+        if cache is None:
+            ones = self._half_layout(np.ones_like(self.ac), shape, keep, rows).ravel()
+            sq = (rows[:, None] * keep[None, :]).ravel().astype(self.fft_dtype)
+            cache = {"weights": np.zeros((3, ones.size), dtype=self.fft_dtype), "sq": sq, "T": None, "ac": -1}
+            cache["weights"][0] = ones
+            self._weight_cache[(h, w)] = cache
+        if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
+            cache["T"] = T.copy()
+            cache["weights"][1] = self._half_layout(T, shape, keep, rows).ravel()
+        if cache["ac"] != self._ac_version:
+            cache["ac"] = self._ac_version
+            cache["weights"][2] = self._half_layout(self.ac, shape, keep, rows).ravel()
+        return cache["weights"], cache["sq"]
+
+    def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray, *, workers: int | None = None):
+        """E_L2 ``(K,)`` of the standardized windows after each change, and the changes' half windows.
+
+        ``deltas (K, h, w)`` are block changes at ``(y0, x0)`` (wrapping). With ``n`` window
+        entries, ``mean(z^2) = 1`` and ``mean(z) = 0`` give
+        ``E = 1 + mean(T^2) - 2 (<A, T> / n - mean(A) mean(T)) / std(A)`` for ``A = ac + dAC``, so
+        each candidate needs ``sum dAC``, ``<dAC, T>``, ``<dAC, ac>`` and ``sum dAC^2`` over the window.
+
+        ``dAC`` is even (``dAC(-d) = dAC(d)``) and its spectrum ``2 Re(conj(D) G) + |D|^2`` real, so
+        one half of the window carries everything: the inverse transform runs as a real-input FFT
+        along the rows (``ihfft``, half the work of a complex one) followed by inverse transforms of
+        only the ``wy + 1`` rows ``dy >= 0``. The forward transform of each block skips its zero
+        rows (one transform per block row, then the column transforms). The four sums are inner
+        products of the half windows with fixed weights. Candidates go through in chunks of
+        ``_CHUNK`` (small arrays stay in cache); ``workers`` threads (default 1) share the chunks.
+        Each candidate's arithmetic does not depend on the chunking or the threads, so the values
+        are the same bytes for any ``workers``. Exact: the same values as recomputing S_T of the
+        whole image, up to floating rounding.
+
+        Returns ``values (K,)`` and ``halves (K, wy + 1, M1)``: ``halves[k, dy, dx mod M1]`` is
+        ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`).
+        """
+        deltas = np.asarray(deltas)
         if deltas.ndim == 2:
             deltas = deltas[None]
-        block = deltas.shape[1:]
-        shape, rows, cols = self._plan(*block)
-        G = self.delta_grid(y0, x0, deltas)
+        K, h, w = deltas.shape
+        H, W = self.f.shape
+        if h > H // 2 or w > W // 2:
+            raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
         T = np.asarray(target, dtype=np.float64)
         if T.shape != self.ac.shape:
             raise ValueError(f"target shape {T.shape} differs from the window {self.ac.shape}")
+        wy, wx = self.window
+        shape, keep, rows = self._half_plan(h, w)
+        M0, M1 = shape
+        # the grown image on the grid, block at the origin: g_grid[u mod M] = g(y0 + u)
+        uy = np.arange(-wy, h + wy)
+        ux = np.arange(-wx, w + wx)
+        grown = np.zeros(shape, dtype=self.fft_dtype)
+        grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
+        G2 = 2.0 * sfft.rfft2(grown)
+        weights, sq = self._weights(h, w, T)
+        deltas = deltas.astype(self.fft_dtype, copy=False)
+        half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
+        lin = np.empty((K, 3))
+        quad = np.empty(K)
+
+        def chunk(lo: int, hi: int) -> None:
+            D = sfft.rfft(deltas[lo:hi], n=M1, axis=2)
+            D = sfft.fft(D, n=M0, axis=1, overwrite_x=True)
+            # Re(D conj(2 G + D)) on the interleaved (re, im) float view: contiguous, no complex temporaries
+            prod = G2.view(self.fft_dtype) + D.view(self.fft_dtype)
+            prod *= D.view(self.fft_dtype)
+            del D
+            spec = prod[..., 0::2] + prod[..., 1::2]
+            del prod
+            part = sfft.irfft(sfft.ihfft(spec, axis=1)[:, : wy + 1], n=M1, axis=2, overwrite_x=True)
+            half[lo:hi] = part
+            flat = part.reshape(hi - lo, -1)
+            # (3, n) @ (n, k) and einsum: OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
+            lin[lo:hi] = (weights @ flat.T).T
+            quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
+
+        bounds = list(range(0, K, _CHUNK)) + [K]
+        jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
+        threads = max(1, min(int(workers or 1), len(jobs)))
+        if threads > 1:
+            list(_executor(threads).map(lambda job: chunk(*job), jobs))
+        else:
+            for job in jobs:
+                chunk(*job)
+        ac = self.ac
         n = T.size
-        mask = np.zeros(shape)
-        mask[np.ix_(rows, cols)] = 1.0
-        Tg = np.zeros(shape)
-        Tg[np.ix_(rows, cols)] = T
-        Ag = np.zeros(shape)
-        Ag[np.ix_(rows, cols)] = self.ac
-        flat = G.reshape(len(G), -1)
-        # einsum without BLAS: no thread start-up for these thin products
-        s1 = self.ac.sum() + np.einsum("kj,j->k", flat, mask.ravel())
-        s2 = (
-            (self.ac**2).sum()
-            + np.einsum("kj,j->k", flat, 2.0 * Ag.ravel())
-            + np.einsum("kj,kj,j->k", flat, flat, mask.ravel())
-        )
-        p = (self.ac * T).sum() + np.einsum("kj,j->k", flat, Tg.ravel())
+        s1 = ac.sum() + lin[:, 0]
+        p = (ac * T).sum() + lin[:, 1]
+        s2 = (ac * ac).sum() + 2.0 * lin[:, 2] + quad
         mean = s1 / n
         var = np.maximum(s2 / n - mean * mean, 0.0)
         sd = np.where(var > 0, np.sqrt(var), np.inf)
         corr = (p / n - mean * T.mean()) / sd
-        return 1.0 + (T * T).mean() - 2.0 * corr, G
+        return 1.0 + (T * T).mean() - 2.0 * corr, half
+
+    def window_from_half(self, half: np.ndarray) -> np.ndarray:
+        """Full window ``(2 wy + 1, 2 wx + 1)`` float64 of one half window from :meth:`l2_of_changes`."""
+        wy, wx = self.window
+        bottom = half[:, np.arange(-wx, wx + 1) % half.shape[-1]].astype(np.float64)
+        return np.concatenate([bottom[:0:-1, ::-1], bottom], axis=0)
 
     def apply(self, y0: int, x0: int, delta: np.ndarray, *, dac: np.ndarray | None = None) -> None:
         """Add ``delta (h, w)`` to ``f`` at ``(y0, x0)`` (wrapping) and update ``ac``.
@@ -586,3 +698,4 @@ class IncrementalAutocorrelation:
         rx = (x0 + np.arange(delta.shape[1])) % W
         self.f[np.ix_(ry, rx)] += delta
         self.ac = self.ac + dac
+        self._ac_version += 1

@@ -252,15 +252,45 @@ def test_l2_of_changes_matches_full_objective(rng, dtype):
     T = sy.translational(rng.random((48, 40)), window=(7, 6))
     inc = sy.IncrementalAutocorrelation(f, window=(7, 6), offset=f.mean(), fft_dtype=dtype)
     deltas = 0.3 * rng.standard_normal((5, 9, 8))
-    values, grid = inc.l2_of_changes(44, 3, deltas, T)
+    values, halves = inc.l2_of_changes(44, 3, deltas, T)
     ry, rx = (44 + np.arange(9)) % 48, (3 + np.arange(8)) % 40
     for k in range(5):
         g = f.copy()
         g[np.ix_(ry, rx)] += deltas[k]
         ref = sy.e_l2(sy.translational(g, window=(7, 6)), T)
         assert values[k] == pytest.approx(ref, abs=1e-9 if dtype == np.float64 else 1e-5)
-    # the window of the grid is the windowed change, with the offset-independent standardization
-    dac = inc.window_of(grid, (9, 8))
+    # the half windows hold the windowed change (even: the other half is its point reflection)
+    dac = np.stack([inc.window_from_half(hv) for hv in halves])
     np.testing.assert_allclose(dac, inc.delta(44, 3, deltas), atol=1e-9 if dtype == np.float64 else 1e-3)
     with pytest.raises(ValueError, match="target shape"):
         inc.l2_of_changes(0, 0, deltas, T[:-1])
+    with pytest.raises(ValueError, match="half"):
+        inc.l2_of_changes(0, 0, np.ones((25, 2)), T)
+
+
+def test_l2_of_changes_large_window_after_updates_and_threads(rng):
+    """Window at the largest distinct displacement, grid sizes not equal to block + 2 window, a
+    batch not a multiple of the chunk, two targets in turn and accepted changes in between: every
+    value equals E_L2 of the recomputed S_T; one or two threads give the same bytes."""
+    H, W, win = 50, 46, (24, 22)
+    f = rng.random((H, W))
+    targets = [sy.translational(rng.random((H, W)), window=win), sy.translational(rng.random((H, W)), window=win)]
+    inc = sy.IncrementalAutocorrelation(f, window=win, offset=f.mean())
+    g = f.copy()
+    for step, (y0, x0) in enumerate([(10, 40), (47, 1), (20, 20)]):
+        deltas = 0.5 * rng.standard_normal((7, 7, 11))
+        T = targets[step % 2]
+        values, halves = inc.l2_of_changes(y0, x0, deltas, T, workers=1)
+        values2, halves2 = inc.l2_of_changes(y0, x0, deltas, T, workers=2)
+        assert values.tobytes() == values2.tobytes() and halves.tobytes() == halves2.tobytes()
+        ry, rx = (y0 + np.arange(7)) % H, (x0 + np.arange(11)) % W
+        for k in range(7):
+            trial = g.copy()
+            trial[np.ix_(ry, rx)] += deltas[k]
+            assert values[k] == pytest.approx(sy.e_l2(sy.translational(trial, window=win), T), abs=1e-10)
+        best = int(np.argmin(values))
+        inc.apply(y0, x0, deltas[best], dac=inc.window_from_half(halves[best]))
+        g[np.ix_(ry, rx)] += deltas[best]
+        c = g - f.mean()
+        ref = sy.translational(c, window=win, standardize=False) * (c * c).sum()
+        np.testing.assert_allclose(inc.ac, ref, atol=1e-9)

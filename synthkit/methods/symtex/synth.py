@@ -17,6 +17,7 @@ recomputes S_T of the whole image for every candidate instead (the paper's way; 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -99,6 +100,7 @@ def guided_walk(
     evaluation: str = "incremental",
     seams: str = "dp",
     progress: Callable | None = None,
+    workers: int | None = None,
 ) -> WalkResult:
     """Improve ``init`` by the paper's walk over tiles toward standardized S_T ``targets``.
 
@@ -114,6 +116,8 @@ def guided_walk(
         Blocks larger than half the output force "full".
     seams : "dp" (minimum-error boundary cuts) or "graphcut" (graph-cut seams) for every candidate.
     progress : optional wrapper ``progress(iterable, total=, desc=)`` for a progress bar.
+    workers : threads sharing the incremental evaluation of a tile's candidates (default
+        ``min(2, os.cpu_count())``); the result does not depend on it.
     """
     src = np.asarray(source, dtype=np.float32)
     canvas = init.image.copy()
@@ -123,6 +127,8 @@ def guided_walk(
     if 2 * patch > min(H, W):
         evaluation = "full"
     targets = [np.asarray(t, dtype=np.float64) for t in targets]
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1)
 
     def sig(img):
         return [sy.signal(img, s).astype(np.float64) for s in signals]
@@ -173,9 +179,9 @@ def guided_walk(
                 grids = []
                 for st, T, s_name, f_old in zip(states, targets, signals, old_sig, strict=True):
                     deltas = np.stack([sy.signal(n, s_name) for n in news]).astype(np.float64) - f_old[None]
-                    vals, grid = st.l2_of_changes(y0, x0, deltas, T)
+                    vals, halves = st.l2_of_changes(y0, x0, deltas, T, workers=workers)
                     values += vals
-                    grids.append((grid, deltas))
+                    grids.append((halves, deltas))
             else:
                 values = np.empty(len(pos))
                 for c in range(len(pos)):
@@ -186,8 +192,8 @@ def guided_walk(
             if values[best] < value - 1e-12 * max(1.0, abs(value)):
                 canvas[np.ix_(ry, rx)] = news[best]
                 origins[i, j] = pos[best]
-                for st, (grid, deltas) in zip(states, grids if states else [], strict=False):
-                    st.apply(y0, x0, deltas[best], dac=st.window_of(grid[best], (patch, patch)))
+                for st, (halves, deltas) in zip(states, grids if states else [], strict=False):
+                    st.apply(y0, x0, deltas[best], dac=st.window_from_half(halves[best]))
                 value = float(values[best])
                 changed += 1
         for st in states:

@@ -379,7 +379,8 @@ class ExpansionResult:
 class _Kept:
     """Pairwise values of one label's move kept across moves, for the edges ``idx`` (k,) int
     both of whose ends can take the label: ``V(l_p, alpha)``, ``V(alpha, l_q)``, ``V(alpha, alpha)``
-    (k,) each; the first two hold for the labels of move ``at`` (k,) int64 (0: never evaluated)."""
+    (k,) each (NaN until first needed); the first two hold for the labels of move ``at`` (k,) int64
+    (0: never evaluated)."""
 
     idx: np.ndarray
     v01: np.ndarray
@@ -424,10 +425,9 @@ class _Expansion:
         if kept is None and pw.fn is not None:
             idx = np.flatnonzero(self.okT[alpha][e0] & self.okT[alpha][e1])
             if self.n_kept + len(idx) <= _KEPT_EDGES:
-                full = np.full(len(idx), alpha)
                 small = np.int32 if len(e0) < 2**31 else np.int64
                 kept = _Kept(idx.astype(small), np.empty(len(idx)), np.empty(len(idx)),
-                             pw(idx, full, full), np.zeros(len(idx), dtype=np.int64))
+                             np.full(len(idx), np.nan), np.zeros(len(idx), dtype=np.int64))
                 self.kept[alpha] = kept
                 self.n_kept += len(idx)
         if kept is None:
@@ -443,13 +443,16 @@ class _Expansion:
         bp, bq = p[sel], q[sel]
         at = kept.at[sel]
         stale = sel[(self.changed_at[bp] >= at) | (self.changed_at[bq] >= at)]
-        if len(stale):
-            k = kept.idx[stale]
-            full = np.full(len(k), alpha)
-            vals = pw(np.concatenate([k, k]), np.concatenate([lab[e0[k]], full]),
-                      np.concatenate([full, lab[e1[k]]]))
-            kept.v01[stale] = vals[: len(k)]
-            kept.v10[stale] = vals[len(k) :]
+        miss = sel[np.isnan(kept.v11[sel])]
+        if len(stale) + len(miss):
+            k, m = kept.idx[stale], kept.idx[miss]
+            ns = len(k)
+            full = np.full(2 * ns + len(m), alpha)
+            vals = pw(np.concatenate([k, k, m]), np.concatenate([lab[e0[k]], full[ns:]]),
+                      np.concatenate([full[:ns], lab[e1[k]], full[2 * ns :]]))
+            kept.v01[stale] = vals[:ns]
+            kept.v10[stale] = vals[ns : 2 * ns]
+            kept.v11[miss] = vals[2 * ns :]
             kept.at[stale] = self.step
         return bi, kept.v01[sel], kept.v10[sel], kept.v11[sel]
 

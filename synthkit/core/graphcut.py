@@ -445,7 +445,7 @@ class _Expansion:
         stale = sel[(self.changed_at[bp] >= at) | (self.changed_at[bq] >= at)]
         miss = sel[np.isnan(kept.v11[sel])]
         if len(stale) + len(miss):
-            k, m = kept.idx[stale], kept.idx[miss]
+            k, m = kept.idx[stale].astype(np.int64), kept.idx[miss].astype(np.int64)
             ns = len(k)
             full = np.full(2 * ns + len(m), alpha)
             vals = pw(np.concatenate([k, k, m]), np.concatenate([lab[e0[k]], full[ns:]]),

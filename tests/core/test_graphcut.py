@@ -402,8 +402,15 @@ def test_callable_values_kept_across_moves_or_not(monkeypatch):
         checked.append(len(bi))
         return bi, v01, v10, v11
 
+    dtypes = set()
+
+    def V(k, la, lb):
+        dtypes.update((k.dtype, la.dtype, lb.dtype))
+        return table[k, la, lb]
+
     monkeypatch.setattr(graphcut._Expansion, "_both_sided", checking)
-    a = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
+    a = alpha_expansion(unary, edges, V, init=np.zeros(n, dtype=int), rng=1)
+    assert dtypes == {np.dtype(np.int64)}  # kept edge indices are stored smaller, passed as int64
     assert a.cycles == 3 and len(checked) > n_labels  # labels met again after changes
     monkeypatch.setattr(graphcut._Expansion, "_both_sided", both_sided)
     monkeypatch.setattr(graphcut, "_KEPT_EDGES", 2 * len(edges))

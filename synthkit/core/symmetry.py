@@ -553,14 +553,19 @@ class IncrementalAutocorrelation:
 
         The block sits at grid rows ``0..h-1``, columns ``0..w-1``; the grown image occupies rows
         ``-wy .. h + wy - 1`` (mod ``M0``), columns likewise, so the circular correlation on the grid
-        is exact for every displacement of the window. ``keep (M1,)`` marks the columns ``dx`` of the
+        is exact for every displacement of the window. An axis where that grid would not be smaller
+        than the image (large windows, e.g. all displacements) uses the image's own period instead:
+        the toroidal correlation of the whole image, exact as well. ``keep (M1,)`` marks the columns ``dx`` of the
         window (``|dx| <= wx`` mod ``M1``), ``rows (wy + 1,)`` weighs row ``dy = 0`` once and rows
         ``dy > 0`` twice (each stands for ``dy`` and ``-dy``: the change of AC is even).
         """
         key = ("half", h, w)
         if key not in self._plans:
             wy, wx = self.window
-            shape = (sfft.next_fast_len(h + 2 * wy, real=True), sfft.next_fast_len(w + 2 * wx, real=True))
+            shape = tuple(
+                n if sfft.next_fast_len(b + 2 * r, real=True) >= n else sfft.next_fast_len(b + 2 * r, real=True)
+                for n, b, r in zip(self.f.shape, (h, w), (wy, wx), strict=True)
+            )
             keep = np.zeros(shape[1], dtype=bool)
             keep[np.arange(-wx, wx + 1) % shape[1]] = True
             rows = np.full(wy + 1, 2.0)
@@ -633,8 +638,8 @@ class IncrementalAutocorrelation:
         shape, keep, rows = self._half_plan(h, w)
         M0, M1 = shape
         # the grown image on the grid, block at the origin: g_grid[u mod M] = g(y0 + u)
-        uy = np.arange(-wy, h + wy)
-        ux = np.arange(-wx, w + wx)
+        uy = np.arange(H) if M0 == H else np.arange(-wy, h + wy)
+        ux = np.arange(W) if M1 == W else np.arange(-wx, w + wx)
         grown = np.zeros(shape, dtype=self.fft_dtype)
         grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
         G2 = 2.0 * sfft.rfft2(grown)

@@ -269,10 +269,11 @@ def test_l2_of_changes_matches_full_objective(rng, dtype):
 
 
 def test_l2_of_changes_large_window_after_updates_and_threads(rng):
-    """Window at the largest distinct displacement, grid sizes not equal to block + 2 window, a
-    batch not a multiple of the chunk, two targets in turn and accepted changes in between: every
-    value equals E_L2 of the recomputed S_T; one or two threads give the same bytes."""
-    H, W, win = 50, 46, (24, 22)
+    """Rows: window at the largest distinct displacement (the grid is the image's period); columns:
+    a grown grid larger than block + 2 window; a batch not a multiple of the chunk, two targets in
+    turn and accepted changes in between: every value equals E_L2 of the recomputed S_T; one or two
+    threads give the same bytes."""
+    H, W, win = 50, 64, (24, 10)
     f = rng.random((H, W))
     targets = [sy.translational(rng.random((H, W)), window=win), sy.translational(rng.random((H, W)), window=win)]
     inc = sy.IncrementalAutocorrelation(f, window=win, offset=f.mean())

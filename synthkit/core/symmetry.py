@@ -602,6 +602,78 @@ class IncrementalAutocorrelation:
             cache["weights"][2] = self._half_layout(self.ac, shape, keep, rows).ravel()
         return cache["weights"], cache["sq"]
 
+    def _spectral(self, h: int, w: int) -> bool:
+        """True when the grid is the image's period and the window holds every displacement but the
+        half-period lines (``dy = H / 2`` or ``dx = W / 2`` of even sizes): the paper's unwindowed S_T."""
+        H, W = self.f.shape
+        shape, _, _ = self._half_plan(h, w)
+        return shape == (H, W) and self.window == ((H - 1) // 2, (W - 1) // 2)
+
+    def _spectral_weights(self, h: int, w: int, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Parseval weights on the half spectrum ``(M0, M1 // 2 + 1)`` flattened: ``(3, n)`` for the
+        window indicator, ``T`` and ``ac`` (``mult(kx) Re(FFT(X on the grid)) / N``), ``(n,)`` for the
+        squared sum (``mult(kx) / N``) and ``(M1 // 2 + 1,)`` ``mult(kx) (-1)^kx`` for the ``dx = W / 2``
+        line; ``mult`` counts the conjugate column a half spectrum stands for (1 or 2)."""
+        M0, M1 = self.f.shape
+        wy, wx = self.window
+        key = ("spectral", h, w)
+        cache = self._weight_cache.get(key)
+        mult = np.full(M1 // 2 + 1, 2.0)
+        mult[0] = 1.0
+        if M1 % 2 == 0:
+            mult[-1] = 1.0
+        N = M0 * M1
+
+        def parseval(X):
+            grid = np.zeros((M0, M1))
+            grid[np.ix_(np.arange(-wy, wy + 1) % M0, np.arange(-wx, wx + 1) % M1)] = X
+            return (sfft.rfft2(grid).real * (mult / N)).ravel()
+
+        if cache is None:
+            sq = np.broadcast_to(mult / N, (M0, mult.size)).ravel().astype(self.fft_dtype)
+            col = (mult * (-1.0) ** np.arange(mult.size)).astype(self.fft_dtype)
+            cache = {"weights": np.zeros((3, sq.size), dtype=self.fft_dtype), "sq": sq, "col": col, "T": None}
+            cache["ac"] = -1
+            cache["weights"][0] = parseval(np.ones_like(self.ac))
+            self._weight_cache[key] = cache
+        if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
+            cache["T"] = T.copy()
+            cache["weights"][1] = parseval(T)
+        if cache["ac"] != self._ac_version:
+            cache["ac"] = self._ac_version
+            cache["weights"][2] = parseval(self.ac)
+        return cache["weights"], cache["sq"], cache["col"]
+
+    def _grown_spectrum(self, y0: int, x0: int, h: int, w: int) -> np.ndarray:
+        """``2 G``: twice the half spectrum of ``g`` around the block on the grid (block at the origin)."""
+        H, W = self.f.shape
+        wy, wx = self.window
+        shape, _, _ = self._half_plan(h, w)
+        M0, M1 = shape
+        # the grown image on the grid: g_grid[u mod M] = g(y0 + u)
+        uy = np.arange(H) if M0 == H else np.arange(-wy, h + wy)
+        ux = np.arange(W) if M1 == W else np.arange(-wx, w + wx)
+        grown = np.zeros(shape, dtype=self.fft_dtype)
+        grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
+        return 2.0 * sfft.rfft2(grown)
+
+    def _change_spectra(self, G2: np.ndarray, deltas: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+        """Real spectra ``(k, M0, M1 // 2 + 1)`` of ``dAC`` on the grid ``shape`` for blocks
+        ``deltas (k, h, w)``: ``Re(D conj(2 G + D))``; the forward transform skips the block's zero rows."""
+        M0, M1 = shape
+        D = sfft.rfft(deltas, n=M1, axis=2)
+        D = sfft.fft(D, n=M0, axis=1, overwrite_x=True)
+        # on the interleaved (re, im) float view: contiguous, no complex temporaries
+        prod = G2.view(self.fft_dtype) + D.view(self.fft_dtype)
+        prod *= D.view(self.fft_dtype)
+        del D
+        return prod[..., 0::2] + prod[..., 1::2]
+
+    def _halves(self, spec: np.ndarray, M1: int) -> np.ndarray:
+        """Half windows ``(k, wy + 1, M1)`` of ``dAC`` from its real spectra (rows ``dy >= 0`` only)."""
+        wy = self.window[0]
+        return sfft.irfft(sfft.ihfft(spec, axis=1)[:, : wy + 1], n=M1, axis=2, overwrite_x=True)
+
     def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray, *, workers: int | None = None):
         """E_L2 ``(K,)`` of the standardized windows after each change, and the changes' half windows.
 
@@ -615,14 +687,19 @@ class IncrementalAutocorrelation:
         along the rows (``ihfft``, half the work of a complex one) followed by inverse transforms of
         only the ``wy + 1`` rows ``dy >= 0``. The forward transform of each block skips its zero
         rows (one transform per block row, then the column transforms). The four sums are inner
-        products of the half windows with fixed weights. Candidates go through in chunks of
-        ``_CHUNK`` (small arrays stay in cache); ``workers`` threads (default 1) share the chunks.
-        Each candidate's arithmetic does not depend on the chunking or the threads, so the values
-        are the same bytes for any ``workers``. Exact: the same values as recomputing S_T of the
-        whole image, up to floating rounding.
+        products of the half windows with fixed weights. When the window holds every displacement
+        of the torus (the paper's unwindowed S_T; :meth:`_spectral`), there is no inverse transform
+        at all: the four sums are Parseval inner products on the spectrum, less the half-period
+        lines outside the window (one weighted sum and one 1-D transform each).
+
+        Candidates go through in chunks of ``_CHUNK`` (small arrays stay in cache); ``workers``
+        threads (default 1) share the chunks. Each candidate's arithmetic does not depend on the
+        chunking or the threads, so the values are the same bytes for any ``workers``. Exact: the
+        same values as recomputing S_T of the whole image, up to floating rounding.
 
         Returns ``values (K,)`` and ``halves (K, wy + 1, M1)``: ``halves[k, dy, dx mod M1]`` is
-        ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`).
+        ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`); ``halves``
+        is None in the spectral case (:meth:`apply` then computes the accepted change's window).
         """
         deltas = np.asarray(deltas)
         if deltas.ndim == 2:
@@ -634,36 +711,42 @@ class IncrementalAutocorrelation:
         T = np.asarray(target, dtype=np.float64)
         if T.shape != self.ac.shape:
             raise ValueError(f"target shape {T.shape} differs from the window {self.ac.shape}")
-        wy, wx = self.window
-        shape, keep, rows = self._half_plan(h, w)
-        M0, M1 = shape
-        # the grown image on the grid, block at the origin: g_grid[u mod M] = g(y0 + u)
-        uy = np.arange(H) if M0 == H else np.arange(-wy, h + wy)
-        ux = np.arange(W) if M1 == W else np.arange(-wx, w + wx)
-        grown = np.zeros(shape, dtype=self.fft_dtype)
-        grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
-        G2 = 2.0 * sfft.rfft2(grown)
-        weights, sq = self._weights(h, w, T)
+        wy = self.window[0]
+        (M0, M1), _, _ = self._half_plan(h, w)
+        spectral = self._spectral(h, w)
+        G2 = self._grown_spectrum(y0, x0, h, w)
+        if spectral:
+            weights, sq, colw = self._spectral_weights(h, w, T)
+            signs = (-1.0) ** np.arange(M0)
+            half = None
+        else:
+            weights, sq = self._weights(h, w, T)
+            half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
         deltas = deltas.astype(self.fft_dtype, copy=False)
-        half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
         lin = np.empty((K, 3))
         quad = np.empty(K)
 
         def chunk(lo: int, hi: int) -> None:
-            D = sfft.rfft(deltas[lo:hi], n=M1, axis=2)
-            D = sfft.fft(D, n=M0, axis=1, overwrite_x=True)
-            # Re(D conj(2 G + D)) on the interleaved (re, im) float view: contiguous, no complex temporaries
-            prod = G2.view(self.fft_dtype) + D.view(self.fft_dtype)
-            prod *= D.view(self.fft_dtype)
-            del D
-            spec = prod[..., 0::2] + prod[..., 1::2]
-            del prod
-            part = sfft.irfft(sfft.ihfft(spec, axis=1)[:, : wy + 1], n=M1, axis=2, overwrite_x=True)
-            half[lo:hi] = part
-            flat = part.reshape(hi - lo, -1)
-            # (3, n) @ (n, k) and einsum: OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
+            spec = self._change_spectra(G2, deltas[lo:hi], (M0, M1))
+            if spectral:
+                flat = spec.reshape(hi - lo, -1)
+                total = np.einsum("kj,kj,j->k", flat, flat, sq).astype(np.float64)
+                if M0 % 2 == 0:  # the line dy = H / 2 lies outside the window
+                    row = sfft.irfft(np.einsum("kyx,y->kx", spec, signs.astype(spec.dtype)), n=M1, axis=1) / M0
+                    total -= (row.astype(np.float64) ** 2).sum(axis=1)
+                if M1 % 2 == 0:  # the line dx = W / 2, its corner with dy = H / 2 taken once
+                    col = sfft.fft(spec @ colw, axis=1).real / (M0 * M1)
+                    total -= (col.astype(np.float64) ** 2).sum(axis=1)
+                    if M0 % 2 == 0:
+                        total += row[:, M1 // 2].astype(np.float64) ** 2
+                quad[lo:hi] = total
+            else:
+                part = self._halves(spec, M1)
+                half[lo:hi] = part
+                flat = part.reshape(hi - lo, -1)
+                quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
+            # (3, n) @ (n, k): OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
             lin[lo:hi] = (weights @ flat.T).T
-            quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
 
         bounds = list(range(0, K, _CHUNK)) + [K]
         jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
@@ -684,6 +767,15 @@ class IncrementalAutocorrelation:
         corr = (p / n - mean * T.mean()) / sd
         return 1.0 + (T * T).mean() - 2.0 * corr, half
 
+    def change_window(self, y0: int, x0: int, delta: np.ndarray) -> np.ndarray:
+        """``dAC (2 wy + 1, 2 wx + 1)`` float64 of one block change ``delta (h, w)`` at ``(y0, x0)``
+        (the half-window transforms of :meth:`l2_of_changes` for a single block)."""
+        delta = np.asarray(delta, dtype=self.fft_dtype)
+        h, w = delta.shape
+        shape = self._half_plan(h, w)[0]
+        spec = self._change_spectra(self._grown_spectrum(y0, x0, h, w), delta[None], shape)
+        return self.window_from_half(self._halves(spec, shape[1])[0])
+
     def window_from_half(self, half: np.ndarray) -> np.ndarray:
         """Full window ``(2 wy + 1, 2 wx + 1)`` float64 of one half window from :meth:`l2_of_changes`."""
         wy, wx = self.window
@@ -693,11 +785,12 @@ class IncrementalAutocorrelation:
     def apply(self, y0: int, x0: int, delta: np.ndarray, *, dac: np.ndarray | None = None) -> None:
         """Add ``delta (h, w)`` to ``f`` at ``(y0, x0)`` (wrapping) and update ``ac``.
 
-        ``dac`` is the matching window from :meth:`delta` (or :meth:`window_of`) when computed.
+        ``dac`` is the matching window when already computed (:meth:`window_from_half`), otherwise
+        :meth:`change_window` computes it.
         """
         delta = np.asarray(delta, dtype=np.float64)
         if dac is None:
-            dac = self.delta(y0, x0, delta[None])[0]
+            dac = self.change_window(y0, x0, delta)
         H, W = self.f.shape
         ry = (y0 + np.arange(delta.shape[0])) % H
         rx = (x0 + np.arange(delta.shape[1])) % W

@@ -295,3 +295,35 @@ def test_l2_of_changes_large_window_after_updates_and_threads(rng):
         c = g - f.mean()
         ref = sy.translational(c, window=win, standardize=False) * (c * c).sum()
         np.testing.assert_allclose(inc.ac, ref, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(48, 40), (49, 40), (48, 41), (47, 45)])
+def test_l2_of_changes_unwindowed_is_spectral_and_exact(rng, shape):
+    """All displacements (the paper's S_T): Parseval sums without inverse transforms, the half-period
+    lines of even sizes left out as in the window; values equal E_L2 of the recomputed S_T, and
+    apply without a window (change_window) keeps ac exact."""
+    H, W = shape
+    win = ((H - 1) // 2, (W - 1) // 2)
+    f = rng.random(shape)
+    T = sy.translational(rng.random(shape), window=win)
+    inc = sy.IncrementalAutocorrelation(f, window=win, offset=f.mean())
+    deltas = 0.4 * rng.standard_normal((6, 7, 11))
+    values, halves = inc.l2_of_changes(H - 3, 5, deltas, T, workers=2)
+    assert halves is None
+    ry, rx = (H - 3 + np.arange(7)) % H, (5 + np.arange(11)) % W
+    for k in range(6):
+        g = f.copy()
+        g[np.ix_(ry, rx)] += deltas[k]
+        assert values[k] == pytest.approx(sy.e_l2(sy.translational(g, window=win), T), abs=1e-10)
+    np.testing.assert_allclose(inc.change_window(H - 3, 5, deltas[4]), inc.delta(H - 3, 5, deltas[4])[0], atol=1e-9)
+    inc.apply(H - 3, 5, deltas[4])
+    g = f.copy()
+    g[np.ix_(ry, rx)] += deltas[4]
+    c = g - f.mean()
+    np.testing.assert_allclose(inc.ac, sy.translational(c, window=win, standardize=False) * (c * c).sum(), atol=1e-9)
+    # the cached ac weights follow the update
+    values2, _ = inc.l2_of_changes(0, 0, deltas[:2], T)
+    for k in range(2):
+        g2 = g.copy()
+        g2[:7, :11] += deltas[k]
+        assert values2[k] == pytest.approx(sy.e_l2(sy.translational(g2, window=win), T), abs=1e-10)

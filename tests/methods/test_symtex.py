@@ -81,8 +81,14 @@ def test_determinism_same_seed_same_bytes(inputs):
     assert a != (inputs / "c" / "result.png").read_bytes()
 
 
-def test_incremental_and_full_evaluation_agree(inputs):
-    cfg = dict(TRANSFER, output_size=[64, 64], synth={"patch": 16, "overlap": 6, "candidates": 4, "sweeps": 1})
+@pytest.mark.parametrize("window", [0.25, 0.5])  # 0.5: every displacement, the spectral evaluation
+def test_incremental_and_full_evaluation_agree(inputs, window):
+    cfg = dict(
+        TRANSFER,
+        output_size=[64, 64],
+        symmetry={"window": window},
+        synth={"patch": 16, "overlap": 6, "candidates": 4, "sweeps": 1},
+    )
     run_config(write_config(inputs, "i", **cfg), out_dir=inputs / "i", show_progress=False)
     cfg["synth"] = dict(cfg["synth"], evaluation="full")
     run_config(write_config(inputs, "f", **cfg), out_dir=inputs / "f", show_progress=False)

@@ -193,7 +193,9 @@ def guided_walk(
                 canvas[np.ix_(ry, rx)] = news[best]
                 origins[i, j] = pos[best]
                 for st, (halves, deltas) in zip(states, grids if states else [], strict=False):
-                    st.apply(y0, x0, deltas[best], dac=st.window_from_half(halves[best]))
+                    # the spectral evaluation (window = the whole torus) keeps no windows: apply computes it
+                    dac = None if halves is None else st.window_from_half(halves[best])
+                    st.apply(y0, x0, deltas[best], dac=dac)
                 value = float(values[best])
                 changed += 1
         for st in states:

@@ -178,7 +178,9 @@ def guided_walk(
                 values = np.zeros(len(pos))
                 grids = []
                 for st, T, s_name, f_old in zip(states, targets, signals, old_sig, strict=True):
-                    deltas = np.stack([sy.signal(n, s_name) for n in news]).astype(np.float64) - f_old[None]
+                    # all candidates' signals at once: the stack seen as one (K B, B[, C]) image
+                    stacked = sy.signal(news.reshape(len(news) * patch, *news.shape[2:]), s_name)
+                    deltas = stacked.reshape(len(news), patch, patch).astype(np.float64) - f_old[None]
                     vals, halves = st.l2_of_changes(y0, x0, deltas, T, workers=workers)
                     values += vals
                     grids.append((halves, deltas))

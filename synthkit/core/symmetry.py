@@ -460,9 +460,12 @@ class IncrementalAutocorrelation:
     which only involves ``g`` on ``B`` grown by the window: one FFT of size about
     ``(h + 2 wy) x (w + 2 wx)`` per candidate instead of one of ``H x W`` (and the whole spectrum of
     ``dAC`` is real, ``2 Re(conj(D) G) + |D|^2``, so one forward and one inverse transform suffice).
-    Candidates at the same block are evaluated in one batched FFT. :meth:`l2_of_changes` then gets
-    E_L2 of every candidate's standardized window from three inner products over the padded grid
-    (sum, sum of squares and correlation with the target) without extracting the windows.
+    :meth:`delta` evaluates candidates at the same block in one batched FFT. :meth:`l2_of_changes`
+    (the guided walk's evaluation) needs less: E_L2 of the standardized window follows from four
+    sums of ``dAC`` over the window (its sum, its inner products with the target and with ``ac``,
+    its squared sum), and ``dAC`` is even, so only the rows ``dy >= 0`` are transformed back (a
+    real-input FFT along the rows, then ``wy + 1`` row transforms); with a window holding the whole
+    torus, the sums come from the spectra by Parseval with no inverse transform at all.
 
     Requirements: ``wy <= (H - 1) // 2``, ``wx <= (W - 1) // 2`` (distinct displacements) and blocks
     at most half the image in each axis (so a block never meets its own toroidal copy).

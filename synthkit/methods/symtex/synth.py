@@ -11,8 +11,10 @@ candidate is closer (so the objective never rises: a steepest-descent walk).
 Candidates are evaluated incrementally: the change of the windowed autocorrelation caused by
 replacing one block is computed from the block and its surroundings only
 (:class:`synthkit.core.symmetry.IncrementalAutocorrelation`), batched over all candidates of the
-tile, and E_L2 of the standardized result follows from the updated window. ``evaluation="full"``
-recomputes S_T of the whole image for every candidate instead (the paper's way; for benchmarks).
+tile (in chunks shared by two threads), and E_L2 of the standardized result follows from four
+sums of that change over the window, exactly (the same values as a full recompute, up to
+rounding). ``evaluation="full"`` recomputes S_T of the whole image for every candidate instead
+(the paper's way; for benchmarks and as the reference in tests).
 """
 
 from __future__ import annotations

@@ -558,9 +558,10 @@ class IncrementalAutocorrelation:
         ``-wy .. h + wy - 1`` (mod ``M0``), columns likewise, so the circular correlation on the grid
         is exact for every displacement of the window. An axis where that grid would not be smaller
         than the image (large windows, e.g. all displacements) uses the image's own period instead:
-        the toroidal correlation of the whole image, exact as well. ``keep (M1,)`` marks the columns ``dx`` of the
-        window (``|dx| <= wx`` mod ``M1``), ``rows (wy + 1,)`` weighs row ``dy = 0`` once and rows
-        ``dy > 0`` twice (each stands for ``dy`` and ``-dy``: the change of AC is even).
+        the toroidal correlation of the whole image, exact as well. ``keep (M1,)`` marks the
+        columns ``dx`` of the window (``|dx| <= wx`` mod ``M1``), ``rows (wy + 1,)`` weighs row
+        ``dy = 0`` once and rows ``dy > 0`` twice (each stands for ``dy`` and ``-dy``: the change
+        of AC is even).
         """
         key = ("half", h, w)
         if key not in self._plans:
@@ -696,9 +697,10 @@ class IncrementalAutocorrelation:
         lines outside the window (one weighted sum and one 1-D transform each).
 
         Candidates go through in chunks of ``_CHUNK`` (small arrays stay in cache); ``workers``
-        threads (default 1) share the chunks. Each candidate's arithmetic does not depend on the
-        chunking or the threads, so the values are the same bytes for any ``workers``. Exact: the
-        same values as recomputing S_T of the whole image, up to floating rounding.
+        threads (default 1) share the chunks. The chunks are the same for any number of threads
+        and each is computed by one thread, so the values are the same bytes for any ``workers``.
+        Exact: the same values as recomputing S_T of the whole image, up to floating rounding
+        (float32 transforms: about 1e-7 relative).
 
         Returns ``values (K,)`` and ``halves (K, wy + 1, M1)``: ``halves[k, dy, dx mod M1]`` is
         ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`); ``halves``

@@ -489,6 +489,7 @@ class IncrementalAutocorrelation:
         self._plans: dict[tuple, tuple] = {}
         self._weight_cache: dict[tuple[int, int], dict] = {}
         self._ac_version = 0
+        self._grown_cache: tuple | None = None
         self.refresh()
 
     def refresh(self) -> None:
@@ -628,8 +629,8 @@ class IncrementalAutocorrelation:
             mult[-1] = 1.0
         N = M0 * M1
 
-        def parseval(X):
-            grid = np.zeros((M0, M1))
+        def parseval(X):  # in fft_dtype, the precision the weights are used in
+            grid = np.zeros((M0, M1), dtype=self.fft_dtype)
             grid[np.ix_(np.arange(-wy, wy + 1) % M0, np.arange(-wx, wx + 1) % M1)] = X
             return (sfft.rfft2(grid).real * (mult / N)).ravel()
 
@@ -649,17 +650,28 @@ class IncrementalAutocorrelation:
         return cache["weights"], cache["sq"], cache["col"]
 
     def _grown_spectrum(self, y0: int, x0: int, h: int, w: int) -> np.ndarray:
-        """``2 G``: twice the half spectrum of ``g`` around the block on the grid (block at the origin)."""
+        """``2 G``: twice the half spectrum of ``g`` around the block on the grid (block at the origin).
+
+        The last one is kept until ``f`` changes, so :meth:`apply` after :meth:`l2_of_changes` at the
+        same block reuses it."""
         H, W = self.f.shape
+        key = (y0 % H, x0 % W, h, w, self._ac_version)
+        if self._grown_cache is not None and self._grown_cache[0] == key:
+            return self._grown_cache[1]
         wy, wx = self.window
         shape, _, _ = self._half_plan(h, w)
         M0, M1 = shape
-        # the grown image on the grid: g_grid[u mod M] = g(y0 + u)
-        uy = np.arange(H) if M0 == H else np.arange(-wy, h + wy)
-        ux = np.arange(W) if M1 == W else np.arange(-wx, w + wx)
-        grown = np.zeros(shape, dtype=self.fft_dtype)
-        grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
-        return 2.0 * sfft.rfft2(grown)
+        if shape == (H, W):  # the whole torus, rolled so that the block sits at the origin
+            grown = np.roll(self.f, (-(y0 % H), -(x0 % W)), axis=(0, 1)).astype(self.fft_dtype)
+            grown -= self.fft_dtype.type(self.offset)
+        else:  # the grown image on the grid: g_grid[u mod M] = g(y0 + u)
+            uy = np.arange(H) if M0 == H else np.arange(-wy, h + wy)
+            ux = np.arange(W) if M1 == W else np.arange(-wx, w + wx)
+            grown = np.zeros(shape, dtype=self.fft_dtype)
+            grown[np.ix_(uy % M0, ux % M1)] = self.f[np.ix_((y0 + uy) % H, (x0 + ux) % W)] - self.offset
+        G2 = 2.0 * sfft.rfft2(grown)
+        self._grown_cache = (key, G2)
+        return G2
 
     def _change_spectra(self, G2: np.ndarray, deltas: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         """Real spectra ``(k, M0, M1 // 2 + 1)`` of ``dAC`` on the grid ``shape`` for blocks

@@ -490,6 +490,7 @@ class IncrementalAutocorrelation:
         self._weight_cache: dict[tuple[int, int], dict] = {}
         self._ac_version = 0
         self._grown_cache: tuple | None = None
+        self._sums_cache: tuple | None = None
         self.refresh()
 
     def refresh(self) -> None:
@@ -616,9 +617,10 @@ class IncrementalAutocorrelation:
 
     def _spectral_weights(self, h: int, w: int, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Parseval weights on the half spectrum ``(M0, M1 // 2 + 1)`` flattened: ``(3, n)`` for the
-        window indicator, ``T`` and ``ac`` (``mult(kx) Re(FFT(X on the grid)) / N``), ``(n,)`` for the
-        squared sum (``mult(kx) / N``) and ``(M1 // 2 + 1,)`` ``mult(kx) (-1)^kx`` for the ``dx = W / 2``
-        line; ``mult`` counts the conjugate column a half spectrum stands for (1 or 2)."""
+        window indicator and ``T`` (``mult(kx) Re(FFT(X on the grid)) / N``; the third row, for the
+        autocorrelation, is filled per block by :meth:`l2_of_changes`), ``(n,)`` for the squared sum
+        (``mult(kx) / N``) and ``(M1 // 2 + 1,)`` ``mult(kx) (-1)^kx`` for the ``dx = W / 2`` line;
+        ``mult`` counts the conjugate column a half spectrum stands for (1 or 2)."""
         M0, M1 = self.f.shape
         wy, wx = self.window
         key = ("spectral", h, w)
@@ -638,16 +640,27 @@ class IncrementalAutocorrelation:
             sq = np.broadcast_to(mult / N, (M0, mult.size)).ravel().astype(self.fft_dtype)
             col = (mult * (-1.0) ** np.arange(mult.size)).astype(self.fft_dtype)
             cache = {"weights": np.zeros((3, sq.size), dtype=self.fft_dtype), "sq": sq, "col": col, "T": None}
-            cache["ac"] = -1
             cache["weights"][0] = parseval(np.ones_like(self.ac))
             self._weight_cache[key] = cache
         if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
             cache["T"] = T.copy()
             cache["weights"][1] = parseval(T)
-        if cache["ac"] != self._ac_version:
-            cache["ac"] = self._ac_version
-            cache["weights"][2] = parseval(self.ac)
         return cache["weights"], cache["sq"], cache["col"]
+
+    def _base_sums(self, T: np.ndarray) -> tuple[float, float, float, float, float]:
+        """``sum ac``, ``<ac, T>``, ``sum ac^2``, ``mean T``, ``mean T^2`` (kept until ``ac`` or ``T`` change)."""
+        c = self._sums_cache
+        if c is None or c[0] != self._ac_version or c[1].shape != T.shape or not np.array_equal(c[1], T):
+            ac = self.ac
+            sums = (
+                float(ac.sum()),
+                float((ac * T).sum()),
+                float((ac * ac).sum()),
+                float(T.mean()),
+                float((T * T).mean()),
+            )
+            self._sums_cache = c = (self._ac_version, T.copy(), sums)
+        return c[2]
 
     def _grown_spectrum(self, y0: int, x0: int, h: int, w: int) -> np.ndarray:
         """``2 G``: twice the half spectrum of ``g`` around the block on the grid (block at the origin).
@@ -734,8 +747,14 @@ class IncrementalAutocorrelation:
         G2 = self._grown_spectrum(y0, x0, h, w)
         if spectral:
             weights, sq, colw = self._spectral_weights(h, w, T)
-            signs = (-1.0) ** np.arange(M0)
+            signs = ((-1.0) ** np.arange(M0)).astype(self.fft_dtype)
             half = None
+            # <dAC, ac> over the window: Parseval against the spectrum |G|^2 of the whole current
+            # autocorrelation, less its half-period lines (outside the window), from 1-D transforms
+            power = 0.25 * (G2.real**2 + G2.imag**2)
+            weights[2] = power.ravel() * sq
+            ac_row = sfft.irfft(signs @ power, n=M1) / M0 if M0 % 2 == 0 else None
+            ac_col = sfft.fft(power @ colw).real / (M0 * M1) if M1 % 2 == 0 else None
         else:
             weights, sq = self._weights(h, w, T)
             half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
@@ -748,14 +767,18 @@ class IncrementalAutocorrelation:
             if spectral:
                 flat = spec.reshape(hi - lo, -1)
                 total = np.einsum("kj,kj,j->k", flat, flat, sq).astype(np.float64)
+                lines = np.zeros(hi - lo)
                 if M0 % 2 == 0:  # the line dy = H / 2 lies outside the window
-                    row = sfft.irfft(np.einsum("kyx,y->kx", spec, signs.astype(spec.dtype)), n=M1, axis=1) / M0
-                    total -= (row.astype(np.float64) ** 2).sum(axis=1)
+                    row = (sfft.irfft(np.einsum("kyx,y->kx", spec, signs), n=M1, axis=1) / M0).astype(np.float64)
+                    total -= (row**2).sum(axis=1)
+                    lines += row @ ac_row
                 if M1 % 2 == 0:  # the line dx = W / 2, its corner with dy = H / 2 taken once
-                    col = sfft.fft(spec @ colw, axis=1).real / (M0 * M1)
-                    total -= (col.astype(np.float64) ** 2).sum(axis=1)
+                    col = (sfft.fft(spec @ colw, axis=1).real / (M0 * M1)).astype(np.float64)
+                    total -= (col**2).sum(axis=1)
+                    lines += col @ ac_col
                     if M0 % 2 == 0:
-                        total += row[:, M1 // 2].astype(np.float64) ** 2
+                        total += row[:, M1 // 2] ** 2
+                        lines -= row[:, M1 // 2] * ac_row[M1 // 2]
                 quad[lo:hi] = total
             else:
                 part = self._halves(spec, M1)
@@ -764,6 +787,8 @@ class IncrementalAutocorrelation:
                 quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
             # (3, n) @ (n, k): OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
             lin[lo:hi] = (weights @ flat.T).T
+            if spectral:
+                lin[lo:hi, 2] -= lines
 
         bounds = list(range(0, K, _CHUNK)) + [K]
         jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
@@ -773,16 +798,16 @@ class IncrementalAutocorrelation:
         else:
             for job in jobs:
                 chunk(*job)
-        ac = self.ac
+        ac_sum, ac_t, ac_sq, t_mean, t_sq = self._base_sums(T)
         n = T.size
-        s1 = ac.sum() + lin[:, 0]
-        p = (ac * T).sum() + lin[:, 1]
-        s2 = (ac * ac).sum() + 2.0 * lin[:, 2] + quad
+        s1 = ac_sum + lin[:, 0]
+        p = ac_t + lin[:, 1]
+        s2 = ac_sq + 2.0 * lin[:, 2] + quad
         mean = s1 / n
         var = np.maximum(s2 / n - mean * mean, 0.0)
         sd = np.where(var > 0, np.sqrt(var), np.inf)
-        corr = (p / n - mean * T.mean()) / sd
-        return 1.0 + (T * T).mean() - 2.0 * corr, half
+        corr = (p / n - mean * t_mean) / sd
+        return 1.0 + t_sq - 2.0 * corr, half
 
     def change_window(self, y0: int, x0: int, delta: np.ndarray) -> np.ndarray:
         """``dAC (2 wy + 1, 2 wx + 1)`` float64 of one block change ``delta (h, w)`` at ``(y0, x0)``

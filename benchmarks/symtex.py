@@ -84,7 +84,8 @@ def bench_transfer(quick: bool) -> None:
     """Guided transfer 512x512 (noise source, dot-lattice target), patch 32, overlap 12, 24 candidates.
 
     Runs the config's default window (``symmetry.window: 0.25``, 128 px) and 64 px, 4 sweeps each
-    (``--quick``: 1). Per-candidate figures divide the whole walk (quilting candidates, seams and
+    (``--quick``: 1), and every displacement (``symmetry.window: 0.5``, 255 px, the paper's S_T;
+    not with ``--quick``). Per-candidate figures divide the whole walk (quilting candidates, seams and
     evaluation) by the candidates evaluated, against the full-recompute evaluation of one candidate
     measured in the same run; the paper's figure is 3000 s for the whole 512x512 synthesis.
     """
@@ -92,7 +93,7 @@ def bench_transfer(quick: bool) -> None:
     target = textures.dots(128)
     out = (512, 512)
     sweeps = 1 if quick else 4
-    for frac in (0.25, 0.125):
+    for frac in (0.25, 0.125) if quick else (0.25, 0.125, 0.5):
         window = st_window(out, frac)
         T = [sy.translational(sy.f_lum(target), window=window)]
         start = time.perf_counter()
@@ -101,9 +102,12 @@ def bench_transfer(quick: bool) -> None:
             src, init, signals=["lum"], targets=T, window=window, patch=32, candidates=24, sweeps=sweeps
         )
         elapsed = time.perf_counter() - start
-        label = f"default window {window[0]}" if frac == 0.25 else f"window {window[0]}"
+        label = {0.25: "default window", 0.5: "unwindowed window"}.get(frac, "window") + f" {window[0]}"
         visits = f"{len(walk.history) - 1} sweeps, {walk.iterations} visits"
-        record(AREA, f"transfer 512x512 {label} ({visits}) (vs paper)", elapsed, "s", goal=60.0, baseline=3000.0)
+        # the issue's 60 s goal is for the config's defaults; 0.5 (every displacement, the paper's
+        # S_T) is reported beside it
+        goal = None if frac == 0.5 else 60.0
+        record(AREA, f"transfer 512x512 {label} ({visits}) (vs paper)", elapsed, "s", goal=goal, baseline=3000.0)
         per_full = full_candidate_ms(window)
         per_cand = elapsed / walk.candidates_evaluated * 1e3
         record(AREA, f"  ms per candidate, whole walk, {label} (vs full S_T)", per_cand, "ms", baseline=per_full)

@@ -10,7 +10,7 @@ import yaml
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image, save_image
-from synthkit.methods.symtex import lens
+from synthkit.methods.symtex import lens, synth
 from synthkit.runner import run_config
 from synthkit.samples import textures
 
@@ -93,6 +93,35 @@ def test_incremental_and_full_evaluation_agree(inputs, window):
     cfg["synth"] = dict(cfg["synth"], evaluation="full")
     run_config(write_config(inputs, "f", **cfg), out_dir=inputs / "f", show_progress=False)
     np.testing.assert_array_equal(load_image(inputs / "i" / "result.png"), load_image(inputs / "f" / "result.png"))
+
+
+@pytest.mark.parametrize("window", [(12, 12), (31, 31)])  # grown grid; whole torus (spectral)
+def test_guided_walk_threads_and_full_evaluation_agree(window):
+    """One or two threads give the same walk; its objective history equals the full recompute's."""
+    src = textures.noise(48)
+    T = [sy.translational(sy.f_lum(textures.dots(64)), window=window)]
+    runs = []
+    for evaluation, workers in (("incremental", 1), ("incremental", 2), ("full", 1)):
+        init = synth.random_init(src, (64, 64), patch=16, overlap=6, rng=np.random.default_rng(3))
+        runs.append(
+            synth.guided_walk(
+                src,
+                init,
+                signals=["lum", "1-lum"],
+                targets=T * 2,
+                window=window,
+                patch=16,
+                candidates=5,
+                sweeps=2,
+                evaluation=evaluation,
+                workers=workers,
+            )
+        )
+    assert runs[0].image.tobytes() == runs[1].image.tobytes()
+    assert runs[0].history == runs[1].history
+    np.testing.assert_array_equal(runs[0].image, runs[2].image)
+    np.testing.assert_allclose(runs[0].history, runs[2].history, rtol=1e-6)
+    assert runs[0].changed > 0
 
 
 @pytest.mark.slow

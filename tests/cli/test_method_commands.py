@@ -37,6 +37,8 @@ def test_symmetry_texture_quilt_json(runner, tmp_path):
     assert report["config"]["mode"] == "quilt"
     assert report == json.loads((out / "report.json").read_text())
     assert result.stderr.startswith(f"symmetry-texture: wrote {out} in ")
+    objective = report["metrics"]["objective_end"]
+    assert f"objective_end={objective:.4g}" in result.stderr
 
 
 def test_symmetry_texture_blank_image_exit_3(runner, tmp_path):

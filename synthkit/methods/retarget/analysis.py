@@ -64,7 +64,9 @@ class Analysis:
     """Everything the analysis found, in normalised units.
 
     offsets : (k, 3) per-feature offset to its best match (eq. 1); match : (k,) index of the match.
-    bin_keys : (b, 3) int occupied histogram bins (offset // bin_size); bin_counts : (b,) int.
+    bin_keys : (b, 3) int occupied histogram bins, ``rint(offset / bin_size)`` (bins centred on the
+    multiples of ``bin_size``, see :func:`offset_histogram`), sorted by decreasing count;
+    bin_counts : (b,) int, the offsets in each.
     curve_x, curve_y : the sparsity curve (share of bins, cumulative share of offsets).
     top7, top20 : share of offsets in the top 7% / 20% of occupied bins.
     dominant : (m, 3) dominant offsets before refinement; dominant_refined : (m, 3) after ICP;

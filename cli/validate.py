@@ -14,23 +14,23 @@ from .options import config_argument, set_option, verbosity
 def command(ctx: click.Context, configs: tuple[str, ...], overrides: tuple[str, ...]) -> None:
     """Check each CONFIG against its method's schema and that the files it names exist.
 
-    Keeps going past a bad config; exits 2 if any was invalid.
+    Keeps going past a bad config; exits with the first failure's code (2 for a config error,
+    3 for an input file that does not exist), 0 when every config is valid.
     """
     from synthkit.errors import SynthkitError
     from synthkit.runner import load_method_config
 
-    failed = 0
+    first_failure = 0
     for path in configs:
         try:
             method, _cfg, inputs = load_method_config(path, overrides=overrides)
         except SynthkitError as exc:
-            failed += 1
+            first_failure = first_failure or exc.exit_code
             click.echo(f"error: {exc}", err=True)
             continue
         if verbosity(ctx) >= 0:
             click.echo(f"ok: {path} ({method}, {len(inputs)} input file(s))", err=True)
-    if failed:
-        ctx.exit(2)
+    ctx.exit(first_failure)
 
 
 __all__ = ["command", "config_argument"]

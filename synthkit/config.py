@@ -20,7 +20,7 @@ from typing import Annotated, Any
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo
 
-from synthkit.errors import ConfigError
+from synthkit.errors import ConfigError, InputError
 
 __all__ = [
     "StrictModel",
@@ -38,6 +38,10 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
 
 
+class MissingInputFile(ValueError):
+    """An :data:`InputFile` that does not exist (reported as an InputError, exit 3)."""
+
+
 def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
     """Resolve ``value`` against the config's folder (``context['base_dir']``); it must exist."""
     context = info.context or {}
@@ -47,7 +51,7 @@ def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
         path = Path(base_dir) / path
     path = path.resolve()
     if context.get("check_files", True) and not path.is_file():
-        raise ValueError(f"file not found: {path}")
+        raise MissingInputFile(f"file not found: {path}")
     inputs = context.get("inputs")
     if inputs is not None:
         inputs.append(path)
@@ -137,18 +141,25 @@ def validate_config(
 ) -> RunConfig:
     """Validate ``data`` into ``model``; raise one ConfigError line naming ``source`` and the key.
 
-    ``inputs``, when given, collects the resolved paths of every :data:`InputFile` field.
+    Config problems come first: only when every problem is an input file that does not exist is
+    the line an InputError (about the first such file). ``inputs``, when given, collects the
+    resolved paths of every :data:`InputFile` field.
     """
     context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs}
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
-        raise ConfigError(f"{source}: {_describe(exc, model, data)}") from None
+        errors = exc.errors(include_url=False)
+        missing = [isinstance(e.get("ctx", {}).get("error"), MissingInputFile) for e in errors]
+        if all(missing):
+            raise InputError(f"{source}: {_describe(errors[0], model)}") from None
+        first = errors[missing.index(False)]
+        raise ConfigError(f"{source}: {_describe(first, model)}") from None
 
 
-def _describe(exc: ValidationError, model: type[BaseModel], data: dict[str, Any]) -> str:
-    """The first validation error as 'key.path: problem (got value)'."""
-    err = exc.errors(include_url=False)[0]
+def _describe(err: dict[str, Any], model: type[BaseModel]) -> str:
+    """One pydantic validation error (an item of ``ValidationError.errors()``) as
+    'key.path: problem (got value)'."""
     loc = tuple(err["loc"])
     dotted = ".".join(str(p) for p in loc) or "(top level)"
     if err["type"] == "extra_forbidden":

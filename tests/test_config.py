@@ -3,7 +3,7 @@
 import pytest
 
 from synthkit.config import apply_overrides, load_yaml
-from synthkit.errors import ConfigError
+from synthkit.errors import ConfigError, InputError
 from synthkit.runner import load_method_config
 
 
@@ -79,9 +79,14 @@ def test_choice_error(echo_config):
         load_method_config(echo_config, overrides=["mode=flip"])
 
 
-def test_missing_input_file(echo_config):
-    with pytest.raises(ConfigError, match=r"image: file not found: .*missing\.png"):
+def test_missing_input_file_is_input_error(echo_config):
+    with pytest.raises(InputError, match=r"echo\.yaml: image: file not found: .*missing\.png \(got 'missing\.png'\)"):
         load_method_config(echo_config, overrides=["image=missing.png"])
+
+
+def test_config_error_before_missing_file_stays_config_error(echo_config):
+    with pytest.raises(ConfigError, match=r"gain: Input should be less than or equal to 10"):
+        load_method_config(echo_config, overrides=["image=missing.png", "gain=11"])
 
 
 def test_missing_required_key(tmp_path, echo_method):

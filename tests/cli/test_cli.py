@@ -35,6 +35,18 @@ def test_validate_ok_and_bad(runner, echo_config, tmp_path):
     assert result.stdout == ""
 
 
+def test_validate_missing_input_file_exit_3(runner, echo_config, tmp_path):
+    missing = tmp_path / "missing.yaml"
+    missing.write_text("method: echo\nimage: gone.png\n")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("method: echo\nimage: in.png\nmod: copy\n")
+    result = runner.invoke(cli, ["validate", str(missing), str(bad)])
+    assert result.exit_code == 3  # the first failure's code
+    assert "image: file not found:" in result.stderr and "gone.png" in result.stderr
+    result = runner.invoke(cli, ["validate", str(bad), str(missing)])
+    assert result.exit_code == 2
+
+
 def test_run_json_report_on_stdout(runner, echo_config, tmp_path):
     root = tmp_path / "runs"
     result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(root), "--json", "--seed", "3"])

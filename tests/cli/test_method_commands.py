@@ -72,12 +72,14 @@ def test_retarget_analyze_only_flag(runner, tmp_path):
     assert not any(name.endswith((".obj", ".npy")) for name in report["outputs"].values())
 
 
-def test_petri_missing_example_exit_2(runner, tmp_path):
+def test_petri_missing_example_exit_3(runner, tmp_path):
     text = (CONFIGS / "petri-synth" / "building_curve.yaml").read_text()
     cfg = tmp_path / "petri.yaml"
     cfg.write_text(text.replace("../../data-samples/building_modular.obj", "nowhere.obj"))
     result = runner.invoke(cli, ["petri-synth", str(cfg), "--out", str(tmp_path / "o")])
-    assert result.exit_code == 2
+    assert result.exit_code == 3
+    assert not (tmp_path / "o").exists()
+    assert "Traceback" not in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert "example: file not found" in result.stderr and "nowhere.obj" in result.stderr
 
 

@@ -215,7 +215,7 @@ def test_bad_inputs(tmp_path, inputs):
         run_config(write_config(tmp_path, "b2", **dict(base, target="blank.png")), out_dir=tmp_path / "o2")
     with pytest.raises(InputError, match="smaller than 8x8"):
         run_config(write_config(tmp_path, "b3", **dict(base, target="tiny.png")), out_dir=tmp_path / "o3")
-    with pytest.raises(ConfigError, match="file not found"):
+    with pytest.raises(InputError, match="file not found"):
         run_config(write_config(tmp_path, "b4", **dict(base, target="missing.png")), out_dir=tmp_path / "o4")
     with pytest.raises(ConfigError, match="needs 'target'"):
         cfg = dict(base)

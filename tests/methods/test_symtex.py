@@ -181,28 +181,75 @@ def load_image_like(img):
     return np.round(np.clip(img, 0, 1) * 255).astype(np.float32) / 255
 
 
-@pytest.mark.slow
-def test_tile_is_seamless(tmp_path):
-    crop = textures.wavy(160)[13:109, 7:103]  # not tileable as cut
-    save_image(tmp_path / "c.png", crop)
-    cfg = dict(
-        mode="tile",
-        source="c.png",
-        symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
-        deform={"points": 16, "levels": 2, "step": 4.0, "max_cycles": 1, "max_evaluations": 200},
-    )
-    report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
-    out = load_image(tmp_path / "out" / "result.png")
-    lum = sy.f_lum(out).astype(np.float64)
+def seam_and_interior(img: np.ndarray) -> tuple[float, float]:
+    """Mean squared luminance step across the toroidal seams (column W-1 -> 0, row H-1 -> 0) and
+    the mean over every interior step, computed here independently of the pipeline's metric."""
+    lum = sy.f_lum(img).astype(np.float64)
     interior = 0.5 * ((np.diff(lum, axis=1) ** 2).mean() + (np.diff(lum, axis=0) ** 2).mean())
     seam = 0.5 * (((lum[:, 0] - lum[:, -1]) ** 2).mean() + ((lum[0] - lum[-1]) ** 2).mean())
-    lin = sy.f_lum(load_image(tmp_path / "c.png")).astype(np.float64)
-    naive = 0.5 * (((lin[:, 0] - lin[:, -1]) ** 2).mean() + ((lin[0] - lin[-1]) ** 2).mean())
+    return seam, interior
+
+
+TILE = dict(
+    mode="tile",
+    source="c.png",
+    symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
+    deform={"points": 16, "levels": 2, "step": 4.0, "max_cycles": 1, "max_evaluations": 200},
+)
+
+
+@pytest.fixture(scope="module")
+def tile_run(tmp_path_factory):
+    tmp_path = tmp_path_factory.mktemp("tile")
+    save_image(tmp_path / "c.png", textures.wavy(160)[13:109, 7:103])  # not tileable as cut
+    report = run_config(write_config(tmp_path, "t", **TILE), out_dir=tmp_path / "out", show_progress=False)
+    return tmp_path, report
+
+
+@pytest.mark.slow
+def test_tile_is_seamless(tile_run):
+    tmp_path, report = tile_run
+    out = load_image(tmp_path / "out" / "result.png")
+    seam, interior = seam_and_interior(out)
+    naive, _ = seam_and_interior(load_image(tmp_path / "c.png"))
     assert seam <= 1.5 * interior
     assert seam < naive
+    # a genuine period (H, W): no repeated row or column at the seam (the old blend copied the
+    # first column onto the last, a zero step that repeats one column at every tile boundary)
+    lum = sy.f_lum(out)
+    assert np.abs(lum[:, 0] - lum[:, -1]).mean() > 0.1 * np.sqrt(interior)
+    assert np.abs(lum[0] - lum[-1]).mean() > 0.1 * np.sqrt(interior)
+    # the discontinuity is not merely moved off the seam: the 3 steps either side of it are no
+    # rougher than the same band around interior lines of the tile (content makes that band's
+    # energy vary from line to line: a row of dots inside it or not)
+    from synthkit.methods.symtex import deform
+
+    m = report["metrics"]
+    H, W = out.shape[:2]
+    band = deform.seam_ratio(out, width=3)
+    inner = [
+        deform.seam_ratio(np.roll(out, (dy, dx), (0, 1)), width=3)
+        for dy in range(8, H - 7, 4)
+        for dx in range(8, W - 7, 4)
+    ]
+    assert band <= max(inner)
+    assert m["seam_band_ratio"] == pytest.approx(band, rel=0.05)
+    assert m["seam_ratio"] == pytest.approx(seam / interior, rel=0.05)  # metric before 8-bit rounding
+    assert m["seam_ratio_input"] > 1.5
     assert "tiled" in report["outputs"]
     tiled = load_image(tmp_path / "out" / report["outputs"]["tiled"])
     assert tiled.shape[:2] == (3 * out.shape[0], 3 * out.shape[1])
+    np.testing.assert_array_equal(tiled[: out.shape[0], : out.shape[1]], out)
+
+
+@pytest.mark.slow
+def test_tile_optimization_raises_e_symm(tile_run):
+    """E_symm of the tile beats its zoomed start, before and after the blend (a no-op ARAP would not)."""
+    _, report = tile_run
+    m = report["metrics"]
+    assert m["objective_warped"] > m["objective_start"]
+    assert m["objective_end"] > m["objective_start"]
+    assert m["objective_history"][-1] > m["objective_history"][0]
 
 
 def test_bad_inputs(tmp_path, inputs):
@@ -303,18 +350,42 @@ def test_search_k1_finds_maximum_of_known_function():
     assert len(history) > 11
 
 
-def test_toroidal_blend_matches_opposite_borders():
+@pytest.mark.parametrize("shape", [(48, 40), (33, 50)])
+def test_toroidal_blend_makes_wrap_steps_interior_like(shape):
     from synthkit.methods.symtex import deform
 
-    img = textures.noise(64)[:48, :40]
-    out = deform.toroidal_blend(img)
-    np.testing.assert_allclose(out[:, 0], out[:, -1], atol=1e-6)
-    np.testing.assert_allclose(out[0, :], out[-1, :], atol=1e-6)
-    assert deform.seam_ratio(out) < 1e-6 < deform.seam_ratio(img)
+    H, W = shape
+    img = textures.wavy(96)[5 : 5 + H, 11 : 11 + W]
+    out = deform.toroidal_blend(img).astype(np.float64)
+    # each wrap-around step equals the central estimate from its two neighbouring interior steps
+    # (exact up to float32 rounding: no clipping happens on this input), corners included
+    assert 0.0 < out.min() and out.max() < 1.0
+    np.testing.assert_allclose(
+        out[:, 0] - out[:, -1], 0.5 * (out[:, -1] - out[:, -2] + out[:, 1] - out[:, 0]), atol=2e-6
+    )
+    np.testing.assert_allclose(out[0] - out[-1], 0.5 * (out[-1] - out[-2] + out[1] - out[0]), atol=2e-6)
+    # and is not the zero step of copying one border onto the other
+    assert np.abs(out[:, 0] - out[:, -1]).mean() > 1e-3
+    assert deform.seam_ratio(out) <= 1.5 < deform.seam_ratio(img)
+    assert deform.seam_ratio(out, width=3) <= 1.5
     # the correction fades towards the centre: the middle changes far less than the borders
-    centre = np.abs(out[20:28, 16:24] - img[20:28, 16:24]).mean()
-    border = np.abs(out[:, 0] - img[:, 0]).mean()
-    assert centre < 0.5 * border
+    c = np.abs(out - img)
+    assert c[H // 2 - 4 : H // 2 + 4, W // 2 - 4 : W // 2 + 4].mean() < 0.5 * c[:, 0].mean()
+
+
+def test_toroidal_blend_band_evaluation_matches_exact_mvc():
+    """The banded / coarse-grid spread of the border correction is the exact MVC interpolant to within 1/255."""
+    from synthkit.core.warp import mean_value_coordinates
+    from synthkit.methods.symtex import deform
+
+    img = textures.wavy(96)[3:67, 9:73]
+    H, W = img.shape[:2]
+    poly = deform._border_polygon(H, W, 1)
+    c = np.random.default_rng(0).standard_normal((len(poly), 1)) * 0.05
+    yy, xx = np.mgrid[0:H, 0:W]
+    exact = (mean_value_coordinates(np.stack([xx.ravel(), yy.ravel()], 1).astype(float), poly) @ c).reshape(H, W, 1)
+    fast = deform._spread(c, (H, W), poly, band=8, step=4)
+    assert np.abs(fast - exact).max() < 1.0 / 255
 
 
 def test_control_points_count_spacing_and_determinism():
@@ -330,3 +401,19 @@ def test_control_points_count_spacing_and_determinism():
     assert d.min() >= np.sqrt(96 * 96 / 40) / 2 - 1e-6
     order = deform.farthest_order(a)
     assert sorted(order.tolist()) == list(range(40))
+
+
+def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog):
+    from synthkit.methods.symtex import deform
+
+    img = textures.dots(24)
+    with caplog.at_level("WARNING", logger="synthkit"):
+        pts = deform.control_points(img, 200, np.random.default_rng(0))
+    assert len(pts) < 200
+    assert any("control points" in r.message and "200" in r.message for r in caplog.records)
+    save_image(tmp_path / "s.png", textures.dots(32, period=8))
+    cfg = dict(mode="symmetrize", source="s.png", deform=dict(SMALL_DEFORM, points=400))
+    report = run_config(write_config(tmp_path, "p", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    assert m["control_points_requested"] == 400
+    assert 0 < m["control_points"] < 400

@@ -116,10 +116,14 @@ class TileSection(StrictModel):
         0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%)."
     )
     mvc_spacing: int = Field(
-        4,
+        1,
         ge=1,
         le=64,
-        description="Spacing in pixels of the boundary samples of the MVC interpolation across the torus seam.",
+        description=(
+            "Spacing in pixels of the border vertices carrying the seam correction that MVC spreads "
+            "inward; 1 makes every wrap-around step exactly interior-like, larger is a faster "
+            "least-squares fit (border pixels between vertices interpolate linearly)."
+        ),
     )
 
 

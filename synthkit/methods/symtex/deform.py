@@ -14,23 +14,36 @@ differences of size ``step`` and moves ``step`` along it when that lowers the lo
 until none moves (or ``max_cycles``), then the step halves until it falls below ``min_step``.
 
 Tiling (mode ``tile``): the warp starts zoomed on the centre, leaving ``margin`` of each side that
-the deformation may pull in; after optimizing E_symm of the toroidal S_T, the mismatch between
-opposite borders is removed by mean-value-coordinate interpolation of the boundary correction.
+the deformation may pull in; after optimizing E_symm of the toroidal S_T, :func:`toroidal_blend`
+makes the image periodic with period ``(H, W)``: the wrap-around step between opposite borders is
+targeted to an interior-like step and the border corrections are spread into the interior by
+mean value coordinates. The baseline (paper Fig. 7, top rows) is the same blend of the untouched
+input, without symmetry optimization.
 """
 
 from __future__ import annotations
 
+import logging
+
 import cv2
 import numpy as np
+import scipy.linalg
 
 from synthkit.core import symmetry as sy
 from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates
 from synthkit.io.images import save_image
 from synthkit.preview import montage_png
 
+log = logging.getLogger("synthkit")
+
 
 def control_points(img: np.ndarray, n: int, rng) -> np.ndarray:
-    """Control points ``(k, 2)`` as (x, y): Harris corners then dart throwing, up to ``n``."""
+    """Control points ``(k, 2)`` as (x, y): Harris corners then dart throwing, up to ``n``.
+
+    Dart throwing stops after ``30 n`` darts; when the image is too small for ``n`` points spaced
+    ``d`` apart, fewer are returned and a warning is logged (the pipeline records the count in
+    ``metrics.control_points``).
+    """
     lum = sy.f_lum(np.asarray(img, dtype=np.float32))
     H, W = lum.shape
     d = max(2.0, np.sqrt(H * W / n) / 2.0)
@@ -46,6 +59,16 @@ def control_points(img: np.ndarray, n: int, rng) -> np.ndarray:
         p = np.array([rng.uniform(d, W - 1 - d), rng.uniform(d, H - 1 - d)])
         if len(arr) == 0 or np.min(np.hypot(*(arr - p).T)) >= d:
             arr = np.vstack([arr, p])
+    if len(arr) < n:
+        log.warning(
+            "only %d of %d control points fit a %dx%d image at spacing %.1f px after %d darts (deform.points)",
+            len(arr),
+            n,
+            H,
+            W,
+            d,
+            attempts,
+        )
     return arr
 
 
@@ -74,7 +97,10 @@ class DeformOptimizer:
     """Coarse-to-fine per-handle descent of ``loss(warped image)`` over ARAP warps.
 
     ``loss`` maps an image ``(H, W[, C])`` to a float to minimize. ``U0 (n, 2)`` is the starting
-    backward map (identity or the tile zoom). Evaluations are counted in ``evaluations``.
+    backward map (identity or the tile zoom) and the shape the warp is kept as rigid as possible
+    against, so the zoom itself costs nothing: with the handles where ``U0`` puts them, the ARAP
+    solve returns ``U0``. Each level starts from the ARAP solve of its own handles at their current
+    positions (the state its probes perturb). Evaluations are counted in ``evaluations``.
     """
 
     def __init__(
@@ -98,7 +124,8 @@ class DeformOptimizer:
         self.sampler = MeshSampler(rest, self.img.shape[:2])
         self.F = self.sampler.F
         self.rest = rest
-        self.U = np.asarray(U0, dtype=np.float64).copy()
+        self.U0 = np.asarray(U0, dtype=np.float64).copy()
+        self.U = self.U0.copy()
         self.n_control = n_control
         self.levels, self.step, self.min_step = levels, step, min_step
         self.max_cycles, self.max_evaluations = max_cycles, max_evaluations
@@ -110,7 +137,7 @@ class DeformOptimizer:
     def render(self, U=None) -> np.ndarray:
         return self.sampler.warp(self.img, self.U if U is None else U, border=self.border)
 
-    def _eval(self, solver, handles, H):
+    def _eval(self, solver, H):
         self.evaluations += 1
         U = solver.solve(H)
         return self.loss(self.render(U)), U
@@ -123,8 +150,12 @@ class DeformOptimizer:
         for level in range(self.levels):
             k = max(4, self.n_control // 2 ** (self.levels - 1 - level))
             handles = order[: min(k, self.n_control)]
-            solver = ARAP2D(self.rest, self.F, handles)
+            solver = ARAP2D(self.U0, self.F, handles)
             Hpos = self.U[handles].copy()
+            if level > 0:
+                # the finer level's parametrization: its handles where the coarser level left them
+                current, self.U = self._eval(solver, Hpos)
+                self.history.append(current)
             step = self.step / 2**level
             while step >= self.min_step and budget_left():
                 for _ in range(self.max_cycles):
@@ -141,14 +172,14 @@ class DeformOptimizer:
                             for sgn in (1.0, -1.0):
                                 trial = Hpos.copy()
                                 trial[h, axis] += sgn * step
-                                vals.append(self._eval(solver, handles, trial)[0])
+                                vals.append(self._eval(solver, trial)[0])
                             grad[axis] = (vals[0] - vals[1]) / (2 * step)
                         g = np.hypot(*grad)
                         if g <= 0:
                             continue
                         trial = Hpos.copy()
                         trial[h] -= step * grad / g
-                        val, U = self._eval(solver, handles, trial)
+                        val, U = self._eval(solver, trial)
                         if val < current:
                             current, Hpos, self.U = val, trial, U
                             moved += 1
@@ -159,51 +190,146 @@ class DeformOptimizer:
         return self.render()
 
 
-def toroidal_blend(img: np.ndarray, *, spacing: int = 4) -> np.ndarray:
-    """Make ``img (H, W[, C])`` seamless across its toroidal boundary by MVC interpolation.
-
-    Each border pixel's target is the mean of itself and the pixel facing it across the wrap
-    (left with right column, top with bottom row; corners take the mean of all four). The
-    correction (target - value) on the border polygon (sampled every ``spacing`` pixels) is spread
-    into the interior with mean value coordinates and added, so opposite borders then agree.
-    """
-    out = np.asarray(img, dtype=np.float64).copy()
-    H, W = out.shape[:2]
-    target = out.copy()
-    target[:, 0] = target[:, -1] = 0.5 * (out[:, 0] + out[:, -1])
-    target[0, :] = target[-1, :] = 0.5 * (target[0, :] + target[-1, :])
-    corr = target - out
-    # border polygon (x, y) in order around the rectangle
+def _border_polygon(H: int, W: int, spacing: int) -> np.ndarray:
+    """Border pixels ``(n, 2)`` (x, y) every ``spacing`` px, in order around the rectangle (corners included)."""
     xs = np.arange(0, W - 1, spacing)
     ys = np.arange(0, H - 1, spacing)
-    poly = np.concatenate(
+    return np.concatenate(
         [
             np.stack([xs, np.zeros_like(xs)], 1),
             np.stack([np.full_like(ys, W - 1), ys], 1),
             np.stack([W - 1 - xs, np.full_like(xs, H - 1)], 1),
             np.stack([np.zeros_like(ys), H - 1 - ys], 1),
         ]
-    ).astype(np.int64)
-    vals = corr[poly[:, 1], poly[:, 0]]
-    yy, xx = np.mgrid[1 : H - 1, 1 : W - 1]
-    pts = np.stack([xx.ravel(), yy.ravel()], 1).astype(np.float64)
-    interior = np.empty((len(pts),) + out.shape[2:])
-    for s in range(0, len(pts), 4096):
-        w = mean_value_coordinates(pts[s : s + 4096], poly.astype(np.float64))
-        interior[s : s + 4096] = w @ vals.reshape(len(poly), -1) if out.ndim == 3 else w @ vals
-    out[1 : H - 1, 1 : W - 1] += interior.reshape((H - 2, W - 2) + out.shape[2:])
-    out[0, :], out[-1, :] = target[0, :], target[-1, :]
-    out[:, 0], out[:, -1] = target[:, 0], target[:, -1]
-    return np.clip(out, 0.0, 1.0).astype(np.float32)
+    ).astype(np.float64)
 
 
-def seam_ratio(img: np.ndarray) -> float:
-    """Mean squared luminance step across the toroidal seams over the mean interior step."""
+def _mvc_rows(pts: np.ndarray, poly: np.ndarray, chunk: int = 2048) -> np.ndarray:
+    return np.concatenate([mean_value_coordinates(pts[s : s + chunk], poly) for s in range(0, len(pts), chunk)])
+
+
+def _linear_matrix(pos: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Weights ``(len(pos), len(nodes))`` of 1-D linear interpolation at ``pos`` between ``nodes``."""
+    j = np.clip(np.searchsorted(nodes, pos, side="right") - 1, 0, len(nodes) - 2)
+    t = (pos - nodes[j]) / (nodes[j + 1] - nodes[j])
+    M = np.zeros((len(pos), len(nodes)))
+    M[np.arange(len(pos)), j] = 1.0 - t
+    M[np.arange(len(pos)), j + 1] = t
+    return M
+
+
+def _spread(c: np.ndarray, shape, poly: np.ndarray, band: int, step: int) -> np.ndarray:
+    """MVC interpolation ``(H, W, C)`` of the vertex values ``c (n, C)`` of ``poly`` over the image.
+
+    Exact within ``band`` px of the border, where the interpolant carries the corrections' fine
+    detail; farther in, where it is smooth, MVC is evaluated on a grid every ``step`` px and
+    interpolated bilinearly (the adaptive evaluation of Farbman et al. 2009's MVC cloning).
+    """
+    H, W = shape
+    out = np.zeros((H, W, c.shape[1]))
+    if min(H, W) <= 2 * band + step:
+        band = (min(H, W) + 1) // 2
+    mask = np.zeros((H, W), dtype=bool)
+    mask[:band], mask[H - band :], mask[:, :band], mask[:, W - band :] = True, True, True, True
+    yy, xx = np.nonzero(mask)
+    out[yy, xx] = _mvc_rows(np.stack([xx, yy], 1).astype(np.float64), poly) @ c
+    if H - 2 * band > 0 and W - 2 * band > 0:
+        ys = np.linspace(band - 1, H - band, int(np.ceil((H - 2 * band + 1) / step)) + 1)
+        xs = np.linspace(band - 1, W - band, int(np.ceil((W - 2 * band + 1) / step)) + 1)
+        gy, gx = np.meshgrid(ys, xs, indexing="ij")
+        grid = (_mvc_rows(np.stack([gx.ravel(), gy.ravel()], 1), poly) @ c).reshape(len(ys), len(xs), -1)
+        Ry = _linear_matrix(np.arange(band, H - band, dtype=np.float64), ys)
+        Rx = _linear_matrix(np.arange(band, W - band, dtype=np.float64), xs)
+        out[band : H - band, band : W - band] = np.einsum("iy,yxc,jx->ijc", Ry, grid, Rx)
+    return out
+
+
+def _min_norm_lstsq(A: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Least-squares solution of smallest norm of ``A x = r`` by Cholesky of the normal equations
+    (``A^T (A A^T)^-1 r`` when ``A`` is wide), ``lstsq`` when they are singular."""
+    wide = A.shape[0] <= A.shape[1]
+    G = A @ A.T if wide else A.T @ A
+    try:
+        fac = scipy.linalg.cho_factor(G)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, r, rcond=None)[0]
+    return A.T @ scipy.linalg.cho_solve(fac, r) if wide else scipy.linalg.cho_solve(fac, A.T @ r)
+
+
+def toroidal_blend(img: np.ndarray, *, spacing: int = 1, band: int = 8, step: int = 4) -> np.ndarray:
+    """Make ``img (H, W[, C])`` periodic with period ``(H, W)`` by MVC interpolation of a border correction.
+
+    In the tiling, column ``W-1`` is followed by column ``0`` (and row ``H-1`` by row ``0``), so the
+    wrap-around step ``v[:, 0] - v[:, W-1]`` should look like an interior step: it is targeted to
+    the local derivative estimated from the two neighbouring interior steps,
+    ``(v[:, W-1] - v[:, W-2] + v[:, 1] - v[:, 0]) / 2``, and likewise for the rows. The correction
+    is given at border vertices every ``spacing`` px around the rectangle and spread over the image
+    by mean value coordinates (border pixels between vertices interpolate linearly), so every
+    constraint, which reads the border and the first interior lines, is linear in the vertex
+    corrections; they are the least-squares solution of smallest norm. With ``spacing`` 1 there are
+    about twice as many unknowns as constraints and every constraint holds exactly: each mismatch
+    is split evenly between both sides of the seam, and the four corners, which enter a row and a
+    column constraint each, take one consistent correction. See :func:`_spread` for ``band`` and
+    ``step``. The result is clipped to [0, 1].
+    """
+    arr = np.asarray(img, dtype=np.float64)
+    H, W = arr.shape[:2]
+    if min(H, W) < 4:
+        raise ValueError(f"toroidal_blend needs an image of at least 4x4, got {H}x{W}")
+    flat = arr.reshape(H, W, -1)
+    poly = _border_polygon(H, W, max(1, int(spacing)))
+    y, x = np.arange(H, dtype=np.float64), np.arange(W, dtype=np.float64)
+
+    def col(j):
+        return _mvc_rows(np.stack([np.full(H, float(j)), y], 1), poly)
+
+    def row(i):
+        return _mvc_rows(np.stack([x, np.full(W, float(i))], 1), poly)
+
+    # 1.5 v[0] - 1.5 v[-1] + 0.5 v[-2] - 0.5 v[1] = 0 along each seam
+    coef = (1.5, -1.5, 0.5, -0.5)
+    A = np.vstack(
+        [
+            sum(k * col(j) for k, j in zip(coef, (0, W - 1, W - 2, 1), strict=True)),
+            sum(k * row(i) for k, i in zip(coef, (0, H - 1, H - 2, 1), strict=True)),
+        ]
+    )
+    r = -np.vstack(
+        [
+            sum(k * flat[:, j] for k, j in zip(coef, (0, W - 1, W - 2, 1), strict=True)),
+            sum(k * flat[i] for k, i in zip(coef, (0, H - 1, H - 2, 1), strict=True)),
+        ]
+    )
+    c = _min_norm_lstsq(A, r)
+    out = flat + _spread(c, (H, W), poly, max(2, band), max(1, step))
+    return np.clip(out.reshape(arr.shape), 0.0, 1.0).astype(np.float32)
+
+
+def seam_energies(img: np.ndarray, *, width: int = 0) -> tuple[float, float]:
+    """Mean squared luminance step across the toroidal seams, and over the interior.
+
+    The seam steps are the wrap-around ones (column ``W-1`` to ``0``, row ``H-1`` to ``0``) and,
+    with ``width`` > 0, also the ``width`` steps on either side of each seam (a band that shows a
+    discontinuity merely moved off the seam); the interior steps are all the others.
+    """
     lum = sy.f_lum(np.asarray(img, dtype=np.float32)).astype(np.float64)
-    dx = np.diff(lum, axis=1) ** 2
-    dy = np.diff(lum, axis=0) ** 2
-    interior = 0.5 * (dx.mean() + dy.mean())
-    seam = 0.5 * (((lum[:, 0] - lum[:, -1]) ** 2).mean() + ((lum[0, :] - lum[-1, :]) ** 2).mean())
+    dx = np.diff(np.concatenate([lum, lum[:, :1]], axis=1), axis=1) ** 2  # dx[:, j]: j -> j+1, last wraps
+    dy = np.diff(np.concatenate([lum, lum[:1]], axis=0), axis=0) ** 2
+    W, H = dx.shape[1], dy.shape[0]
+    sx = np.zeros(W, dtype=bool)
+    sx[W - 1 - width :] = True
+    sx[:width] = True
+    sy_ = np.zeros(H, dtype=bool)
+    sy_[H - 1 - width :] = True
+    sy_[:width] = True
+    seam = 0.5 * (dx[:, sx].mean() + dy[sy_].mean())
+    interior = 0.5 * (dx[:, ~sx].mean() + dy[~sy_].mean())
+    return float(seam), float(interior)
+
+
+def seam_ratio(img: np.ndarray, *, width: int = 0) -> float:
+    """Seam over interior gradient energy of the toroidal tiling of ``img`` (see :func:`seam_energies`)."""
+    seam, interior = seam_energies(img, width=width)
     return float(seam / max(interior, 1e-12))
 
 
@@ -253,15 +379,24 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
         "baseline_objective": objective.value(src),
         "iterations": opt.evaluations,
         "control_points": len(ctrl),
+        "control_points_requested": dc.points,
         "objective_history": [abs(v) for v in opt.history],
     }
+    baseline = None
     if cfg.mode == "tile":
+        tc = cfg.tile
         with ctx.stage("blend"):
-            image = toroidal_blend(image, spacing=cfg.tile.mvc_spacing)
+            image = toroidal_blend(image, spacing=tc.mvc_spacing)
+        with ctx.stage("baseline"):
+            baseline = toroidal_blend(src, spacing=tc.mvc_spacing)
         metrics.update(
+            objective_warped=end,
             objective_end=objective.value(image),
+            baseline_objective=objective.value(baseline),
             seam_ratio=seam_ratio(image),
+            seam_band_ratio=seam_ratio(image, width=3),
             seam_ratio_input=seam_ratio(src),
+            baseline_seam_ratio=seam_ratio(baseline),
         )
     ctx.metrics.update(metrics)
     with ctx.stage("write"):
@@ -271,4 +406,13 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
         if cfg.mode == "tile":
             save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
             save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))
-        montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
+            save_image(ctx.path("baseline", "baseline.png"), baseline)
+            save_image(ctx.path("tiled_baseline", "tiled_baseline_3x3.png"), np.tile(baseline, (3, 3, 1)))
+        if baseline is None:
+            montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
+        else:
+            montage_png(
+                ctx.path("comparison", "comparison.png"),
+                [src, baseline, image],
+                titles=["input", "blended, not optimized", "result"],
+            )

@@ -417,3 +417,20 @@ def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog):
     m = report["metrics"]
     assert m["control_points_requested"] == 400
     assert 0 < m["control_points"] < 400
+
+
+def test_zero_padded_st_rejected_for_synth(tmp_path, inputs):
+    cfg = dict(TRANSFER, symmetry={"window": 0.25, "mode": "zero"})
+    with pytest.raises(ConfigError, match="symmetry.mode 'zero' applies to perturbation 'deform' or 'lens'"):
+        run_config(write_config(inputs, "z", **cfg), out_dir=tmp_path / "oz")
+    assert not (tmp_path / "oz").exists()
+    for mode in ("quilt", "filter"):
+        bad = dict(cfg, mode=mode)
+        bad.pop("target")
+        with pytest.raises(ConfigError, match="symmetry.mode 'zero'"):
+            run_config(write_config(inputs, "z2", **bad), out_dir=tmp_path / "oz2")
+    # deform with zero padding stays valid
+    from synthkit.runner import load_method_config
+
+    ok = dict(mode="symmetrize", source="noise.png", symmetry={"mode": "zero"})
+    load_method_config(write_config(inputs, "z3", **ok))

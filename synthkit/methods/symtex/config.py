@@ -165,6 +165,11 @@ class SymtexConfig(RunConfig):
             raise ValueError("mode 'symmetrize' uses perturbation 'deform' or 'lens'")
         if pert == "synth" and self.symmetry.kind != "translational":
             raise ValueError("perturbation 'synth' is guided by the translational representation (symmetry.kind)")
+        if pert == "synth" and self.symmetry.mode != "toroidal":
+            raise ValueError(
+                "perturbation 'synth' evaluates the toroidal S_T of its toroidal tiling; "
+                "symmetry.mode 'zero' applies to perturbation 'deform' or 'lens' only"
+            )
         if pert == "synth" and "edge" in self.symmetry.signals:
             raise ValueError("perturbation 'synth' supports the signals 'lum' and '1-lum' (symmetry.signals)")
         if pert == "synth" and self.synth.overlap >= self.synth.patch:

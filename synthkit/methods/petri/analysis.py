@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
-from synthkit.errors import InputError
+from synthkit.errors import ConfigError
 
 VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
 """View name -> (rectangle x axis, rectangle y axis, depth axis) as world axis indices."""
@@ -75,6 +75,7 @@ def resolve_lattice(
     origin=None,
     annotation=None,
     fit_tolerance: float = 0.02,
+    source: str | None = None,
 ) -> LatticeSpec:
     """The lattice covering the box ``[lo, hi]`` of the example.
 
@@ -82,8 +83,11 @@ def resolve_lattice(
     depth_unit)``: the rectangle gives the unit and a lattice corner in the view's two axes; along the
     depth axis the unit is ``depth_unit`` (None: the whole depth is one layer) from ``lo``. The lattice
     is replicated both ways from that corner; the example's box must start and end on lattice planes
-    within ``fit_tolerance`` units, else InputError ("the lattice does not fit the model").
+    within ``fit_tolerance`` units, else ConfigError ("... does not fit the model", naming the config
+    key and its value, prefixed by ``source``, the example's file, when given): the lattice is the
+    user's annotation, so a lattice that does not fit is a config error (exit code 2).
     """
+    prefix = f"{source}: " if source else ""
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
     ext = hi - lo
@@ -99,8 +103,8 @@ def resolve_lattice(
         for axis, a0, a1 in ((ax, x0, x1), (ay, y0, y1)):
             tol = fit_tolerance * u[axis]
             if a0 < lo[axis] - tol or a1 > hi[axis] + tol:
-                raise InputError(
-                    f"lattice.annotation.rect {list(rect)} lies outside the example's extent "
+                raise ConfigError(
+                    f"{prefix}lattice.annotation.rect {list(rect)} lies outside the example's extent "
                     f"[{lo[axis]:.4g}, {hi[axis]:.4g}] along {'XYZ'[axis]} in the {view} view"
                 )
     else:
@@ -115,14 +119,22 @@ def resolve_lattice(
             continue
         bad = abs(a[axis] - n0[axis]) > fit_tolerance or abs(b[axis] - n1[axis]) > fit_tolerance
         if bad or n1[axis] - n0[axis] < 1:
-            raise InputError(
-                f"the lattice does not fit the model: along {'XYZ'[axis]} the example spans "
+            if annotation is None:
+                key = f"lattice.unit {u.tolist()}" + ("" if origin is None else f" with lattice.origin {o.tolist()}")
+            elif axis == VIEW_AXES[annotation[0]][2]:
+                key = f"lattice.annotation.depth_unit {annotation[2]}"
+            else:
+                key = f"lattice.annotation.rect {list(annotation[1])}"
+            raise ConfigError(
+                f"{prefix}{key} does not fit the model: along {'XYZ'[axis]} the example spans "
                 f"[{lo[axis]:.6g}, {hi[axis]:.6g}] = {b[axis] - a[axis]:.4g} units of {u[axis]:.6g} from the "
                 f"lattice corner {o[axis]:.6g} (needs a whole number within {fit_tolerance})"
             )
     counts = (n1 - n0).astype(np.int64)
     if int(np.prod(counts)) > MAX_PIECES:
-        raise InputError(f"the lattice does not fit the model: {counts.tolist()} cells is more than {MAX_PIECES}")
+        raise ConfigError(
+            f"{prefix}the lattice does not fit the model: {counts.tolist()} cells is more than {MAX_PIECES}"
+        )
     return LatticeSpec(unit=u, origin=o + n0 * u, counts=counts)
 
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
+from synthkit.methods.petri.construction import polyline_problem
 
 Point2 = tuple[float, float]
 Point3 = tuple[float, float, float]
@@ -96,11 +97,17 @@ class Construction(StrictModel):
         description="Projection plane of the curve: its two axes are the along-curve and offset lattice "
         "axes; the construction plane is swept along the third (xy: sweep Z, xz: sweep Y, yz: sweep X).",
     )
+    closed: bool = Field(
+        False,
+        description="Close the polyline (last point joins the first; the first point may be repeated at the end).",
+    )
     points: list[Point2] = Field(
-        description="Polyline points in the plane's two world coordinates (at least 2, no repeats in a row).",
+        description="Polyline points in the plane's two world coordinates: at least 2, all distinct (an open "
+        "curve may not end at its first point; set 'closed' instead). The curve must be at least one lattice "
+        "unit long; it is cut into S_X = floor(length / unit + 1/2) cells (nearest integer, halves up), so "
+        "each piece is stretched or shrunk along the curve by length / (S_X * unit), within 1 +- 1 / (2 S_X).",
         min_length=2,
     )
-    closed: bool = Field(False, description="Close the polyline (last point joins the first).")
     side: Literal["left", "right", "center"] = Field(
         "left",
         description="Where the offset lines go: left of the curve (as drawn), right of it, or centred on it.",
@@ -112,17 +119,13 @@ class Construction(StrictModel):
         None, ge=1, le=10000, description="S_Z: cells along the sweep axis; null = the example's count."
     )
 
-    @model_validator(mode="after")
-    def _points(self):
-        pts = self.points
-        for i in range(1, len(pts)):
-            if pts[i] == pts[i - 1]:
-                raise ValueError(f"points {i - 1} and {i} repeat {list(pts[i])}")
-        if self.closed and len(pts) > 2 and pts[-1] == pts[0]:
-            self.points = pts[:-1]
-        if self.closed and len(self.points) < 3:
-            raise ValueError("a closed curve needs at least 3 distinct points")
-        return self
+    @field_validator("points")
+    @classmethod
+    def _points(cls, pts, info: ValidationInfo):
+        problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
+        if problem is not None:
+            raise ValueError(problem)
+        return kept
 
 
 class Inference(StrictModel):

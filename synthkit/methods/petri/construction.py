@@ -13,8 +13,15 @@ Choices where the paper is open (written here as promised):
   both segments (a true parallel curve). Ends use their segment's normal; a closed curve has no ends.
 - Offset line ``j`` (0..S_Y) lies at signed distance ``(j - j0) * unit_b`` along ``d``, with ``j0 = 0``
   (side "left"), ``S_Y`` ("right") or ``S_Y / 2`` ("center"), so j always grows to the curve's left.
-- ``S_X = round(l / unit_a)`` (the paper's ``l / l_X * N_X``); each tangential line is resampled by
-  arc length into S_X equal parts (S_X + 1 points, or S_X for a closed curve).
+- ``S_X = floor(l / unit_a + 1/2)`` (the paper's ``l / l_X * N_X`` rounded to the nearest integer,
+  halves up); each tangential line is resampled by arc length into S_X equal parts (S_X + 1 points,
+  or S_X for a closed curve), so the cells are ``l / S_X`` long along the curve: a piece is stretched
+  or shrunk along the curve by the factor ``l / (S_X unit_a)``, in [0.75, 1.5) and within
+  ``1 +- 1 / (2 S_X)``. A curve shorter than one unit (``l < unit_a``) is refused (ConfigError) rather
+  than stretched to one unit.
+- Points must all differ (a repeated point, consecutive or not, is a ConfigError naming both
+  indices); a closed curve may repeat its first point as its last (dropped), an open curve may not
+  (the error points to ``construction.closed``).
 - Cells must be strictly convex and counter-clockwise in the plane, and the boundary of the
   construction plane must not cross itself; otherwise the cells self-intersect (ConfigError).
 """
@@ -126,6 +133,43 @@ def _resample(line: np.ndarray, n_seg: int, closed: bool) -> np.ndarray:
     return np.stack([np.interp(targets, s, pts[:, 0]), np.interp(targets, s, pts[:, 1])], axis=1)
 
 
+def polyline_problem(points, closed: bool) -> tuple[str | None, list]:
+    """Check a user polyline: ``(message, points)``; ``message`` is None when the points are usable.
+
+    Refused (message): fewer than 2 points, an open curve whose last point is its first (the message
+    says to set ``construction.closed``), any point given twice (consecutive or not; the message
+    names both indices and the point), a closed curve with fewer than 3 distinct points. A closed
+    curve's repeated first point at the end is dropped from the returned points.
+    """
+    pts = [tuple(float(v) for v in p) for p in points]
+    if len(pts) < 2:
+        return f"need at least 2 points, got {len(pts)}", pts
+    if len(pts) > 2 and pts[-1] == pts[0]:
+        if not closed:
+            return (
+                f"the last point (index {len(pts) - 1}) repeats the first {list(pts[0])}: an open curve cannot "
+                f"end where it starts; for a closed curve set 'construction.closed: true'",
+                pts,
+            )
+        pts = pts[:-1]
+    seen: dict[tuple[float, float], int] = {}
+    for j, p in enumerate(pts):
+        i = seen.setdefault(p, j)
+        if i != j:
+            return f"points {i} and {j} repeat the point {list(p)} (every point must be distinct)", pts
+    if closed and len(pts) < 3:
+        return "a closed curve needs at least 3 distinct points", pts
+    return None, pts
+
+
+def units_along(length: float, unit: float) -> int:
+    """S_X for a curve of ``length`` and the lattice unit ``unit`` along it: ``floor(length / unit + 1/2)``
+    (nearest integer, halves up); 0 when the curve is shorter than one unit (refused by the caller)."""
+    if length < unit:
+        return 0
+    return max(1, int(np.floor(length / unit + 0.5)))
+
+
 def build_construction_space(
     points,
     *,
@@ -136,32 +180,32 @@ def build_construction_space(
     size_y: int,
     size_z: int,
     sweep_origin: float,
+    unit_key: str = "the lattice unit along the curve",
 ) -> ConstructionSpace:
     """Algorithm 1 plus eq. (2): the hexahedral cells along the polyline ``points (m, 2)``.
 
-    ``units (3,)`` are the lattice unit sizes along (a, b, c). Raises ConfigError for fewer than two
-    points, repeated consecutive points, a curve shorter than one unit, a curve folding back on itself,
-    and self-intersecting cells.
+    ``units (3,)`` are the lattice unit sizes along (a, b, c); ``unit_key`` names where ``units[0]``
+    comes from in the config (for messages). Raises ConfigError for the polylines
+    :func:`polyline_problem` refuses, a curve shorter than one unit (``S_X`` is
+    :func:`units_along`), a curve folding back on itself, and self-intersecting cells.
     """
     P = np.asarray(points, dtype=np.float64)
-    if P.ndim != 2 or P.shape[1] != 2 or len(P) < 2:
-        raise ConfigError(f"construction.points: need at least 2 points (x, y), got {P.shape[0] if P.ndim == 2 else 0}")
-    if closed and len(P) > 2 and np.all(P[-1] == P[0]):
-        P = P[:-1]
-    if closed and len(P) < 3:
-        raise ConfigError("construction.points: a closed curve needs at least 3 distinct points")
+    if P.ndim != 2 or P.shape[1] != 2:
+        raise ConfigError(f"construction.points: need a list of 2-D points (x, y), got shape {list(P.shape)}")
+    problem, kept = polyline_problem(P.tolist(), closed)
+    if problem is not None:
+        raise ConfigError(f"construction.points: {problem}")
+    P = np.asarray(kept, dtype=np.float64)
     ends = np.vstack([P[1:], P[:1]]) if closed else P[1:]
     T = ends - P[: len(ends)]
     seg_len = np.linalg.norm(T, axis=1)
-    if np.any(seg_len == 0):
-        k = int(np.argmin(seg_len))
-        raise ConfigError(f"construction.points: points {k} and {(k + 1) % len(P)} repeat {P[k].tolist()}")
     units = np.asarray(units, dtype=np.float64)
     length = float(seg_len.sum())
-    SX = int(round(length / units[0]))
+    SX = units_along(length, float(units[0]))
     if SX < 1:
         raise ConfigError(
-            f"construction.points: the curve is {length:.4g} long, shorter than one unit ({units[0]:.4g})"
+            f"construction.points: the curve is {length:.6g} long, shorter than one unit along it "
+            f"({units[0]:.6g}, {unit_key}); a curve must be at least one unit long"
         )
     T = T / seg_len[:, None]
     N = np.stack([-T[:, 1], T[:, 0]], axis=1)  # left normals
@@ -216,8 +260,9 @@ def check_cells(space: ConstructionSpace) -> None:
         if len(bad):
             ci, cj = (int(v) for v in bad[0])
             raise ConfigError(
-                f"construction: self-intersecting construction cells: cell (i={ci}, j={cj}) is folded or "
-                f"inverted ({len(bad)} corners); reduce size_y or smooth the curve"
+                f"construction.points with construction.size_y = {SY}: self-intersecting construction cells: "
+                f"cell (i={ci}, j={cj}) is folded or inverted ({len(bad)} corners); reduce construction.size_y "
+                f"or smooth the curve"
             )
     loops = (
         [np.vstack([G[:, 0], G[:1, 0]]), np.vstack([G[:, -1], G[:1, -1]])]
@@ -228,8 +273,8 @@ def check_cells(space: ConstructionSpace) -> None:
     hit = _first_crossing(segs)
     if hit is not None:
         raise ConfigError(
-            f"construction: self-intersecting construction cells: the boundary of the construction plane "
-            f"crosses itself near {np.round(segs[hit[0], 0], 4).tolist()}"
+            f"construction.points with construction.size_y = {SY}: self-intersecting construction cells: the "
+            f"boundary of the construction plane crosses itself near {np.round(segs[hit[0], 0], 4).tolist()}"
         )
 
 

@@ -39,6 +39,7 @@ def analyse_example(V, F, cfg: PetriConfig):
         origin=lat.origin,
         annotation=None if ann is None else (ann.view, ann.rect, ann.depth_unit),
         fit_tolerance=lat.fit_tolerance,
+        source=str(cfg.example),
     )
     pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps)
     features = analysis.feature_vectors(pieces)
@@ -76,7 +77,24 @@ def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
         size_y=con.size_y if con.size_y is not None else int(spec.counts[axes[1]]),
         size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
         sweep_origin=float(spec.origin[axes[2]]),
+        unit_key=unit_key(cfg, axes[0]),
     )
+
+
+def unit_key(cfg: PetriConfig, axis: int) -> str:
+    """Where the config sets the lattice unit along world ``axis`` (for error messages)."""
+    name = "XYZ"[axis]
+    ann = cfg.lattice.annotation
+    if ann is None:
+        return f"lattice.unit[{axis}], along {name}"
+    ax, ay, _ = analysis.VIEW_AXES[ann.view]
+    if axis == ax:
+        return f"the width of lattice.annotation.rect, along {name}"
+    if axis == ay:
+        return f"the height of lattice.annotation.rect, along {name}"
+    if ann.depth_unit is None:
+        return f"the example's whole depth along {name}, lattice.annotation.depth_unit: null"
+    return f"lattice.annotation.depth_unit, along {name}"
 
 
 def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: int):

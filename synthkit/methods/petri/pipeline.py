@@ -121,6 +121,26 @@ def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: i
     return net, assembler, restarts
 
 
+def result_mesh(assembler: Assembler, library: PieceLibrary, net: ColouredPetriNet, *, weld: bool):
+    """The assembled mesh of ``net``'s deformed pieces: ``(V, F, face_label, crack_gap, unmatched)``.
+
+    With ``weld`` the vertices the example pieces shared across a cell face are merged (faces that
+    collapse are dropped); the curved result and the baseline both go through here, so their normal
+    histograms are taken on the same form of mesh.
+    """
+    V, F, face_label, _ = assembler.mesh()
+    labels = net.label_grid()
+    gap, unmatched, seams = crack_measure(
+        library, labels, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
+    )
+    if weld:
+        V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
+        G = old_to_new[F]
+        keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
+        F, face_label = F2, face_label[keep]
+    return V, F, face_label, gap, unmatched
+
+
 def example_net(grid: np.ndarray, cons, spec) -> ColouredPetriNet:
     """The example Petri net: one local net per piece, tokens holding its coordinate and label."""
     lo = spec.origin
@@ -178,16 +198,7 @@ def run(cfg: PetriConfig, ctx) -> None:
     labels_out = net.label_grid()
 
     with ctx.stage("assembly"):
-        RV, RF, face_label, face_cell = assembler.mesh()
-        gap, unmatched, seams = crack_measure(
-            library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
-        )
-        if cfg.output.weld:
-            G = RF
-            RV, RF, old_to_new = merge_vertices(RV, RF, seams, return_index=True)
-            G = old_to_new[G]
-            keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-            face_label, face_cell = face_label[keep], face_cell[keep]
+        RV, RF, face_label, gap, unmatched = result_mesh(assembler, library, net, weld=cfg.output.weld)
         result = trimesh.Trimesh(RV, RF, process=False)
         fmt = cfg.output.mesh_format
         out_mesh = ctx.path("mesh", f"result.{fmt}")
@@ -231,7 +242,7 @@ def run(cfg: PetriConfig, ctx) -> None:
             bnet, bassembler, brestarts = synthesize(
                 bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
             )
-            BV, BF, b_label, _ = bassembler.mesh()
+            BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
             h_base = analysis.normal_histogram(BV, BF, plane_axes)
             metrics["baseline"] = {
                 "method": "model synthesis on the orthogonal lattice (straight curve of the same length)",

@@ -148,6 +148,9 @@ class ColouredPetriNet:
         self.label = [-1] * self.n_cells
         self.su = [0] * self.n_cells
         self.fired = {"updating": 0, "selecting": 0, "deforming": 0, "forced_selecting": 0}
+        self.choices: list[tuple[int, int, int]] = []
+        """Random forced selections of this attempt, in order: (cell, size of its candidate set, label);
+        the origin's (not random) selection is not included."""
 
     # ------------------------------------------------------------------ inspection
     def token(self, cell: int) -> Token:
@@ -300,7 +303,9 @@ class ColouredPetriNet:
                 break
             c = heapq.heappop(heap)[1]
             labels = _bits(cand[c])
-            self.fill(c, labels[int(rng.integers(len(labels)))], queue, queued, forced=True)
+            label = labels[int(rng.integers(len(labels)))]
+            self.choices.append((c, len(labels), label))
+            self.fill(c, label, queue, queued, forced=True)
             filled.append(c)
 
     def infer(

@@ -9,14 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from click.testing import CliRunner
 
+from synthkit.cli.main import cli
 from synthkit.config import validate_config
 from synthkit.core.mesh import boundary_loops, face_areas
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.meshes import load_face_labels
-from synthkit.methods.petri import analysis, construction
+from synthkit.io.meshes import load_face_labels, save_mesh
+from synthkit.methods.petri import analysis, construction, pipeline
 from synthkit.methods.petri.config import CONFIG
 from synthkit.methods.petri.net import (
+    SELECTABLE,
     ColouredPetriNet,
     Contradiction,
     ac3_solve,
@@ -24,6 +27,7 @@ from synthkit.methods.petri.net import (
     to_dot,
     to_pnml,
 )
+from synthkit.methods.petri.pipeline import origin_preference
 from synthkit.runner import run_config
 from synthkit.samples import petri as sample
 
@@ -93,10 +97,14 @@ def test_lattice_from_annotation_matches_truth(building_mesh):
 
 def test_lattice_that_does_not_fit(building_mesh):
     V, _ = building_mesh
-    with pytest.raises(InputError, match="does not fit the model: along X"):
-        analysis.resolve_lattice(V.min(0), V.max(0), unit=(2.5, 3.0, 2.0))
-    with pytest.raises(InputError, match="outside the example"):
+    fit = r"^m\.obj: lattice\.unit \[2\.5, 3\.0, 2\.0\] does not fit the model: along X"
+    with pytest.raises(ConfigError, match=fit):
+        analysis.resolve_lattice(V.min(0), V.max(0), unit=(2.5, 3.0, 2.0), source="m.obj")
+    outside = r"lattice\.annotation\.rect \[20\.0, 0\.0, 22\.0, 3\.0\] lies outside the example"
+    with pytest.raises(ConfigError, match=outside):
         analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (20.0, 0.0, 22.0, 3.0), None))
+    with pytest.raises(ConfigError, match=r"lattice\.annotation\.depth_unit 1\.5 does not fit the model: along Z"):
+        analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (2.0, 3.0, 4.0, 6.0), 1.5))
 
 
 def test_pieces_partition_the_example(building_mesh):
@@ -213,7 +221,12 @@ def test_closed_curve_wraps():
     ("kwargs", "message"),
     [
         ({"points": [[0, 0], [0.2, 0]]}, "shorter than one unit"),
-        ({"points": [[0, 0], [0, 0], [3, 0]]}, "repeat"),
+        # 0.5 .. 1 unit used to be rounded up to one cell, stretching the piece: now refused
+        ({"points": [[0, 0], [0.7, 0]]}, r"the curve is 0\.7 long, shorter than one unit along it \(1, "),
+        ({"points": [[0, 0], [0, 0], [3, 0]]}, r"points 0 and 1 repeat the point \[0\.0, 0\.0\]"),
+        ({"points": [[0, 0], [3, 0], [3, 3], [1, 1], [3, 0]]}, r"points 1 and 4 repeat the point \[3\.0, 0\.0\]"),
+        ({"points": [[0, 0], [3, 0], [3, 3], [0, 0]]}, r"repeats the first .*set 'construction\.closed: true'"),
+        ({"points": [[0, 0], [3, 0], [0, 0]], "closed": True}, "at least 3 distinct points"),
         ({"points": [[0, 0], [5, 0], [0, 0.0001]]}, "self-intersecting|folds back"),
         ({"points": [[0, 0], [5, 0], [5, 2], [0, 2]], "size_y": 3}, "self-intersecting"),
         ({"points": [[0, 0], [4, 0], [4, 4], [2, -2]]}, "self-intersecting"),
@@ -224,12 +237,38 @@ def test_bad_curves(kwargs, message):
         space(**kwargs)
 
 
+def test_cells_along_the_curve_round_to_the_nearest_unit():
+    assert [construction.units_along(x, 1.0) for x in (0.999, 1.0, 1.49, 1.5, 2.5, 3.49)] == [0, 1, 1, 2, 3, 3]
+    assert construction.units_along(5.0, 2.0) == 3  # 2.5 units: halves round up
+    s = space([[0, 0], [1.4, 0]], units=(1.0, 1.0, 1.0))  # one cell stretched to 1.4
+    assert s.shape[0] == 1 and np.isclose(s.grid[1, 0, 0] - s.grid[0, 0, 0], 1.4)
+    # a closed curve may repeat its first point at the end
+    ring = space([[0, 0], [4, 0], [4, 4], [0, 4], [0, 0]], closed=True, side="right", size_y=1)
+    assert ring.shape[0] == 16 and len(ring.curve) == 4
+
+
 def test_config_rejects_bad_polylines(tmp_path):
     (tmp_path / "m.obj").write_text("v 0 0 0\n")
     base = {"method": "petri-synth", "example": "m.obj", "lattice": {"unit": [1, 1, 1]}}
-    for pts, msg in [([[0, 0]], "at least 2"), ([[0, 0], [1, 1], [1, 1]], "repeat")]:
+    for con, msg in [
+        ({"points": [[0, 0]]}, r"^x\.yaml: construction\.points: .*at least 2"),
+        ({"points": [[0, 0], [1, 1], [1, 1]]}, r"^x\.yaml: construction\.points: points 1 and 2 repeat the point"),
+        ({"points": [[0, 0], [1, 1], [2, 0], [1, 1]]}, r"construction\.points: points 1 and 3 repeat the point \[1"),
+        (
+            {"points": [[0, 0], [1, 1], [2, 0], [0, 0]]},
+            r"construction\.points: the last point \(index 3\) repeats the first \[0\.0, 0\.0\].*'construction\.closed",
+        ),
+        ({"points": [[0, 0], [1, 1], [2, 0], [0, 0], [3, 3]], "closed": True}, "points 0 and 3 repeat"),
+    ]:
         with pytest.raises(ConfigError, match=msg):
-            validate_config(CONFIG, {**base, "construction": {"points": pts}}, source="x.yaml", base_dir=tmp_path)
+            validate_config(CONFIG, {**base, "construction": con}, source="x.yaml", base_dir=tmp_path)
+    cfg = validate_config(
+        CONFIG,
+        {**base, "construction": {"points": [[0, 0], [1, 1], [2, 0], [0, 0]], "closed": True}},
+        source="x.yaml",
+        base_dir=tmp_path,
+    )
+    assert cfg.construction.points == [(0, 0), (1, 1), (2, 0)]  # the closing repeat is dropped
     with pytest.raises(ConfigError, match="exactly one of 'unit' and 'annotation'"):
         validate_config(
             CONFIG,
@@ -356,16 +395,76 @@ def _check_output(out: Path, report: dict, *, closed: bool):
     assert len(labels) == len(mesh.faces) and set(labels.tolist()) <= set(range(m["labels"]))
     # no cracks: the example is made of closed boxes, so the welded result has no boundary edges
     assert boundary_loops(mesh.faces) == []
-    root = ET.parse(out / "target_net.pnml").getroot()
-    assert len(root.findall(".//{*}place")) == 3 * m["cells"]
+    t = m["transitions"]
+    assert set(t) == {"updating", "selecting", "deforming", "forced_selecting"}
+    assert t["selecting"] == t["deforming"] == m["cells"] == grid.size
+    assert 1 <= t["forced_selecting"] <= m["cells"]  # the origin, then one per random choice
+    assert t["updating"] >= m["cells"]  # every updating transition fires once before the origin is filled
+    assert isinstance(m["restarts"], int) and 0 <= m["restarts"] <= report["config"]["inference"]["max_restarts"]
+    _check_net_files(out, "target", grid, periodic=(closed, False, False))
+    _check_net_files(out, "example", ex, periodic=(False, False, False))
     return mesh, grid
 
 
+def _ordered_neighbour_pairs(shape, periodic) -> int:
+    n = 0
+    for t, size in enumerate(shape):
+        others = int(np.prod(shape)) // size
+        n += 2 * others * (size if periodic[t] and size > 1 else size - 1)
+    return n
+
+
+def _check_net_files(out: Path, name: str, labels: np.ndarray, *, periodic):
+    """``<name>_net.pnml`` and ``.dot``: 3 places and 3 transitions per cell, the arcs of the per-cell
+    chain and the neighbour messages, every token deformed with the cell's label."""
+    N = labels.size
+    arcs = 6 * N + _ordered_neighbour_pairs(labels.shape, periodic)
+    root = ET.parse(out / f"{name}_net.pnml").getroot()
+    assert root.tag == "{http://www.pnml.org/version-2009/grammar/pnml}pnml"
+    (net,) = root.findall("{*}net")
+    assert net.get("id") == name
+    places = {p.get("id") for p in net.findall(".//{*}place")}
+    transitions = {t.get("id") for t in net.findall(".//{*}transition")}
+    assert len(places) == 3 * N and len(transitions) == 3 * N
+    assert places == {f"P{k}_{c}" for c in range(N) for k in "cfd"}
+    assert transitions == {f"T{k}_{c}" for c in range(N) for k in "usd"}
+    edges = [(a.get("source"), a.get("target")) for a in net.findall(".//{*}arc")]
+    assert len(edges) == arcs
+    assert all((s in places and d in transitions) or (s in transitions and d in places) for s, d in edges)
+    tokens = [p.find("{*}toolspecific/{*}token") for p in net.findall(".//{*}place")]
+    tokens = [tok for tok in tokens if tok is not None]
+    assert len(tokens) == N and all(tok.get("s") == "deformed" for tok in tokens)
+    assert [int(tok.get("l")) for tok in tokens] == labels.ravel().tolist()
+    dot = (out / f"{name}_net.dot").read_text()
+    assert dot.startswith(f"digraph {name} {{") and dot.rstrip().endswith("}")
+    nodes = {line.split()[0] for line in dot.splitlines() if "[shape=" in line}
+    assert nodes == places | transitions
+    assert dot.count("[shape=circle") == 3 * N and dot.count("[shape=box") == 3 * N
+    assert {tuple(line.strip().rstrip(";").split(" -> ")) for line in dot.splitlines() if " -> " in line} == set(edges)
+    assert dot.count(" -> ") == arcs
+
+
 @pytest.mark.slow
-def test_curved_street(building, tmp_path):
+def test_curved_street(building, tmp_path, monkeypatch):
+    meshes = []
+    real = pipeline.result_mesh
+
+    def spy(*args, **kwargs):
+        meshes.append((kwargs["weld"], real(*args, **kwargs)))
+        return meshes[-1][1]
+
+    monkeypatch.setattr(pipeline, "result_mesh", spy)
     report, out = run(building, tmp_path, points=[[0, 0], [12, 0], [20, 5], [24, 14]], seed=3)
-    _check_output(out, report, closed=False)
+    mesh, _ = _check_output(out, report, closed=False)
     m = report["metrics"]
+    # the curved result and the baseline are both measured on their welded meshes
+    assert [w for w, _ in meshes] == [True, True]
+    (RV, RF, *_), (BV, BF, *_) = (r for _, r in meshes)
+    assert len(mesh.vertices) == len(RV) == m["result_vertices"]
+    assert boundary_loops(BF) == []  # welded: the baseline is closed too
+    axes = (0, 2)
+    assert m["normal_histogram_result"] == analysis.normal_histogram(RV, RF, axes).tolist()
+    assert m["baseline"]["normal_histogram"] == analysis.normal_histogram(BV, BF, axes).tolist()
     assert m["construction_shape"] == [16, 2, 4]
     # the paper's Fig. 12 claim: the curved result departs from the example's normal histogram more
     assert m["normal_histogram_D"] > m["baseline_normal_histogram_D"]
@@ -377,10 +476,41 @@ def test_curved_street(building, tmp_path):
 def test_closed_ring(building, tmp_path):
     pts = [[12 * np.cos(t), 12 * np.sin(t)] for t in np.linspace(0, 2 * np.pi, 10, endpoint=False)]
     report, out = run(building, tmp_path, points=np.round(pts, 6).tolist(), closed=True, side="right", seed=1)
-    _check_output(out, report, closed=True)
-    # corner pieces (side walls) cannot occur on a ring, so no side wall ends up in the result
-    mesh = trimesh.load(out / "result.ply", process=False)
-    assert len(mesh.vertices) > 0
+    mesh, grid = _check_output(out, report, closed=True)
+    # The pieces that end the example along X (its side walls and corner pilasters) cannot occur on a
+    # ring (a closed curve has no ends), so none is in the result: no end label in the label grid or
+    # on any face, and no face lies across the curve on a cell boundary (where a side wall would be),
+    # in particular none at the seam where the ring closes (cross line 0).
+    doc = json.loads((out / "labels.json").read_text())
+    ex = np.array(doc["example"]["grid"])
+    end_labels = (set(ex[0].ravel().tolist()) | set(ex[-1].ravel().tolist())) - set(ex[1:-1].ravel().tolist())
+    assert end_labels  # the example has side-wall pieces
+    assert not end_labels & set(grid.ravel().tolist())
+    assert not end_labels & set(load_face_labels(out / "result.ply").tolist())
+    s = ring_space(report)
+    assert list(s.shape) == report["metrics"]["construction_shape"]
+    assert faces_across_the_curve(mesh, s) == {}
+
+
+def ring_space(report):
+    con = report["config"]["construction"]
+    return construction.build_construction_space(
+        con["points"], plane="xz", closed=con["closed"], side=con["side"], units=(2.0, 2.0, 3.0),
+        size_y=2, size_z=4, sweep_origin=0.0,
+    )
+
+
+def faces_across_the_curve(mesh, s, tol=1e-6) -> dict[int, int]:
+    """{i: number of faces lying on the cells' boundary across the curve at grid index i} (all three
+    vertices on the polyline of grid points (i, 0..S_Y) in the plane): where side walls would be."""
+    P = np.asarray(mesh.vertices)[:, list(s.point_axes)]
+    out = {}
+    for i in range(s.grid.shape[0]):
+        on = construction._point_polyline_distance(P, s.grid[i]) <= tol
+        n = int(on[np.asarray(mesh.faces)].all(axis=1).sum())
+        if n:
+            out[i] = n
+    return out
 
 
 def test_straight_curve_reproduces_the_example(building, tmp_path, building_mesh):
@@ -388,19 +518,82 @@ def test_straight_curve_reproduces_the_example(building, tmp_path, building_mesh
     mesh, grid = _check_output(out, report, closed=False)
     V, _ = building_mesh
     assert report["metrics"]["construction_shape"] == [6, 2, 4]
+    assert report["metrics"]["restarts"] == 0
+    # the side walls end the result at both ends of the curve, and only there
+    ends = faces_across_the_curve(mesh, ring_space(report))
+    assert set(ends) == {0, 6}
     np.testing.assert_allclose(mesh.bounds, [V.min(0), V.max(0)], atol=1e-9)
     assert report["metrics"]["normal_histogram_D"] < 0.05
 
 
-def test_bad_lattice_and_curve_errors(building, tmp_path):
-    body = BASE.format(points="[[0, 0], [12, 0]]", closed="false", side="left", seed=0)
-    cfg = write_config(building, "badlattice", body.replace("[2.0, 3.0, 2.0]", "[2.5, 3.0, 2.0]"))
-    with pytest.raises(InputError, match="does not fit the model"):
-        run_config(cfg, out_dir=tmp_path / "a")
-    cfg = write_config(building, "short", BASE.format(points="[[0, 0], [0.5, 0]]", closed="false", side="left", seed=0))
-    with pytest.raises(ConfigError, match="shorter than one unit"):
-        run_config(cfg, out_dir=tmp_path / "b")
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+CLI_BAD = """method: petri-synth
+example: {example}
+lattice:
+  unit: {unit}
+construction:
+  plane: xz
+  points: {points}
+output:
+  baseline: false
+"""
+
+
+@pytest.mark.parametrize(
+    ("unit", "points", "code", "parts"),
+    [
+        pytest.param(
+            "[2.5, 3.0, 2.0]", "[[0, 0], [12, 0]]", 2,
+            ["{example}: lattice.unit [2.5, 3.0, 2.0] does not fit the model: along X", "4.8 units of 2.5"],
+            id="lattice-does-not-fit",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0]]", 2,
+            ["{config}: construction.points: List should have at least 2 items", "(got [[0, 0]])"],
+            id="fewer-than-two-points",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0], [6, 0], [6, 0], [12, 0]]", 2,
+            ["{config}: construction.points: points 1 and 2 repeat the point [6.0, 0.0]"],
+            id="consecutive-repeat",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0], [6, 0], [6, 6], [0, 6], [6, 0], [12, 0]]", 2,
+            ["{config}: construction.points: points 1 and 4 repeat the point [6.0, 0.0]"],
+            id="repeat-anywhere",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0], [12, 0], [12, 12], [0, 0]]", 2,
+            ["{config}: construction.points: the last point (index 3) repeats the first [0.0, 0.0]",
+             "set 'construction.closed: true'"],
+            id="open-curve-ends-at-its-start",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0], [12, 0], [12, 3], [0, 3]]", 2,
+            ["construction.points with construction.size_y = 2: self-intersecting construction cells",
+             "reduce construction.size_y"],
+            id="self-intersecting-cells",
+        ),
+        pytest.param(
+            "[2.0, 3.0, 2.0]", "[[0, 0], [1.5, 0]]", 2,
+            ["construction.points: the curve is 1.5 long, shorter than one unit along it (2, lattice.unit[0], along X)",
+             "a curve must be at least one unit long"],
+            id="curve-too-short",
+        ),
+    ],
+)
+def test_bad_input_through_the_cli(building, tmp_path, unit, points, code, parts):
+    example = building / "building_modular.obj"
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text(CLI_BAD.format(example=example, unit=unit, points=points))
+    out = tmp_path / "o"
+    result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(out), "--no-progress"])
+    assert result.exit_code == code, result.stderr
+    err = result.stderr
+    assert err.startswith("error: ") and err.count("\n") == 1 and err.endswith("\n"), err  # one line
+    assert "Traceback" not in err and result.stdout == ""
+    for part in parts:
+        assert part.format(example=example, config=cfg) in err, err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"]  # no staging left
 
 
 def test_kenney_building_is_reproduced(tmp_path):
@@ -478,3 +671,84 @@ def test_faces_on_lattice_planes_stay_with_their_solid_and_geometry_match():
     assert by_features[left] == by_features[right]
     assert by_geometry[left] != by_geometry[right]
     assert len(set(by_geometry.tolist())) == 5
+
+
+class SpyRng:
+    """A generator that, whenever Algorithm 2 draws a forced label, records the candidate-set sizes
+    of every selectable cell at that moment (read from the net's tokens, independently of the net's
+    own choice)."""
+
+    def __init__(self, net: ColouredPetriNet, seed: int):
+        self.net, self.rng, self.seen = net, np.random.default_rng(seed), []
+
+    def integers(self, n):
+        net = self.net
+        tokens = enumerate(zip(net.cand, net.state, strict=True))
+        sizes = [(m.bit_count(), c) for c, (m, st) in tokens if st == SELECTABLE]
+        self.seen.append((int(n), sizes))
+        return self.rng.integers(n)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_forced_cell_has_the_smallest_candidate_set(seed):
+    grid, cons = random_example(np.random.default_rng(seed), shape=(5, 4, 2), n_labels=6)
+    net = ColouredPetriNet((7, 5, 2), cons.allowed, cons.n_labels, boundary=False)
+    spy = SpyRng(net, seed)
+    assert net.infer(spy, origin_labels=[int(grid[0, 0, 0])], max_restarts=0) == 0
+    assert len(net.choices) == len(spy.seen) == net.fired["forced_selecting"] - 1 > 2
+    strict = 0
+    for (cell, k, label), (n, sizes) in zip(net.choices, spy.seen, strict=True):
+        smallest = min(sizes)  # (size, lowest cell index among the smallest)
+        assert (k, cell) == smallest and n == k >= 2
+        assert net.label[cell] == label
+        strict += any(size > k for size, _ in sizes)
+    assert strict  # some choices were made among cells with larger candidate sets
+
+
+def grid_example(g: np.ndarray):
+    """A mesh whose lattice pieces (unit 1 x 1 x 0.5) carry the labels of ``g (nx, ny, 1)``: in every
+    cell a floor plate and a block whose width tells the label."""
+    Vs, Fs, off = [], [], 0
+    for (i, j, _), k in np.ndenumerate(g):
+        w = 0.1 * (k + 1)
+        for lo, hi in (((i, j, 0), (i + 1, j + 1, 0.05)), ((i + 0.5 - w, j + 0.3, 0.05), (i + 0.5 + w, j + 0.7, 0.5))):
+            V, F = sample.box(lo, hi, unit=(1, 1, 0.5))
+            Vs.append(V)
+            Fs.append(F + off)
+            off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs)
+
+
+def test_restarts_and_firings_reported_end_to_end(tmp_path):
+    # the 2-D example of test_restart_after_contradiction_then_success as a mesh: seed 0 runs into
+    # one contradiction before it fills the 7 x 7 cells
+    g = np.random.default_rng(19).integers(0, 4, size=(4, 4, 1))
+    V, F = grid_example(np.unique(g, return_inverse=True)[1].reshape(4, 4, 1))
+    save_mesh(trimesh.Trimesh(V, F, process=False), tmp_path / "grid.ply")
+    cfg = write_config(
+        tmp_path,
+        "grid",
+        """method: petri-synth
+seed: 0
+example: grid.ply
+lattice: {unit: [1.0, 1.0, 0.5], origin: [0.0, 0.0, 0.0]}
+labels: {boundary: false}
+construction: {plane: xy, points: [[0, 0], [7, 0]], size_y: 7, size_z: 1}
+output: {baseline: false, export_net: both}
+""",
+    )
+    report = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    doc = json.loads((tmp_path / "out" / "labels.json").read_text())
+    ex = np.array(doc["example"]["grid"])
+    assert ex.shape == (4, 4, 1) and m["labels"] == 4 and m["cells"] == 49
+    # the same inference outside the pipeline, on the constraints read back from labels.json
+    cons = analysis.adjacency_constraints(ex, 4, boundary=False)
+    net = ColouredPetriNet((7, 7, 1), cons.allowed, 4, boundary=False)
+    restarts = net.infer(np.random.default_rng(0), origin_labels=origin_preference(ex), max_restarts=20)
+    assert m["restarts"] == restarts == 1
+    assert m["transitions"] == net.fired
+    assert m["transitions"]["selecting"] == m["transitions"]["deforming"] == 49
+    np.testing.assert_array_equal(np.array(doc["grid"]), net.label_grid())
+    assert m["adjacency_violations"] == 0
+    _check_net_files(tmp_path / "out", "target", net.label_grid(), periodic=(False, False, False))

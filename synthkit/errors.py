@@ -2,8 +2,8 @@
 
 ``ConfigError`` (exit 2) is a problem with the command line or a config file: an unknown key,
 a value out of range, a missing config file. ``InputError`` (exit 3) is a problem with input
-data: a mesh or image a config names that does not exist, cannot be read or is degenerate. Any other exception is a bug or an
-environment problem and exits with 1.
+data: a mesh or image a config names that does not exist, cannot be read or is degenerate.
+Any other exception is a bug or an environment problem and exits with 1.
 """
 
 

@@ -131,6 +131,15 @@ def default_out_dir(config_path: Path) -> Path:
     return Path("out") / Path(config_path).stem
 
 
+def _naming_config(exc: SynthkitError, config_path: Path) -> SynthkitError:
+    """``exc``, or the same error class with its line prefixed by ``config_path`` when the line does
+    not name the config already (a pipeline names the key and value; the runner adds the file)."""
+    line = str(exc)
+    if line.startswith(str(config_path)):
+        return exc
+    return type(exc)(f"{config_path}: {line}", keep_outputs=exc.keep_outputs)
+
+
 def run_config(
     config_path: Path,
     *,
@@ -186,12 +195,15 @@ def run_config(
         report = make_report("ok")
         _replace_dir(staging, out_abs)
     except SynthkitError as exc:
-        if exc.keep_outputs:
-            make_report("refused", str(exc))
+        named = _naming_config(exc, config_path)
+        if named.keep_outputs:
+            make_report("refused", str(named))
             _replace_dir(staging, out_abs)
         else:
             shutil.rmtree(staging, ignore_errors=True)
-        raise
+        if named is exc:
+            raise
+        raise named from None
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise

@@ -88,3 +88,14 @@ def test_numpy_metrics_become_plain_json(echo_config, tmp_path):
     assert type(report["metrics"]["noise"]) is int
     assert report["status"] == "ok"
     json.dumps(report, allow_nan=False)
+
+
+
+def test_pipeline_errors_name_the_config(echo_config, tmp_path):
+    """An error raised inside a pipeline names its input and value; the runner adds the config file once."""
+    with pytest.raises(InputError) as info:
+        run_config(echo_config, out_dir=tmp_path / "o", overrides=["fail=input"], show_progress=False)
+    line = str(info.value)
+    assert line.startswith(f"{echo_config}: ") and line.count(str(echo_config)) == 1
+    assert line.endswith("in.png: deliberately refused")
+    assert not (tmp_path / "o").exists()

@@ -1,11 +1,11 @@
 """``synthkit retarget``: load a mesh, compute offset statistics, retarget by graph cut, write outputs.
 
 Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (grid, voxel descriptor
-sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld, map back), and the
+sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), and the
 same three prefixed ``baseline_`` when the regular-offset baseline runs. Outputs: the retargeted mesh
 in the input's format, ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
-labels), PNG previews (sparsity curve, offset histogram, offsets over the model, before / after /
-labels renders) and metrics.
+labels and their colours, :func:`write_labels_ply`), PNG previews (sparsity curve, offset
+histogram, offsets over the model, before / after / labels renders) and metrics.
 
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
@@ -28,15 +28,16 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
-from synthkit.core.mesh import normalize_unit, weld
+from synthkit.core.mesh import merge_vertices, normalize_unit
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
 from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, repair_t_junctions
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
-__all__ = ["run", "Retargeted", "synthesize", "resolve_steps"]
+__all__ = ["run", "Retargeted", "synthesize", "resolve_steps", "weld_seams"]
 
 _MESH_OUT = (".obj", ".ply", ".glb", ".off", ".stl")
 log = logging.getLogger("synthkit")
@@ -85,13 +86,15 @@ def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float
 
 
 def synthesize(
-    Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "", allow_infinite: bool = False
+    Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "", allow_infinite: bool = False, step_keys=None
 ) -> Retargeted:
     """Retarget the normalised mesh ``Vn``, ``F`` on the grid spanned by ``basis (3, 3)`` by
     ``steps (3,)`` voxels per axis; stages timed on ``ctx`` as ``<prefix>synthesis``,
     ``<prefix>graphcut``, ``<prefix>assemble``. Raises InputError when no finite labeling exists,
     unless ``allow_infinite`` (the regular baseline: like the paper's conventional MRF it still
-    yields its best labeling, whose infinite seams are counted in the metrics)."""
+    yields its best labeling, whose infinite seams are counted in the metrics). Steps that leave
+    fewer than 2 cells along an axis are a ConfigError naming ``step_keys[axis]`` (the config key
+    and value that asked for them, from :func:`resolve_steps`)."""
     a = cfg.analysis
     with ctx.stage(f"{prefix}synthesis"):
         used = np.unique(F)
@@ -101,9 +104,11 @@ def synthesize(
         out_shape = grid.shape + steps
         for axis in np.flatnonzero(steps):
             if out_shape[axis] < 2:
-                raise InputError(
-                    f"{cfg.input}: {int(steps[axis])} steps along grid axis {int(axis)} would shrink below one "
-                    f"cell (the input spans {int(grid.shape[axis])} voxels; at least 2 must remain)"
+                what = step_keys.get(int(axis)) if step_keys else None
+                what = what or f"{int(steps[axis])} steps along grid axis {int(axis)}"
+                raise ConfigError(
+                    f"{cfg.input}: {what}: would shrink below one cell (the input spans {int(grid.shape[axis])} "
+                    f"cells along it; at least 2 must remain)"
                 )
         regular = prefix in ("regular_", "baseline_")
         margin = [cfg.label_margin] * 3 if regular else np.where(np.arange(3) < an.n_principal, cfg.label_margin, 0)
@@ -124,7 +129,7 @@ def synthesize(
         )
     with ctx.stage(f"{prefix}assemble"):
         Vc, Fo, fl = assemble(grid.to_canonical(Vn), F, grid, problem, result.labels)
-        Vw, Fw, old_to_new = weld(grid.to_normalised(Vc), Fo, cfg.weld_tolerance, return_index=True)
+        Vw, Fw, old_to_new = weld_seams(Vc, Fo, fl, grid, cfg.weld_tolerance)
         Fm = old_to_new[Fo]
         fl = fl[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])]
         Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
@@ -135,13 +140,44 @@ def synthesize(
     return Retargeted(Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles)
 
 
-def resolve_steps(target, an: Analysis, Vn, *, source) -> np.ndarray:
+def weld_seams(Vc, F, face_label, grid: VoxelGrid, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weld the assembled copies along their seams only.
+
+    ``Vc (n, 3)`` canonical vertices of :func:`~synthkit.methods.retarget.synthesis.assemble`
+    (one block of vertices per label), ``F (m, 3)``, ``face_label (m,)``. Two vertices are merged
+    when they are within ``tol`` (normalised units) of each other, belong to different labels'
+    copies and lie within ``tol`` of a voxel face plane (a seam between two labels' voxels may run
+    across any axis); every other vertex is kept as it is, so parts of the input
+    that only touch (a baluster standing on a rail, the unwelded UV seams of an asset) keep their
+    own vertices, as in the input.
+
+    Returns ``(V (#V2, 3) normalised, F2 (#F2, 3), old_to_new (n,))`` as :func:`~synthkit.core.mesh.weld`.
+    """
+    Vc = np.asarray(Vc, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    Vn = grid.to_normalised(Vc)
+    pairs = np.zeros((0, 2), np.int64)
+    if len(Vc):
+        vlab = np.full(len(Vc), -1, np.int64)
+        vlab[F.reshape(-1)] = np.repeat(np.asarray(face_label, np.int64), 3)
+        frac = Vc - grid.origin
+        dist = np.abs(frac - np.rint(frac)) / np.linalg.norm(grid.inverse, axis=1)  # normalised units
+        on_seam = np.flatnonzero((dist <= tol).any(axis=1) & (vlab >= 0))
+        if len(on_seam) > 1:
+            pairs = on_seam[cKDTree(Vn[on_seam]).query_pairs(tol, output_type="ndarray")]
+            pairs = pairs[vlab[pairs[:, 0]] != vlab[pairs[:, 1]]]
+    return merge_vertices(Vn, F, pairs, return_index=True)
+
+
+def resolve_steps(target, an: Analysis, Vn, *, source, keys: dict | None = None) -> np.ndarray:
     """Steps ``(3,)`` per basis column from the config's target (steps, axis_steps or scale).
 
     ``scale`` factor f along principal offset i becomes ``round((f - 1) * extent_i)`` steps, with
     ``extent_i`` the model's extent along canonical axis i in steps. Steps along dummy directions
-    are refused (InputError naming the key), as the paper never resizes along them.
+    are refused (InputError naming the key), as the paper never resizes along them. ``keys``, when
+    given, is filled with ``axis -> "key=value"`` for the config entries that gave each axis its steps.
     """
+    keys = {} if keys is None else keys
     k = an.n_principal
     steps = np.zeros(3, dtype=np.int64)
     if target.axis_steps is not None:
@@ -160,11 +196,13 @@ def resolve_steps(target, an: Analysis, Vn, *, source) -> np.ndarray:
             if s:
                 used[i] = name
                 steps[i] += s
+                keys[i] = f"target.axis_steps.{name}={s}"
         return steps
     if target.scale is not None:
         ext = np.ptp(Vn @ np.linalg.inv(an.basis).T, axis=0)
         for i, f in enumerate(target.scale):
             steps[i] = int(round((f - 1.0) * ext[i]))
+            keys[i] = f"target.scale[{i}]={f} ({int(steps[i])} steps)"
             if steps[i] and i >= k:
                 raise InputError(f"{source}: target.scale[{i}]={f}: only {k} principal offset(s) were found")
         return steps
@@ -173,6 +211,7 @@ def resolve_steps(target, an: Analysis, Vn, *, source) -> np.ndarray:
         if s and i >= k:
             raise InputError(f"{source}: target.steps[{i}]={s}: only {k} principal offset(s) were found")
         steps[i] = s
+        keys[i] = f"target.steps[{i}]={s}"
     return steps
 
 
@@ -181,6 +220,40 @@ def _palette(n: int) -> np.ndarray:
     import colorsys
 
     return np.array([colorsys.hsv_to_rgb((0.13 + i * 0.618034) % 1.0, 0.55, 0.95) for i in range(max(n, 1))])
+
+
+def label_colours(labels, n_labels: int) -> np.ndarray:
+    """``(m, 3) uint8`` colour of each face label: :func:`_palette` of ``n_labels`` (by label index)."""
+    pal = np.rint(_palette(n_labels) * 255).astype(np.uint8)
+    return pal[np.asarray(labels, dtype=np.int64)]
+
+
+def write_labels_ply(path, V, F, labels, n_labels: int) -> None:
+    """The label colouring: binary little-endian PLY, float32 ``x y z``, triangles with an
+    ``int32 label`` (the label index of ``metrics.label_shifts``) and ``uchar red green blue``, the
+    colour of that label (:func:`label_colours`, the same as ``labels.png``).
+
+    The label property is declared ``int32`` (the PLY alias of ``int``): the face records are longer
+    than those :func:`synthkit.io.meshes.load_face_labels` parses, and it refuses the file instead
+    of misreading it. trimesh, plyfile or MeshLab read both properties."""
+    V = np.asarray(V, dtype="<f4").reshape(-1, 3)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    labels = np.asarray(labels, dtype=np.int64).reshape(-1)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int32 label\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    ).encode("ascii")
+    rec = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
+    faces = np.empty(len(F), dtype=rec)
+    faces["n"] = 3
+    faces["idx"] = F
+    faces["label"] = labels
+    faces["rgb"] = label_colours(labels, n_labels) if len(labels) else np.zeros((0, 3), np.uint8)
+    tmp = Path(path).with_name(Path(path).name + ".tmp.ply")
+    tmp.write_bytes(header + V.tobytes() + faces.tobytes())
+    tmp.replace(path)
 
 
 def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
@@ -259,8 +332,9 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     np.save(
         ctx.path(f"{prefix}labels_volume", f"{prefix}labels.npy"), res.problem.volume(res.labeling).astype(np.int32)
     )
-    save_mesh(mesh, ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply"), face_labels=res.face_label)
     colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
+    labels_path = ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply")
+    write_labels_ply(labels_path, Vm, res.F, res.face_label, res.problem.n_labels)
     render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
     return render_mesh_png(
         ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
@@ -312,6 +386,9 @@ def run(cfg, ctx) -> None:
         except ValueError as exc:
             raise InputError(f"{cfg.input}: {exc}") from None
         Vn = (V - center) / scale
+        area = 0.5 * np.linalg.norm(np.cross(Vn[F[:, 1]] - Vn[F[:, 0]], Vn[F[:, 2]] - Vn[F[:, 0]]), axis=1)
+        if not area.sum() > 1e-12:
+            raise InputError(f"{cfg.input}: degenerate mesh: all {len(F)} triangles have zero area")
         ctx.metrics["input_faces"] = int(len(F))
         suffix = Path(cfg.input).suffix.lower()
         suffix = suffix if suffix in _MESH_OUT else ".ply"
@@ -349,11 +426,12 @@ def run(cfg, ctx) -> None:
             f"onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); refusing to resize",
             keep_outputs=True,
         )
-    steps = resolve_steps(cfg.target, an, Vn, source=cfg.input)
+    step_keys: dict[int, str] = {}
+    steps = resolve_steps(cfg.target, an, Vn, source=cfg.input, keys=step_keys)
     growth = an.basis @ steps
     results = []
     if cfg.offsets == "statistics":
-        res = synthesize(Vn, F, an, an.basis, steps, cfg=cfg, ctx=ctx)
+        res = synthesize(Vn, F, an, an.basis, steps, cfg=cfg, ctx=ctx, step_keys=step_keys)
         results.append(("", res, steps, ctx.timings["graphcut"]))
     if cfg.offsets == "regular" or cfg.compare_baseline:
         h = cfg.regular_spacing

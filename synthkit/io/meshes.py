@@ -55,6 +55,8 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
     elif isinstance(loaded, trimesh.Trimesh):
         mesh = loaded
         mesh.metadata["merged_geometries"] = 1
+    elif isinstance(loaded, trimesh.PointCloud):
+        raise InputError(f"{path}: mesh has no faces ({len(loaded.vertices)} vertices, no triangles)")
     else:
         raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
     check_mesh(mesh.vertices, mesh.faces, source=path)

@@ -72,6 +72,13 @@ def test_empty_mesh(tmp_path):
         load_mesh(path)
 
 
+def test_vertices_without_faces(tmp_path):
+    path = tmp_path / "cloud.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n")
+    with pytest.raises(InputError, match=r"cloud\.obj: mesh has no faces \(4 vertices, no triangles\)$"):
+        load_mesh(path)
+
+
 def test_nan_vertices(tmp_path):
     path = tmp_path / "nan.obj"
     path.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")

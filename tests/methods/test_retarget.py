@@ -623,8 +623,8 @@ def _one_line_error(result, code, mesh, *needles):
 @pytest.mark.parametrize(
     ("name", "text", "needles"),
     [
-        # vertices and no faces at all: trimesh reads it as a point cloud (the message is load_mesh's)
-        ("vertices_only", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", ["not a triangle mesh"]),
+        # vertices and no faces at all: trimesh reads it as a point cloud
+        ("vertices_only", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", ["mesh has no faces (3 vertices, no triangles)"]),
         ("two_corner_faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 2 3\n", ["mesh has no faces"]),
         ("zero_area", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n", ["degenerate", "2 triangles"]),
         ("one_point", "v 0.5 0.5 0.5\nv 0.5 0.5 0.5\nv 0.5 0.5 0.5\nf 1 2 3\n", ["zero extent"]),
@@ -641,7 +641,7 @@ def test_cli_ply_without_faces_exit_3(tmp_path):
     text = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
             "element face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
     result, mesh, out = _cli(tmp_path, text, "no_faces", suffix=".ply")
-    _one_line_error(result, 3, mesh, "not a triangle mesh")
+    _one_line_error(result, 3, mesh, "mesh has no faces (3 vertices, no triangles)")
     assert not out.exists()
 
 

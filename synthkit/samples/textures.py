@@ -9,6 +9,9 @@ distortion. Fine-scale noise comes from fixed seeds, so the bytes are the same o
 - ``stripes``: horizontal stripes, period 12.
 - ``wavy``: wavy rows of berry-like dots, rows every 24 px (a pattern with no simple lattice).
 - ``noise``: stochastic blurred noise (no period).
+- ``bricks_shaded``: bricks as a photograph would show them: courses 14 px, bricks 30 px (neither
+  divides 128, so opposite borders do not match), lit more strongly on the left and at the top;
+  it does not tile as it is (the input of the tiling demo).
 - ``sketch_x``: a hand-drawn-like "X" on white, a target sketch (48 x 48).
 - ``bricks_lens``: ``bricks`` seen through radial distortion ``k1 = 0.2`` (Tsai model).
 - ``dots_warped``: ``dots`` warped by a smooth sinusoidal displacement field of amplitude 3 px.
@@ -81,6 +84,18 @@ def wavy(size: int = SIZE, period: int = 24) -> np.ndarray:
     return _rgb(gray, tint=(0.75, 0.45, 0.8))
 
 
+def bricks_shaded(size: int = SIZE, course: int = 14, length: int = 30) -> np.ndarray:
+    """Running-bond bricks ``(size, size, 3)`` of periods that do not divide ``size``, under a
+    lighting gradient (brightness 1.15 at the top-left corner down to 0.8 at the bottom-right)."""
+    y, x = np.mgrid[0:size, 0:size]
+    row = (y // course) % 2
+    xs = (x + row * (length // 2)) % length
+    mortar = ((y % course) < 3) | (xs < 3)
+    gray = np.where(mortar, 0.8, 0.42) + _grain((size, size), 18, 0.06)
+    light = 1.15 - 0.35 * (0.6 * x + 0.4 * y) / (size - 1)
+    return _rgb(gray * light, tint=(1.0, 0.66, 0.52))
+
+
 def noise(size: int = SIZE) -> np.ndarray:
     """Stochastic texture ``(size, size, 3)``: blurred white noise plus fine grain (no period)."""
     n = np.random.default_rng(16).standard_normal((size, size))
@@ -131,6 +146,10 @@ def generate(out_dir: Path) -> list[Path]:
         "stripes": (stripes(), {"lattice": [[12, 0]], "period": {"y": 12}}),
         "wavy": (wavy(), {"period": {"y": 24}, "lattice": None}),
         "noise": (noise(), {"periodic": False}),
+        "bricks_shaded": (
+            bricks_shaded(),
+            {"lattice": [[14, 15], [0, 30]], "period": {"y": 28, "x": 30}, "periodic": False, "lighting": "gradient"},
+        ),
         "sketch_x": (sketch_x(), {"shape": "X", "size": 48}),
         "bricks_lens": (radial_distort(bricks(192), 0.2), {"k1": 0.2, "center": "image centre", "source": "bricks"}),
         "dots_warped": (
@@ -148,4 +167,7 @@ def generate(out_dir: Path) -> list[Path]:
     return written
 
 
-__all__ = ["generate", "bricks", "dots", "stripes", "wavy", "noise", "sketch_x", "radial_distort", "smooth_warp"]
+__all__ = [
+    "generate", "bricks", "bricks_shaded", "dots", "stripes", "wavy", "noise", "sketch_x", "radial_distort",
+    "smooth_warp",
+]

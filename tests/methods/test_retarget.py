@@ -714,6 +714,36 @@ def test_kenney_building_offsets_and_output(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(not KENNEY.is_dir(), reason="../shared/data/meshes/kenney-city absent")
+def test_kenney_other_pieces_statistics_and_refusals(tmp_path):
+    """The other Kenney pieces: building-small-b repeats its 0.4-unit floor (walls slide, so no
+    horizontal offset grips); growing it by a floor leaves no seamless labeling (the roof) and is
+    refused with exit 3; the road tiles hold no repetition and are refused with their statistics."""
+    found = {}
+    for name in ("building-small-b", "road-straight", "road-corner"):
+        cfg = tmp_path / f"{name}.yaml"
+        spec = {"method": "retarget", "input": str(KENNEY / f"{name}.glb"), "target": {"steps": [1]}}
+        cfg.write_text(json.dumps(spec))
+        result = CliRunner().invoke(cli, ["retarget", str(cfg), "--out", str(tmp_path / name), "--no-progress"])
+        assert result.exit_code == 3 and "Traceback" not in result.stderr, (name, result.stderr)
+        found[name] = result.stderr.strip()
+    assert "no seamless retargeting for steps [1, 0, 0]" in found["building-small-b"], found
+    for road in ("road-straight", "road-corner"):
+        assert "no repetition found" in found[road], found
+        rep = json.loads((tmp_path / road / "report.json").read_text())
+        assert rep["status"] == "refused" and rep["metrics"]["principal_offsets"] == []
+        assert 0.0 < rep["metrics"]["sparsity_top7"] < 0.7, found  # less sparse than man-made repetition
+    cfg = tmp_path / "b.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": str(KENNEY / "building-small-b.glb"),
+                               "analyze_only": True}))
+    m = run_config(cfg, out_dir=tmp_path / "b", show_progress=False)["metrics"]
+    offsets = np.array(m["principal_offsets"])
+    np.testing.assert_allclose(offsets, [[0.0, 0.4, 0.0]], atol=1e-6, err_msg=str(offsets.tolist()))
+    horizontal = [d for d in m["dominant_offsets"] if abs(d["offset"][1]) < 1e-3]
+    assert horizontal and all(d["grip"] < 0.005 and not d["principal"] for d in horizontal)
+
+
+@pytest.mark.slow
 @pytest.mark.skipif(not (KENNEY.parent / "bunny_small.ply").is_file(), reason="../shared/data/meshes absent")
 def test_natural_shape_is_refused_with_less_sparse_statistics(tmp_path):
     cfg = tmp_path / "b.yaml"

@@ -204,3 +204,68 @@ def label_colors(n: int) -> np.ndarray:
         ]
     )
     return table[i, np.arange(n)]
+
+
+def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = 1e-9, offsets=None):
+    """:func:`crack_measure` on a curve network's neighbour graph ``graph = (neighbours, back, flip)``.
+
+    For every pair of neighbours (cell p, its face d; cell q, its face e = ``back[p, d]``) the
+    vertices of p's piece on its local face d are matched to those of q's piece on face e with the
+    same face coordinates: the sweep coordinate w as it is, the in-plane face coordinate u as ``u``
+    or, where the shared edge runs the other way in q's frame (``flip``), ``1 - u``. Within one frame
+    this is exactly :func:`crack_measure`; across a junction it is the example's sharing of boundary
+    vertices carried over by the rotation of the frames. Returns ``(max_gap, unmatched, seams)``
+    (unmatched counted once per distinct (d, e, flip, label pair)).
+    """
+    nbr, back, flip = (np.asarray(x) for x in graph)
+    lab = np.asarray(labels, np.int64).ravel()
+    lib = library
+    max_gap, unmatched = 0.0, 0
+    cache: dict = {}
+    groups = defaultdict(list)
+    N = len(lab)
+    for d in range(6):
+        n = nbr[:, d]
+        cells = np.flatnonzero((n >= 0) & (np.arange(N) < np.where(n >= 0, n, -1)))
+        for p in cells.tolist():
+            q = int(n[p])
+            groups[(d, int(back[p, d]), bool(flip[p, d]), int(lab[p]), int(lab[q]))].append((p, q))
+    seams = []
+    for key, pairs in groups.items():
+        d, e, fl, A, B = key
+        if key not in cache:
+            ta, tb = d >> 1, e >> 1
+            sa, sb = 1.0 - (d & 1), 1.0 - (e & 1)
+            LA, LB = lib.local[A], lib.local[B]
+            ia = np.flatnonzero(np.abs(LA[:, ta] - sa) <= tol)
+            ib = np.flatnonzero(np.abs(LB[:, tb] - sb) <= tol)
+
+            def face_coords(L, idx, t, flipped):
+                if t == 2:
+                    return L[idx][:, [0, 1]]
+                u = L[idx, 1 - t]
+                return np.stack([1.0 - u if flipped else u, L[idx, 2]], axis=1)
+
+            if len(ia) and len(ib):
+                CA, CB = face_coords(LA, ia, ta, fl), face_coords(LB, ib, tb, False)
+                dist, j = cKDTree(CB).query(CA)
+                ok = dist <= tol
+                cache[key] = (ia[ok], ib[j[ok]])
+                unmatched += int((~ok).sum())
+                d2, _ = cKDTree(CA).query(CB)
+                unmatched += int((d2 > tol).sum())
+            else:
+                cache[key] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+                unmatched += len(ia) + len(ib)
+        ia, ib = cache[key]
+        if len(ia) == 0:
+            continue
+        P = np.asarray(pairs, np.int64)
+        XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[P[:, 0]])
+        XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[P[:, 1]])
+        max_gap = max(max_gap, float(np.linalg.norm(XA - XB, axis=-1).max()))
+        if offsets is not None:
+            oa, ob = offsets[P[:, 0]], offsets[P[:, 1]]
+            seams.append(np.stack([(oa[:, None] + ia[None]).ravel(), (ob[:, None] + ib[None]).ravel()], 1))
+    seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
+    return max_gap, unmatched, seams

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
@@ -89,8 +89,33 @@ class Labels(StrictModel):
     )
 
 
+class Curve(StrictModel):
+    """One polyline of a curve network (Fig. 6d): open or closed, on the network's projection plane."""
+
+    closed: bool = Field(False, description="Close this polyline (last point joins the first).")
+    plane: Literal["xy", "xz", "yz"] | None = Field(
+        None,
+        description="Projection plane of this curve; null = 'construction.plane'. All curves of a network "
+        "must lie on the same plane.",
+    )
+    points: list[Point2] = Field(
+        description="Polyline points in the plane's two world coordinates: at least 2, all distinct (as "
+        "'construction.points'). Where it crosses another curve both must run straight through the junction "
+        "(S_Y offset lines on the side given by 'construction.side') and on for at least one unit beyond it.",
+        min_length=2,
+    )
+
+    @field_validator("points")
+    @classmethod
+    def _points(cls, pts, info: ValidationInfo):
+        problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
+        if problem is not None:
+            raise ValueError(problem)
+        return kept
+
+
 class Construction(StrictModel):
-    """The user's curve on a projection plane and the sizes S_Y, S_Z (Algorithm 1, eq. 2)."""
+    """The user's curve (or curve network) on a projection plane and the sizes S_Y, S_Z (Algorithm 1, eq. 2)."""
 
     plane: Literal["xy", "xz", "yz"] = Field(
         "xy",
@@ -101,12 +126,21 @@ class Construction(StrictModel):
         False,
         description="Close the polyline (last point joins the first; the first point may be repeated at the end).",
     )
-    points: list[Point2] = Field(
+    points: Annotated[list[Point2], Field(min_length=2)] | None = Field(
+        None,
         description="Polyline points in the plane's two world coordinates: at least 2, all distinct (an open "
         "curve may not end at its first point; set 'closed' instead). The curve must be at least one lattice "
         "unit long; it is cut into S_X = floor(length / unit + 1/2) cells (nearest integer, halves up), so "
-        "each piece is stretched or shrunk along the curve by length / (S_X * unit), within 1 +- 1 / (2 S_X).",
-        min_length=2,
+        "each piece is stretched or shrunk along the curve by length / (S_X * unit), within 1 +- 1 / (2 S_X). "
+        "Give either 'points' (one curve) or 'curves' (a network).",
+    )
+    curves: Annotated[list[Curve], Field(min_length=1)] | None = Field(
+        None,
+        description="A curve network (paper Fig. 6d) instead of 'points': polylines on the same plane that may "
+        "cross; where two cross, the overlap of their bands is one block of S_Y x S_Y x S_Z junction cells "
+        "shared by both, the rest of each curve is cut into arms of S_X cells ending at the junctions. Crossings "
+        "must be at least 30 degrees, inside a straight segment of each curve, and at least one unit from "
+        "curve ends and other crossings; 'construction.closed' is then per curve.",
     )
     side: Literal["left", "right", "center"] = Field(
         "left",
@@ -122,10 +156,27 @@ class Construction(StrictModel):
     @field_validator("points")
     @classmethod
     def _points(cls, pts, info: ValidationInfo):
+        if pts is None:
+            return pts
         problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
         if problem is not None:
             raise ValueError(problem)
         return kept
+
+    @model_validator(mode="after")
+    def _one_curve_source(self):
+        if (self.points is None) == (self.curves is None):
+            raise ValueError("give exactly one of 'points' (one curve) and 'curves' (a curve network)")
+        if self.curves is not None:
+            if self.closed:
+                raise ValueError("'closed' applies to 'points'; with 'curves' set 'closed' on each curve")
+            for i, c in enumerate(self.curves):
+                if c.plane is not None and c.plane != self.plane:
+                    raise ValueError(
+                        f"curves[{i}].plane is '{c.plane}' but construction.plane is '{self.plane}': all curves of "
+                        f"a network must lie on the same projection plane"
+                    )
+        return self
 
 
 class Inference(StrictModel):

@@ -87,10 +87,26 @@ class ColouredPetriNet:
     boundary : whether the outside counts as label L (unary constraints at the space's faces).
     periodic : (3,) bool; a periodic axis wraps (a closed curve makes axis a periodic).
     corners : (N, 8, 3) control points H of every cell, or None.
+    graph : None (a grid of ``shape``) or ``(neighbours, back, coords, describe)`` for a curve network
+        (:mod:`synthkit.methods.petri.network`): ``neighbours (N, 6)`` the cell in each direction of a
+        cell's own frame (-1: none), ``back (N, 6)`` the direction, in the neighbour's frame, that
+        points back (``d ^ 1`` within one frame; another direction across a junction where two
+        curves' frames meet), ``coords (N, 3)`` the token coordinates C and ``describe(cell)`` a name
+        for messages. A pair of neighbours across frames must satisfy the example's constraints in
+        both frames: label ``a`` at ``c`` and ``b`` at ``n = neighbours[c, d]`` need
+        ``allowed_d(a, b)`` seen from ``c`` and ``allowed_back(b, a)`` seen from ``n``.
     """
 
     def __init__(
-        self, shape, allowed, n_labels: int, *, boundary: bool = True, periodic=(False, False, False), corners=None
+        self,
+        shape,
+        allowed,
+        n_labels: int,
+        *,
+        boundary: bool = True,
+        periodic=(False, False, False),
+        corners=None,
+        graph=None,
     ):
         self.shape = tuple(int(s) for s in shape)
         self.n_cells = int(np.prod(self.shape))
@@ -99,19 +115,29 @@ class ColouredPetriNet:
         self.periodic = tuple(bool(p) for p in periodic)
         self.allowed = np.asarray(allowed, bool)
         self.corners = None if corners is None else np.asarray(corners, np.float64)
-        self.coords = np.stack(np.unravel_index(np.arange(self.n_cells), self.shape), axis=1)
-        nbr = np.full((self.n_cells, 6), -1, np.int64)
-        for axis in range(3):
-            for sign, d in ((1, 2 * axis), (-1, 2 * axis + 1)):
-                c = self.coords.copy()
-                c[:, axis] += sign
-                if self.periodic[axis]:
-                    c[:, axis] %= self.shape[axis]
-                ok = (c[:, axis] >= 0) & (c[:, axis] < self.shape[axis])
-                if self.periodic[axis] and self.shape[axis] == 1:
-                    ok[:] = False
-                nbr[ok, d] = np.ravel_multi_index(c[ok].T, self.shape)
+        self.describe = None
+        if graph is not None:
+            nbr, back, coords, self.describe = graph
+            nbr = np.asarray(nbr, np.int64)
+            back = np.asarray(back, np.int64)
+            self.n_cells = len(nbr)
+            self.coords = np.asarray(coords, np.int64)
+        else:
+            self.coords = np.stack(np.unravel_index(np.arange(self.n_cells), self.shape), axis=1)
+            nbr = np.full((self.n_cells, 6), -1, np.int64)
+            for axis in range(3):
+                for sign, d in ((1, 2 * axis), (-1, 2 * axis + 1)):
+                    c = self.coords.copy()
+                    c[:, axis] += sign
+                    if self.periodic[axis]:
+                        c[:, axis] %= self.shape[axis]
+                    ok = (c[:, axis] >= 0) & (c[:, axis] < self.shape[axis])
+                    if self.periodic[axis] and self.shape[axis] == 1:
+                        ok[:] = False
+                    nbr[ok, d] = np.ravel_multi_index(c[ok].T, self.shape)
+            back = np.tile(np.arange(6) ^ 1, (self.n_cells, 1))
         self.neighbours = nbr
+        self.back = back
         L = self.n_labels
         # support[d][b]: labels a allowed in a cell whose neighbour in direction d holds b
         self._support = []
@@ -120,6 +146,22 @@ class ColouredPetriNet:
             plus = [self._mask(A[:L, b]) for b in range(L + 1)]  # neighbour at +axis holds b: A[a, b]
             minus = [self._mask(A[b, :L]) for b in range(L + 1)]  # neighbour at -axis holds b: A[b, a]
             self._support += [plus, minus]
+        # table per (cell, direction): d itself within one frame, 6 + 6 d + back across frames
+        tab = np.where(back == (np.arange(6) ^ 1)[None], np.arange(6)[None], 6 + 6 * np.arange(6)[None] + back)
+        for d in range(6):
+            for e in range(6):
+                if e == d ^ 1 or graph is None:
+                    self._support.append(None)
+                    continue
+                # a at c (neighbour at d holds b) and b at n (c seen from n at e holds a)
+                self._support.append(
+                    [
+                        sum(1 << a for a in _bits(self._support[d][b]) if b == L or (self._support[e][a] >> b) & 1)
+                        for b in range(L + 1)
+                    ]
+                )
+        self._tab = tab.tolist()
+        self._back = back.tolist()
         self.full = (1 << L) - 1
         init = []
         nbr_list = nbr.tolist()
@@ -197,9 +239,10 @@ class ColouredPetriNet:
     # ------------------------------------------------------------------ firing
     def _notify(self, cell: int, queue: deque, queued: bytearray) -> None:
         su = self.su
+        back = self._back[cell]
         for d, n in enumerate(self._nbr[cell]):
             if n >= 0:
-                su[n] |= 1 << (d ^ 1)
+                su[n] |= 1 << back[d]
                 if not queued[n]:
                     queued[n] = 1
                     queue.append(n)
@@ -222,7 +265,7 @@ class ColouredPetriNet:
             raise
 
     def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
-        cand, state, su, nbr, support = self.cand, self.state, self.su, self._nbr, self._support
+        cand, state, su, nbr, support, tab = self.cand, self.state, self.su, self._nbr, self._support, self._tab
         fired = self.fired
         queue: deque = deque(range(self.n_cells))
         queued = bytearray(b"\x01" * self.n_cells)
@@ -246,16 +289,18 @@ class ColouredPetriNet:
                 flags, su[c] = su[c], 0
                 m = old = cand[c]
                 nb = nbr[c]
+                tc = tab[c]
                 while flags:
                     low = flags & -flags
                     d = low.bit_length() - 1
                     flags ^= low
-                    key = (d, cand[nb[d]])
+                    t = tc[d]
+                    key = (t, cand[nb[d]])
                     s = cache.get(key)
                     if s is None:
                         s = 0
                         for b in _bits(key[1]):
-                            s |= support[d][b]
+                            s |= support[t][b]
                         cache[key] = s
                     m &= s
                 fired["updating"] += 1
@@ -327,7 +372,9 @@ class ColouredPetriNet:
                 self._run(attempt_rng, list(origin_labels), deform, deque())
                 return restarts
             except Contradiction as exc:
-                cell = tuple(int(v) for v in self.coords[exc.cell])
+                cell = (
+                    tuple(int(v) for v in self.coords[exc.cell]) if self.describe is None else self.describe(exc.cell)
+                )
                 if exc.choices <= 0:
                     raise InputError(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
@@ -429,6 +476,41 @@ def adjacency_violations(
             bad += int((~A[axis][x[-1], x[0]]).sum())
         elif boundary:
             bad += int((~A[axis][n_labels, x[0]]).sum()) + int((~A[axis][x[-1], n_labels]).sum())
+    return bad
+
+
+def graph_violations(labels, neighbours, back, allowed: np.ndarray, n_labels: int, *, boundary: bool = True) -> int:
+    """:func:`adjacency_violations` on a curve network's neighbour graph, independently of the inference.
+
+    Every pair of neighbours is counted once, as one violation when the label pair does not occur
+    in the example in that direction seen from either cell's frame (``allowed_d(a, b)`` from the cell,
+    ``allowed_back(b, a)`` from the neighbour); with ``boundary`` every cell face without a neighbour
+    is a violation when its label never ends the example on that side; unfilled cells (-1) count.
+    """
+    lab = np.asarray(labels, np.int64).ravel()
+    nbr = np.asarray(neighbours, np.int64)
+    back = np.asarray(back, np.int64)
+    A = np.asarray(allowed, bool)
+    L = int(n_labels)
+    bad = int((lab < 0).sum())
+    g = np.where(lab < 0, L, lab)
+
+    for d in range(6):
+        n = nbr[:, d]
+        has = n >= 0
+        c = np.flatnonzero(has & (np.arange(len(g)) < np.where(has, n, -1)))
+        if len(c):
+            e = back[c, d]
+            a, b = g[c], g[nbr[c, d]]
+            axis_d, axis_e = d >> 1, e >> 1
+            first = A[axis_d, a, b] if d & 1 == 0 else A[axis_d, b, a]
+            second = np.where(e & 1 == 0, A[axis_e, b, a], A[axis_e, a, b])
+            bad += int((~(first & second)).sum())
+        if boundary:
+            c = np.flatnonzero(~has)
+            axis = d >> 1
+            ends = A[axis, g[c], L] if d & 1 == 0 else A[axis, L, g[c]]
+            bad += int((~ends).sum())
     return bad
 
 

@@ -10,18 +10,25 @@ import trimesh
 from synthkit import preview
 from synthkit.core.mesh import merge_vertices
 from synthkit.io.meshes import load_mesh, save_mesh
-from synthkit.methods.petri import analysis, construction
+from synthkit.methods.petri import analysis, construction, network
 from synthkit.methods.petri.assembly import (
     Assembler,
     PieceLibrary,
     assemble,
     crack_measure,
+    crack_measure_graph,
     label_colors,
     preview_library,
     reorder_library,
 )
 from synthkit.methods.petri.config import PetriConfig
-from synthkit.methods.petri.net import ColouredPetriNet, adjacency_violations, to_dot, to_pnml
+from synthkit.methods.petri.net import (
+    ColouredPetriNet,
+    adjacency_violations,
+    graph_violations,
+    to_dot,
+    to_pnml,
+)
 
 VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
 PREVIEW_FACES = 40_000
@@ -185,6 +192,9 @@ def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("analysis"):
         spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
 
+    if cfg.construction.curves is not None:
+        return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
+
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
         deviation = space.center_deviation()
@@ -299,6 +309,244 @@ def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> N
         "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
         "closed": bool(space.closed),
         "grid": labels_out.tolist(),
+        "example": {
+            "shape": list(grid.shape),
+            "grid": grid.tolist(),
+            "unit": spec.unit.tolist(),
+            "origin": spec.origin.tolist(),
+        },
+        "labels": [
+            {
+                "label": k,
+                "piece": [int(v) for v in np.unravel_index(int(r), grid.shape)],
+                "feature": features[r].tolist(),
+            }
+            for k, r in enumerate(reps)
+        ],
+        "constraints": {
+            "outside_label": cons.out if cons.boundary else None,
+            "pairs": {"XYZ"[axis]: np.argwhere(cons.allowed[axis]).tolist() for axis in range(3)},
+        },
+    }
+    ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")
+
+
+# ---------------------------------------------------------------------------------------- networks
+def build_network_space(cfg: PetriConfig, spec: analysis.LatticeSpec) -> network.NetworkSpace:
+    """:func:`network.build_network` on the config's ``construction.curves`` with the lattice's units."""
+    con = cfg.construction
+    axes = construction.PLANE_AXES[con.plane]
+    return network.build_network(
+        [(c.points, c.closed) for c in con.curves],
+        plane=con.plane,
+        side=con.side,
+        units=spec.unit[list(axes)],
+        size_y=con.size_y if con.size_y is not None else int(spec.counts[axes[1]]),
+        size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
+        sweep_origin=float(spec.origin[axes[2]]),
+        unit_key=unit_key(cfg, axes[0]),
+    )
+
+
+def synthesize_network(space: network.NetworkSpace, cons, library: PieceLibrary, grid, rng, *, max_restarts: int):
+    """Target net over the network's neighbour graph + Algorithm 2 + deformation: (net, assembler, restarts)."""
+    allowed_t = cons.allowed[list(space.axes)]
+    corners = space.hex_corners()
+    nbr, back, _, coords = space.graph()
+    net = ColouredPetriNet(
+        (space.n_cells, 1, 1),
+        allowed_t,
+        cons.n_labels,
+        boundary=cons.boundary,
+        corners=corners,
+        graph=(nbr, back, coords, space.describe),
+    )
+    assembler = Assembler(library, corners)
+    restarts = net.infer(
+        rng,
+        origin_labels=origin_preference(grid),
+        deform=assembler,
+        max_restarts=max_restarts,
+        on_restart=assembler.clear,
+    )
+    return net, assembler, restarts
+
+
+def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library: PieceLibrary, assembler) -> dict:
+    """Quality figures of a network run, overall and at the junctions (cells of junction parts and their
+    neighbours across a frame change)."""
+    nbr, back, flip, _ = space.graph()
+    labels = np.asarray(net.label, np.int64)
+    gap, unmatched, seams = crack_measure_graph(
+        library, labels, net.corners, (nbr, back, flip), offsets=assembler.offsets(net.n_cells)
+    )
+    SZ = space.size_z
+    junction_plane = np.array([space.parts[p]["kind"] == "junction" for p in space.cell_part.tolist()])
+    in_junction = np.repeat(junction_plane, SZ)
+    across = (nbr >= 0) & (back != (np.arange(6) ^ 1)[None])
+    touched = in_junction | across.any(axis=1)
+    sub = np.where(touched[:, None], nbr, -1)
+    sub = np.where((sub >= 0) & (touched[np.maximum(sub, 0)] | touched[:, None]), sub, -1)
+    jviol = graph_violations(labels, sub, back, net.allowed, net.n_labels, boundary=False)
+    jgap, junmatched, _ = crack_measure_graph(library, labels, net.corners, (sub, back, flip))
+    return {
+        "gap": gap,
+        "unmatched": unmatched,
+        "seams": seams,
+        "junction_cells": int(in_junction.sum()),
+        "junction_adjacency_violations": int(jviol),
+        "junction_gap": jgap,
+        "junction_unmatched": int(junmatched),
+    }
+
+
+def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps, cons) -> None:
+    """The run of :func:`run` for a curve network (``construction.curves``)."""
+    with ctx.stage("construction"):
+        space = build_network_space(cfg, spec)
+        deviation = space.center_deviation()
+
+    axes = space.axes
+    library = PieceLibrary(pieces, reps, axes)
+    with ctx.stage("inference"):
+        net, assembler, restarts = synthesize_network(
+            space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+        )
+    labels_out = np.asarray(net.label, np.int64)
+
+    with ctx.stage("assembly"):
+        jm = network_metrics(space, net, library, assembler)
+        RV, RF, face_label, _ = assembler.mesh()
+        if cfg.output.weld:
+            RV, F2, old_to_new = merge_vertices(RV, RF, jm["seams"], return_index=True)
+            G = old_to_new[RF]
+            keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
+            RF, face_label = F2, face_label[keep]
+        fmt = cfg.output.mesh_format
+        out_mesh = ctx.path("mesh", f"result.{fmt}")
+        save_mesh(trimesh.Trimesh(RV, RF, process=False), out_mesh, face_labels=face_label if fmt == "ply" else None)
+        _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
+
+    with ctx.stage("evaluation"):
+        plane_axes = space.point_axes
+        h_ex = analysis.normal_histogram(V, F, plane_axes)
+        h_res = analysis.normal_histogram(RV, RF, plane_axes)
+        nbr, back, _, _ = space.graph()
+        violations = graph_violations(labels_out, nbr, back, net.allowed, cons.n_labels, boundary=cons.boundary)
+        metrics = {
+            "cells": int(net.n_cells),
+            "construction_shape": {
+                "parts": [{k: v for k, v in p.items() if k != "name"} | {"name": p["name"]} for p in space.parts],
+                "size_y": space.size_y,
+                "size_z": space.size_z,
+            },
+            "curves": len(space.curves),
+            "junctions": len(space.junctions),
+            "junction_cells": jm["junction_cells"],
+            "junction_adjacency_violations": jm["junction_adjacency_violations"],
+            "junction_crack_max": jm["junction_gap"] / float(spec.unit.min()),
+            "junction_unmatched_vertices": jm["junction_unmatched"],
+            "labels": int(cons.n_labels),
+            "example_pieces": int(grid.size),
+            "example_lattice": {"unit": spec.unit, "origin": spec.origin, "counts": spec.counts},
+            "transitions": dict(net.fired),
+            "restarts": int(restarts),
+            "adjacency_violations": int(violations),
+            "unfilled_cells": int((labels_out < 0).sum()),
+            "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.tolist())),
+            "crack_max": jm["gap"] / float(spec.unit.min()),
+            "boundary_unmatched_vertices": int(jm["unmatched"]),
+            "curve_max_deviation": float(deviation.max()),
+            "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
+            "normal_histogram_example": h_ex,
+            "normal_histogram_result": h_res,
+            "result_vertices": int(len(RV)),
+            "result_faces": int(len(RF)),
+        }
+
+    if cfg.output.baseline:
+        with ctx.stage("baseline"):
+            P0 = np.asarray(cfg.construction.curves[0].points[0], np.float64)
+            along = max(1, space.n_plane // space.size_y)
+            straight = [P0, P0 + [along * space.units[0], 0.0]]
+            bspace = build_space(cfg, spec, points=straight)
+            bnet, bassembler, brestarts = synthesize(
+                bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+            )
+            BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
+            h_base = analysis.normal_histogram(BV, BF, plane_axes)
+            metrics["baseline"] = {
+                "method": "model synthesis on the orthogonal lattice (a straight curve with as many cells)",
+                "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_base),
+                "normal_histogram": h_base,
+                "adjacency_violations": adjacency_violations(
+                    bnet.label_grid(), bnet.allowed, cons.n_labels, boundary=cons.boundary
+                ),
+                "restarts": int(brestarts),
+            }
+            metrics["baseline_normal_histogram_D"] = metrics["baseline"]["normal_histogram_D"]
+
+    with ctx.stage("export"):
+        exp = cfg.output.export_net
+        if exp in ("pnml", "both"):
+            ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
+            ctx.path("example_net_pnml", "example_net.pnml").write_bytes(
+                to_pnml(example_net(grid, cons, spec), net_id="example")
+            )
+        if exp in ("dot", "both"):
+            ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
+            ctx.path("example_net_dot", "example_net.dot").write_text(
+                to_dot(example_net(grid, cons, spec), name="example")
+            )
+
+    with ctx.stage("previews"):
+        colors = label_colors(max(cons.n_labels, 1))
+        view = VIEW_OF_PLANE[cfg.construction.plane]
+        n_max = max(net.n_cells, grid.size)
+        lib_xyz = preview_library(PieceLibrary(pieces, reps, (0, 1, 2)), max(PREVIEW_FACES // n_max, 64))
+        lib_abc = reorder_library(lib_xyz, axes)
+        ex_corners = example_net(grid, cons, spec).corners
+        EV, EF, e_label = assemble(lib_xyz, grid, ex_corners)
+        PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
+        w = space.sweep[0]
+        segs = space.plane_segments()
+        lines = [space.world(segs, np.full(segs.shape[:2], w))]
+        for P, closed in zip(space.curves, space.closed, strict=True):
+            C = np.vstack([P, P[:1]]) if closed else P
+            C = space.world(C, np.full(len(C), w))
+            lines.append(np.stack([C[:-1], C[1:]], axis=1))
+        small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
+        img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
+        img_space = preview.rasterize_mesh(EV, EF, view=view, lines=np.concatenate(lines), **large)
+        img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
+        preview.image_png(ctx.path("preview_result", "result.png"), img_res)
+        preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
+        images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
+        if cfg.output.baseline:
+            BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
+            images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
+        preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
+
+    ctx.metrics.update(metrics)
+
+
+def _write_network_labels(ctx, labels_out, grid, cons, space: network.NetworkSpace, spec, features, reps) -> None:
+    SZ = space.size_z
+    L = labels_out.reshape(space.n_plane, SZ)
+    parts = []
+    first = 0
+    for idx, p in enumerate(space.parts):
+        n = int(np.prod(p["shape"]))
+        q = np.flatnonzero(space.cell_part == idx)
+        assert len(q) == n and q[0] == first
+        parts.append(dict(p, grid=L[q].reshape(p["shape"][0], p["shape"][1], SZ).tolist()))
+        first += n
+    doc = {
+        "format": "petri-synth curve network: per part (arm of a curve or junction of two) grid[i][j][k], i along "
+        "the part's curve (a junction: along its first curve), j across, k along the sweep",
+        "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
+        "parts": parts,
+        "junctions": [{"curves": [a, b], "point": pt} for a, b, pt in space.junctions],
         "example": {
             "shape": list(grid.shape),
             "grid": grid.tolist(),

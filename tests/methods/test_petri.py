@@ -752,3 +752,250 @@ output: {baseline: false, export_net: both}
     np.testing.assert_array_equal(np.array(doc["grid"]), net.label_grid())
     assert m["adjacency_violations"] == 0
     _check_net_files(tmp_path / "out", "target", net.label_grid(), periodic=(False, False, False))
+
+
+# ------------------------------------------------------------------------------- curve networks (Fig. 6d)
+NETWORK = """method: petri-synth
+seed: {seed}
+example: {example}
+lattice:
+  unit: [1.0, 3.0, 1.0]
+  origin: [0.0, 0.0, 0.0]
+labels:
+  boundary: false
+construction:
+  plane: xz
+  side: center
+  size_y: 4
+  size_z: 4
+  curves: {curves}
+output:
+  export_net: pnml
+  baseline: false
+"""
+PLUS = [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[0.0, -10.0], [0.0, 4.0], [3.0, 12.0]]}]
+
+
+@pytest.fixture(scope="module")
+def fine_building(tmp_path_factory):
+    """The sample building with every box side subdivided twice, so the lattice [1, 3, 1] cuts only along
+    grid lines and its interior pieces (the floor slabs between the wall layers) repeat exactly."""
+    folder = tmp_path_factory.mktemp("petri-fine")
+    V, F = sample.building(detail=2)
+    sample._write_obj(folder / "building_fine.obj", V, F)
+    return folder / "building_fine.obj"
+
+
+def network_run(example: Path, tmp_path: Path, curves, *, seed=0, name="net"):
+    cfg = tmp_path / f"{name}.yaml"
+    cfg.write_text(NETWORK.format(seed=seed, example=example, curves=json.dumps(curves)))
+    return run_config(cfg, out_dir=tmp_path / name, show_progress=False), tmp_path / name, cfg
+
+
+def network_objects(example: Path, curves, *, seed=0):
+    """(space, net, library, assembler) of a network run outside the runner, for geometric checks."""
+    data = {
+        "method": "petri-synth",
+        "seed": seed,
+        "example": str(example),
+        "lattice": {"unit": [1.0, 3.0, 1.0], "origin": [0.0, 0.0, 0.0]},
+        "labels": {"boundary": False},
+        "construction": {"plane": "xz", "side": "center", "size_y": 4, "size_z": 4, "curves": curves},
+    }
+    cfg = CONFIG.model_validate(data)
+    mesh = trimesh.load(example, process=False)
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    spec, pieces, _, grid, reps, cons = pipeline.analyse_example(V, F, cfg)
+    space = pipeline.build_network_space(cfg, spec)
+    library = pipeline.PieceLibrary(pieces, reps, space.axes)
+    rng = np.random.default_rng(seed)
+    net, assembler, _ = pipeline.synthesize_network(space, cons, library, grid, rng, max_restarts=20)
+    return space, net, library, assembler, cons
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_network_junction_is_consistent_and_crack_free(fine_building, tmp_path, seed):
+    report, out, _ = network_run(fine_building, tmp_path, PLUS, seed=seed)
+    m = report["metrics"]
+    assert m["junctions"] == 1 and m["curves"] == 2
+    assert m["junction_cells"] == 4 * 4 * 4  # one S_Y x S_Y x S_Z block, not two overlapping bands
+    assert m["adjacency_violations"] == 0 and m["junction_adjacency_violations"] == 0
+    assert m["unfilled_cells"] == 0
+    assert m["crack_max"] < 1e-6 and m["junction_crack_max"] < 1e-6
+    assert m["junction_unmatched_vertices"] == 0
+    assert m["curve_max_deviation"] <= 0.5
+    doc = json.loads((out / "labels.json").read_text())
+    kinds = [p["kind"] for p in doc["parts"]]
+    assert kinds.count("junction") == 1 and kinds.count("arm") == 4
+    assert sum(int(np.prod(p["shape"])) * 4 for p in doc["parts"]) == m["cells"]
+    assert all(lab >= 0 for p in doc["parts"] for lab in np.ravel(p["grid"]).tolist())
+    assert (out / "result.ply").exists() and (out / "target_net.pnml").exists()
+
+
+def test_network_pairs_across_the_junction_occur_in_the_example(fine_building):
+    """Independent check of every neighbour pair that changes frame: the pair occurs in the example along
+    the direction as seen from each cell; the junction's cells are shared (B's cells end on its edge)."""
+    space, net, library, assembler, cons = network_objects(fine_building, PLUS, seed=3)
+    nbr, back, flip, _ = space.graph()
+    A = net.allowed
+    lab = np.asarray(net.label)
+    across = 0
+    for c in range(net.n_cells):
+        for d in range(6):
+            n = nbr[c, d]
+            if n < 0:
+                continue
+            e = back[c, d]
+            assert nbr[n, e] == c  # symmetric graph
+            a, b = lab[c], lab[n]
+            seen_c = A[d >> 1, a, b] if d % 2 == 0 else A[d >> 1, b, a]
+            seen_n = A[e >> 1, b, a] if e % 2 == 0 else A[e >> 1, a, b]
+            assert seen_c and seen_n, (space.describe(c), d, e, a, b)
+            across += e != (d ^ 1)
+    # the junction (4 x 4 plane cells) meets curve 1's two arms on its -b and +b sides: 2 x 4 edges x 4 layers
+    assert across == 2 * (2 * 4 * 4)
+    # every junction plane cell has four planar neighbours; B's arms end exactly on the junction's edge
+    junction = [q for q in range(space.n_plane) if space.parts[space.cell_part[q]]["kind"] == "junction"]
+    assert len(junction) == 16 and all((space.plane_nbr[q] >= 0).all() for q in junction)
+    # no two plane cells overlap: the summed cell areas equal the area of their union (sampled)
+    P = space.points[space.quads][:, [0, 1, 3, 2]]
+    area = 0.5 * np.abs(np.sum(P[:, :, 0] * np.roll(P[:, :, 1], -1, 1) - np.roll(P[:, :, 0], -1, 1) * P[:, :, 1], 1))
+    rng = np.random.default_rng(0)
+    lo, hi = P.reshape(-1, 2).min(0), P.reshape(-1, 2).max(0)
+    S = lo + rng.random((20000, 2)) * (hi - lo)
+    inside = np.zeros(len(S), int)
+    for poly in P:
+        e = np.roll(poly, -1, 0) - poly
+        rel = S[:, None, :] - poly[None]
+        inside += np.all(e[None, :, 0] * rel[..., 1] - e[None, :, 1] * rel[..., 0] > 0, 1)
+    assert inside.max() == 1  # no point in two cells
+    assert abs(inside.mean() * np.prod(hi - lo) - area.sum()) < 0.05 * area.sum()
+
+
+def test_network_cells_are_convex_and_follow_each_curve(fine_building):
+    space, net, *_ = network_objects(fine_building, PLUS)
+    P = space.points[space.quads][:, [0, 1, 3, 2]]
+    for c in range(4):
+        a, b, d = P[:, c], P[:, (c + 1) % 4], P[:, (c + 3) % 4]
+        assert (((b - a)[:, 0] * (d - a)[:, 1] - (b - a)[:, 1] * (d - a)[:, 0]) > 0).all()
+    dev = space.center_deviation()
+    assert dev.max() <= 0.5
+    # junction cells follow both curves: their rows are one of each curve
+    for q in range(space.n_plane):
+        if space.parts[space.cell_part[q]]["kind"] == "junction":
+            assert sorted(cv for cv, _ in space.cell_rows[q]) == [0, 1]
+    # FFD hexahedra share their corners across the junction: identical corner points, no gap
+    corners = space.hex_corners()
+    nbr, back, _, _ = space.graph()
+    ENDS = {0: (1, 3), 1: (0, 2), 2: (2, 3), 3: (0, 1)}
+    for c in range(net.n_cells):
+        for d in range(4):
+            n = nbr[c, d]
+            if n >= 0:
+                mine = {tuple(np.round(corners[c, k + 4 * kc], 9)) for k in ENDS[d] for kc in (0, 1)}
+                theirs = {tuple(np.round(corners[n, k + 4 * kc], 9)) for k in ENDS[back[c, d]] for kc in (0, 1)}
+                assert mine == theirs
+
+
+def test_bundled_street_network(tmp_path):
+    """configs/petri-synth/street_network.yaml on data-samples/building_modular.obj."""
+    cfg = Path(__file__).resolve().parents[2] / "configs" / "petri-synth" / "street_network.yaml"
+    report = run_config(cfg, out_dir=tmp_path / "o", show_progress=False)
+    m = report["metrics"]
+    assert m["junctions"] == 1 and m["junction_cells"] == 4 * 4 * 4
+    assert m["adjacency_violations"] == 0 and m["junction_adjacency_violations"] == 0
+    assert m["unfilled_cells"] == 0 and m["crack_max"] < 1e-6 and m["curve_max_deviation"] <= 0.5
+    assert m["baseline_normal_histogram_D"] < m["normal_histogram_D"]
+
+
+def test_network_at_an_angle_and_a_closed_curve(fine_building, tmp_path):
+    curves = [
+        {"points": [[-14.0, -3.0], [14.0, 3.0]]},
+        {"closed": True, "points": [[-8.0, -8.0], [8.0, -8.0], [8.0, 8.0], [-8.0, 8.0]]},
+    ]
+    space, net, library, assembler, cons = network_objects(fine_building, curves, seed=1)
+    assert len(space.junctions) == 2
+    nbr, back, flip, _ = space.graph()
+    from synthkit.methods.petri.assembly import crack_measure_graph
+    from synthkit.methods.petri.net import graph_violations
+
+    lab = np.asarray(net.label)
+    assert graph_violations(lab, nbr, back, net.allowed, net.n_labels, boundary=False) == 0
+    gap, _, _ = crack_measure_graph(library, lab, net.corners, (nbr, back, flip))
+    assert gap < 1e-6
+    assert space.center_deviation().max() <= 0.5
+
+
+NETWORK_BAD = NETWORK.replace("  plane: xz\n", "  plane: xz\n{extra}")
+
+
+@pytest.mark.parametrize(
+    "curves, extra, parts",
+    [
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[0.0, -10.0], [0.0, 2.5]]}],
+            "",
+            ["construction.curves[1]: the crossing with construction.curves[0] at [0.0, 0.0] is too close to the end"],
+            id="crossing-too-close-to-an-end",
+        ),
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[0.0, -10.0], [0.0, 10.0]], "plane": "xy"}],
+            "",
+            ["curves[1].plane is 'xy' but construction.plane is 'xz'", "same projection plane"],
+            id="curves-on-different-planes",
+        ),
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[4.0, 0.0], [20.0, 0.0]]}],
+            "",
+            [
+                "construction.curves[0] overlaps construction.curves[1] along a common line",
+                "from [4.0, 0.0] to [12.0, 0.0]",
+            ],
+            id="overlapping-collinear-curves",
+        ),
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[0.0, -10.0], [0.0, 10.0]]},
+             {"points": [[2.0, -10.0], [2.0, 10.0]]}],
+            "",
+            ["are too close to each other"],
+            id="crossings-too-close-to-each-other",
+        ),
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[-12.0, -1.0], [12.0, 1.0]]}],
+            "",
+            ["cross at [0.0, 0.0] at 4.76 degrees, less than 30"],
+            id="shallow-crossing",
+        ),
+        pytest.param(
+            [{"points": [[-12.0, 0.0], [12.0, 0.0]]}],
+            "  points: [[0, 0], [4, 0]]\n",
+            ["give exactly one of 'points' (one curve) and 'curves' (a curve network)"],
+            id="points-and-curves",
+        ),
+    ],
+)
+def test_network_bad_input_through_the_cli(fine_building, tmp_path, curves, extra, parts):
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text(NETWORK_BAD.format(seed=0, example=fine_building, curves=json.dumps(curves), extra=extra))
+    out = tmp_path / "o"
+    result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(out), "--no-progress"])
+    assert result.exit_code == 2, result.stderr
+    err = result.stderr
+    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, err
+    for part in parts:
+        assert part in err, err
+    assert not out.exists()
+
+
+def test_network_with_facade_boundary_is_a_clear_error(fine_building, tmp_path):
+    """With the outside as a label, the box-shaped example has no piece for a facade that runs into a
+    perpendicular wing (a concave corner), so a '+' cannot be filled: one line naming a cell, exit 3."""
+    cfg = tmp_path / "facades.yaml"
+    cfg.write_text(
+        NETWORK.format(seed=0, example=fine_building, curves=json.dumps(PLUS)).replace(
+            "boundary: false", "boundary: true"
+        )
+    )
+    result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 3, result.stderr
+    assert "cannot fill the construction space" in result.stderr and "cell (i=" in result.stderr

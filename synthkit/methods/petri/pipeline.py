@@ -141,11 +141,17 @@ def result_mesh(assembler: Assembler, library: PieceLibrary, net: ColouredPetriN
         library, labels, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
     )
     if weld:
-        V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
-        G = old_to_new[F]
-        keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-        F, face_label = F2, face_label[keep]
+        V, F, face_label = weld_seams(V, F, face_label, seams)
     return V, F, face_label, gap, unmatched
+
+
+def weld_seams(V, F, face_label, seams):
+    """Merge the matched seam vertices ``seams`` of ``V (n, 3)``, ``F (m, 3)``; faces that collapse
+    are dropped with their ``face_label (m,)``. Returns ``(V, F, face_label)``."""
+    V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
+    G = old_to_new[F]
+    keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
+    return V, F2, face_label[keep]
 
 
 def example_net(grid: np.ndarray, cons, spec) -> ColouredPetriNet:
@@ -181,6 +187,64 @@ def _lines_of_space(space, *, z_index: int = 0) -> np.ndarray:
     C = space.world(curve, np.full(len(curve), w))
     segs.append(np.stack([C[:-1], C[1:]], axis=1))
     return np.concatenate(segs)
+
+
+def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes, metrics, *, what: str):
+    """Model synthesis on the orthogonal lattice (no curve, Merrell-style) along the polyline
+    ``straight``, in the same code path; its figures go to ``metrics["baseline"]`` and
+    ``metrics["baseline_normal_histogram_D"]``. Returns the baseline's net."""
+    bspace = build_space(cfg, spec, points=straight)
+    bnet, bassembler, brestarts = synthesize(
+        bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+    )
+    BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
+    h_base = analysis.normal_histogram(BV, BF, plane_axes)
+    metrics["baseline"] = {
+        "method": f"model synthesis on the orthogonal lattice ({what})",
+        "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_base),
+        "normal_histogram": h_base,
+        "adjacency_violations": adjacency_violations(
+            bnet.label_grid(), bnet.allowed, cons.n_labels, boundary=cons.boundary
+        ),
+        "restarts": int(brestarts),
+    }
+    metrics["baseline_normal_histogram_D"] = metrics["baseline"]["normal_histogram_D"]
+    return bnet
+
+
+def export_nets(cfg: PetriConfig, ctx, net: ColouredPetriNet, ex_net: ColouredPetriNet) -> None:
+    """Write the target net and the example net as PNML and/or DOT (``output.export_net``)."""
+    exp = cfg.output.export_net
+    if exp in ("pnml", "both"):
+        ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
+        ctx.path("example_net_pnml", "example_net.pnml").write_bytes(to_pnml(ex_net, net_id="example"))
+    if exp in ("dot", "both"):
+        ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
+        ctx.path("example_net_dot", "example_net.dot").write_text(to_dot(ex_net, name="example"))
+
+
+def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, library_xyz, axes, lines) -> None:
+    """``result.png``, ``construction_space.png`` (the example in the curve's view with ``lines (k, 2,
+    3)`` drawn over it) and ``montage.png`` (example, space, result and, when run, the baseline ``bnet``),
+    from pieces decimated to about :data:`PREVIEW_FACES` triangles in all."""
+    colors = label_colors(max(net.n_labels, 1))
+    view = VIEW_OF_PLANE[cfg.construction.plane]
+    n_max = max(net.n_cells, grid.size)
+    lib_xyz = preview_library(library_xyz, max(PREVIEW_FACES // n_max, 64))
+    lib_abc = reorder_library(lib_xyz, axes)
+    EV, EF, e_label = assemble(lib_xyz, grid, ex_net.corners)
+    PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
+    small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
+    img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
+    img_space = preview.rasterize_mesh(EV, EF, view=view, lines=lines, **large)
+    img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
+    preview.image_png(ctx.path("preview_result", "result.png"), img_res)
+    preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
+    images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
+    if bnet is not None:
+        BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
+        images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
+    preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
 
 def run(cfg: PetriConfig, ctx) -> None:
@@ -244,71 +308,28 @@ def run(cfg: PetriConfig, ctx) -> None:
             "result_faces": int(len(RF)),
         }
 
+    bnet = None
     if cfg.output.baseline:
         with ctx.stage("baseline"):
             P0 = np.asarray(cfg.construction.points[0], np.float64)
             straight = [P0, P0 + [space.shape[0] * space.units[0], 0.0]]
-            bspace = build_space(cfg, spec, points=straight)
-            bnet, bassembler, brestarts = synthesize(
-                bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
-            )
-            BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
-            h_base = analysis.normal_histogram(BV, BF, plane_axes)
-            metrics["baseline"] = {
-                "method": "model synthesis on the orthogonal lattice (straight curve of the same length)",
-                "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_base),
-                "normal_histogram": h_base,
-                "adjacency_violations": adjacency_violations(
-                    bnet.label_grid(), bnet.allowed, cons.n_labels, boundary=cons.boundary
-                ),
-                "restarts": int(brestarts),
-            }
-            metrics["baseline_normal_histogram_D"] = metrics["baseline"]["normal_histogram_D"]
+            bnet = run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes, metrics,
+                                what="straight curve of the same length")
 
     with ctx.stage("export"):
-        exp = cfg.output.export_net
-        if exp in ("pnml", "both"):
-            ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
-            ctx.path("example_net_pnml", "example_net.pnml").write_bytes(
-                to_pnml(example_net(grid, cons, spec), net_id="example")
-            )
-        if exp in ("dot", "both"):
-            ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
-            ctx.path("example_net_dot", "example_net.dot").write_text(
-                to_dot(example_net(grid, cons, spec), name="example")
-            )
+        export_nets(cfg, ctx, net, example_net(grid, cons, spec))
 
     with ctx.stage("previews"):
-        colors = label_colors(max(cons.n_labels, 1))
-        view = VIEW_OF_PLANE[cfg.construction.plane]
-        n_max = max(net.n_cells, grid.size)
-        lib_xyz = preview_library(PieceLibrary(pieces, reps, (0, 1, 2)), max(PREVIEW_FACES // n_max, 64))
-        lib_abc = reorder_library(lib_xyz, axes)
-        ex_corners = example_net(grid, cons, spec).corners
-        EV, EF, e_label = assemble(lib_xyz, grid, ex_corners)
-        PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
-        small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
-        img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
-        img_space = preview.rasterize_mesh(EV, EF, view=view, lines=_lines_of_space(space), **large)
-        img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
-        preview.image_png(ctx.path("preview_result", "result.png"), img_res)
-        preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
-        images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
-        if cfg.output.baseline:
-            BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
-            images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
-        preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
+        write_previews(cfg, ctx, net, bnet, example_net(grid, cons, spec), grid, labels_out,
+                       PieceLibrary(pieces, reps, (0, 1, 2)), axes, _lines_of_space(space))
 
     ctx.metrics.update(metrics)
 
 
-def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> None:
-    doc = {
-        "format": "petri-synth label grid: grid[i][j][k], i along the curve, j across, k along the sweep",
-        "shape": list(labels_out.shape),
-        "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
-        "closed": bool(space.closed),
-        "grid": labels_out.tolist(),
+def _example_doc(grid, cons, spec, features, reps) -> dict:
+    """The part of ``labels.json`` that describes the example: its label grid and lattice, each
+    label's representative piece and feature vector, and the adjacency constraints."""
+    return {
         "example": {
             "shape": list(grid.shape),
             "grid": grid.tolist(),
@@ -327,6 +348,17 @@ def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> N
             "outside_label": cons.out if cons.boundary else None,
             "pairs": {"XYZ"[axis]: np.argwhere(cons.allowed[axis]).tolist() for axis in range(3)},
         },
+    }
+
+
+def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> None:
+    doc = {
+        "format": "petri-synth label grid: grid[i][j][k], i along the curve, j across, k along the sweep",
+        "shape": list(labels_out.shape),
+        "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
+        "closed": bool(space.closed),
+        "grid": labels_out.tolist(),
+        **_example_doc(grid, cons, spec, features, reps),
     }
     ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")
 
@@ -418,10 +450,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         jm = network_metrics(space, net, library, assembler)
         RV, RF, face_label, _ = assembler.mesh()
         if cfg.output.weld:
-            RV, F2, old_to_new = merge_vertices(RV, RF, jm["seams"], return_index=True)
-            G = old_to_new[RF]
-            keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-            RF, face_label = F2, face_label[keep]
+            RV, RF, face_label = weld_seams(RV, RF, face_label, jm["seams"])
         fmt = cfg.output.mesh_format
         out_mesh = ctx.path("mesh", f"result.{fmt}")
         save_mesh(trimesh.Trimesh(RV, RF, process=False), out_mesh, face_labels=face_label if fmt == "ply" else None)
@@ -464,50 +493,19 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
             "result_faces": int(len(RF)),
         }
 
+    bnet = None
     if cfg.output.baseline:
         with ctx.stage("baseline"):
             P0 = np.asarray(cfg.construction.curves[0].points[0], np.float64)
             along = max(1, space.n_plane // space.size_y)
             straight = [P0, P0 + [along * space.units[0], 0.0]]
-            bspace = build_space(cfg, spec, points=straight)
-            bnet, bassembler, brestarts = synthesize(
-                bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
-            )
-            BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
-            h_base = analysis.normal_histogram(BV, BF, plane_axes)
-            metrics["baseline"] = {
-                "method": "model synthesis on the orthogonal lattice (a straight curve with as many cells)",
-                "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_base),
-                "normal_histogram": h_base,
-                "adjacency_violations": adjacency_violations(
-                    bnet.label_grid(), bnet.allowed, cons.n_labels, boundary=cons.boundary
-                ),
-                "restarts": int(brestarts),
-            }
-            metrics["baseline_normal_histogram_D"] = metrics["baseline"]["normal_histogram_D"]
+            bnet = run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes, metrics,
+                                what="a straight curve with as many cells")
 
     with ctx.stage("export"):
-        exp = cfg.output.export_net
-        if exp in ("pnml", "both"):
-            ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
-            ctx.path("example_net_pnml", "example_net.pnml").write_bytes(
-                to_pnml(example_net(grid, cons, spec), net_id="example")
-            )
-        if exp in ("dot", "both"):
-            ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
-            ctx.path("example_net_dot", "example_net.dot").write_text(
-                to_dot(example_net(grid, cons, spec), name="example")
-            )
+        export_nets(cfg, ctx, net, example_net(grid, cons, spec))
 
     with ctx.stage("previews"):
-        colors = label_colors(max(cons.n_labels, 1))
-        view = VIEW_OF_PLANE[cfg.construction.plane]
-        n_max = max(net.n_cells, grid.size)
-        lib_xyz = preview_library(PieceLibrary(pieces, reps, (0, 1, 2)), max(PREVIEW_FACES // n_max, 64))
-        lib_abc = reorder_library(lib_xyz, axes)
-        ex_corners = example_net(grid, cons, spec).corners
-        EV, EF, e_label = assemble(lib_xyz, grid, ex_corners)
-        PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
         w = space.sweep[0]
         segs = space.plane_segments()
         lines = [space.world(segs, np.full(segs.shape[:2], w))]
@@ -515,17 +513,8 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
             C = np.vstack([P, P[:1]]) if closed else P
             C = space.world(C, np.full(len(C), w))
             lines.append(np.stack([C[:-1], C[1:]], axis=1))
-        small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
-        img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
-        img_space = preview.rasterize_mesh(EV, EF, view=view, lines=np.concatenate(lines), **large)
-        img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
-        preview.image_png(ctx.path("preview_result", "result.png"), img_res)
-        preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
-        images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
-        if cfg.output.baseline:
-            BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
-            images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
-        preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
+        write_previews(cfg, ctx, net, bnet, example_net(grid, cons, spec), grid, labels_out,
+                       PieceLibrary(pieces, reps, (0, 1, 2)), axes, np.concatenate(lines))
 
     ctx.metrics.update(metrics)
 
@@ -547,23 +536,6 @@ def _write_network_labels(ctx, labels_out, grid, cons, space: network.NetworkSpa
         "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
         "parts": parts,
         "junctions": [{"curves": [a, b], "point": pt} for a, b, pt in space.junctions],
-        "example": {
-            "shape": list(grid.shape),
-            "grid": grid.tolist(),
-            "unit": spec.unit.tolist(),
-            "origin": spec.origin.tolist(),
-        },
-        "labels": [
-            {
-                "label": k,
-                "piece": [int(v) for v in np.unravel_index(int(r), grid.shape)],
-                "feature": features[r].tolist(),
-            }
-            for k, r in enumerate(reps)
-        ],
-        "constraints": {
-            "outside_label": cons.out if cons.boundary else None,
-            "pairs": {"XYZ"[axis]: np.argwhere(cons.allowed[axis]).tolist() for axis in range(3)},
-        },
+        **_example_doc(grid, cons, spec, features, reps),
     }
     ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")

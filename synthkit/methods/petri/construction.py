@@ -170,6 +170,35 @@ def units_along(length: float, unit: float) -> int:
     return max(1, int(np.floor(length / unit + 0.5)))
 
 
+def mitre_directions(P: np.ndarray, closed: bool, key: str):
+    """Unit tangents ``T (s, 2)``, left normals ``N (s, 2)`` and lengths ``(s,)`` of the ``s``
+    segments of the polyline ``P (m, 2)`` (``s = m`` when closed), and the offset direction ``D (m,
+    2)`` at every point (Algorithm 1's normals at articulation points): the segment normal at an
+    open curve's ends, else the mitre ``2 (N_prev + N_next) / |N_prev + N_next|^2``, whose offset lines
+    stay parallel to both segments at unit distance. Returns ``(T, N, D, lengths)``; a curve that
+    folds back on itself (opposite segments) is a ConfigError naming ``key`` and the point.
+    """
+    ends = np.vstack([P[1:], P[:1]]) if closed else P[1:]
+    T = ends - P[: len(ends)]
+    seg_len = np.linalg.norm(T, axis=1)
+    T = T / seg_len[:, None]
+    N = np.stack([-T[:, 1], T[:, 0]], axis=1)
+    m = len(P)
+    D = np.empty((m, 2))
+    for i in range(m):
+        if not closed and i == 0:
+            D[i] = N[0]
+        elif not closed and i == m - 1:
+            D[i] = N[-1]
+        else:
+            s = N[i - 1] + N[i % len(N)]
+            s2 = float(s @ s)
+            if s2 < 1e-12:
+                raise ConfigError(f"{key}: the curve folds back on itself at point {i} {P[i].tolist()}")
+            D[i] = 2.0 * s / s2
+    return T, N, D, seg_len
+
+
 def build_construction_space(
     points,
     *,
@@ -196,32 +225,15 @@ def build_construction_space(
     if problem is not None:
         raise ConfigError(f"construction.points: {problem}")
     P = np.asarray(kept, dtype=np.float64)
-    ends = np.vstack([P[1:], P[:1]]) if closed else P[1:]
-    T = ends - P[: len(ends)]
-    seg_len = np.linalg.norm(T, axis=1)
     units = np.asarray(units, dtype=np.float64)
-    length = float(seg_len.sum())
+    length = float(np.linalg.norm(np.diff(np.vstack([P, P[:1]]) if closed else P, axis=0), axis=1).sum())
     SX = units_along(length, float(units[0]))
     if SX < 1:
         raise ConfigError(
             f"construction.points: the curve is {length:.6g} long, shorter than one unit along it "
             f"({units[0]:.6g}, {unit_key}); a curve must be at least one unit long"
         )
-    T = T / seg_len[:, None]
-    N = np.stack([-T[:, 1], T[:, 0]], axis=1)  # left normals
-    m = len(P)
-    D = np.empty((m, 2))
-    for i in range(m):
-        if not closed and i == 0:
-            D[i] = N[0]
-        elif not closed and i == m - 1:
-            D[i] = N[-1]
-        else:
-            s = N[i - 1] + N[i % len(N)]
-            s2 = float(s @ s)
-            if s2 < 1e-12:
-                raise ConfigError(f"construction.points: the curve folds back on itself at point {i} {P[i].tolist()}")
-            D[i] = 2.0 * s / s2
+    _, _, D, _ = mitre_directions(P, closed, "construction.points")
     j0 = {"left": 0.0, "right": float(size_y), "center": size_y / 2.0}[side]
     grid = np.stack(
         [_resample(P + (j - j0) * units[1] * D, SX, closed) for j in range(size_y + 1)],

@@ -64,6 +64,7 @@ from synthkit.methods.petri.construction import (
     _first_crossing,
     _point_polyline_distance,
     _resample,
+    mitre_directions,
     polyline_problem,
     units_along,
 )
@@ -218,28 +219,6 @@ class NetworkSpace:
         return self.points[E]
 
 
-def _mitre(P: np.ndarray, closed: bool, key: str):
-    ends = np.vstack([P[1:], P[:1]]) if closed else P[1:]
-    T = ends - P[: len(ends)]
-    seg_len = np.linalg.norm(T, axis=1)
-    T = T / seg_len[:, None]
-    N = np.stack([-T[:, 1], T[:, 0]], axis=1)
-    m = len(P)
-    D = np.empty((m, 2))
-    for i in range(m):
-        if not closed and i == 0:
-            D[i] = N[0]
-        elif not closed and i == m - 1:
-            D[i] = N[-1]
-        else:
-            s = N[i - 1] + N[i % len(N)]
-            s2 = float(s @ s)
-            if s2 < 1e-12:
-                raise ConfigError(f"{key}: the curve folds back on itself at point {i} {P[i].tolist()}")
-            D[i] = 2.0 * s / s2
-    return T, N, D, seg_len
-
-
 def _segments(c: _Curve) -> np.ndarray:
     P = c.P
     ends = np.vstack([P[1:], P[:1]]) if c.closed else P[1:]
@@ -289,7 +268,7 @@ def build_network(
         if problem is not None:
             raise ConfigError(f"{key}: {problem}")
         P = np.asarray(kept, np.float64)
-        T, N, D, seg_len = _mitre(P, bool(closed), key)
+        T, N, D, seg_len = mitre_directions(P, bool(closed), key)
         cs.append(_Curve(ci, P, bool(closed), T, N, D, seg_len))
     tol = 1e-9 * max(ua, ub)
     junctions = _find_crossings(cs, tol)

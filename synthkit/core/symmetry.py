@@ -65,6 +65,50 @@ _CHUNK = 4  # candidates per batched transform in IncrementalAutocorrelation.l2_
 _EXECUTORS: dict[int, ThreadPoolExecutor] = {}
 
 
+def _blas_local_threads():
+    """OpenBLAS's ``openblas_set_num_threads_local`` (the calling thread's BLAS thread count) of the
+    library numpy is linked with, or None where there is none."""
+    global _BLAS_LOCAL
+    if _BLAS_LOCAL is False:
+        _BLAS_LOCAL = None
+        try:
+            import ctypes
+            import glob
+            import os
+
+            libs = os.path.join(os.path.dirname(os.path.dirname(np.__file__)), "numpy.libs")
+            for path in sorted(glob.glob(os.path.join(libs, "*openblas*"))):
+                fn = getattr(ctypes.CDLL(path), "openblas_set_num_threads_local", None)
+                if fn is not None:
+                    fn.argtypes, fn.restype = [ctypes.c_int], ctypes.c_int
+                    _BLAS_LOCAL = fn
+                    break
+        except OSError:
+            _BLAS_LOCAL = None
+    return _BLAS_LOCAL
+
+
+class _one_blas_thread:
+    """Context: matrix products of this thread run on one BLAS thread (restored on exit).
+
+    The spectral evaluation's products are a few milliseconds each; OpenBLAS's own threads, on a
+    machine shared with other work, then wait for a core more than they compute (measured: a 512
+    sweep at window 0.5 took 30 s with them and 12 s without). Work is shared by our threads instead."""
+
+    def __enter__(self):
+        fn = _blas_local_threads()
+        self._prev = fn(1) if fn is not None else None
+        return self
+
+    def __exit__(self, *exc):
+        if self._prev is not None:
+            _blas_local_threads()(self._prev)
+        return False
+
+
+_BLAS_LOCAL = False
+
+
 def _executor(threads: int) -> ThreadPoolExecutor:
     """Shared thread pool of ``threads`` workers (numpy and scipy.fft release the GIL)."""
     if threads not in _EXECUTORS:
@@ -491,15 +535,34 @@ class IncrementalAutocorrelation:
         self._ac_version = 0
         self._grown_cache: tuple | None = None
         self._sums_cache: tuple | None = None
+        self._torus_cache: dict = {}
+        self._ac: np.ndarray | None = None
         self.refresh()
 
-    def refresh(self) -> None:
-        """Recompute ``ac`` from ``f`` with one full-image FFT."""
+    @property
+    def ac(self) -> np.ndarray:
+        """The window ``(2 wy + 1, 2 wx + 1)`` of the autocorrelation of ``f - offset``.
+
+        After :meth:`apply` of a change whose window was not given with the whole torus as window
+        (the spectral evaluation never needs it), it is recomputed from ``f`` when next read."""
+        if self._ac is None:
+            self._ac = self._full_ac()
+        return self._ac
+
+    @ac.setter
+    def ac(self, value: np.ndarray) -> None:
+        self._ac = value
+
+    def _full_ac(self) -> np.ndarray:
         spec = sfft.rfft2(self.f - self.offset)
         ac = sfft.irfft2(spec.real**2 + spec.imag**2, s=self.f.shape)
         wy, wx = self.window
         H, W = self.f.shape
-        self.ac = ac[np.ix_(np.arange(-wy, wy + 1) % H, np.arange(-wx, wx + 1) % W)]
+        return ac[np.ix_(np.arange(-wy, wy + 1) % H, np.arange(-wx, wx + 1) % W)]
+
+    def refresh(self) -> None:
+        """Recompute ``ac`` from ``f`` with one full-image FFT."""
+        self._ac = self._full_ac()
         self._ac_version += 1
 
     def _plan(self, h: int, w: int):
@@ -595,7 +658,7 @@ class IncrementalAutocorrelation:
         shape, keep, rows = self._half_plan(h, w)
         cache = self._weight_cache.get((h, w))
         if cache is None:
-            ones = self._half_layout(np.ones_like(self.ac), shape, keep, rows).ravel()
+            ones = self._half_layout(np.ones(T.shape), shape, keep, rows).ravel()
             sq = (rows[:, None] * keep[None, :]).ravel().astype(self.fft_dtype)
             cache = {"weights": np.zeros((3, ones.size), dtype=self.fft_dtype), "sq": sq, "T": None, "ac": -1}
             cache["weights"][0] = ones
@@ -640,7 +703,7 @@ class IncrementalAutocorrelation:
             sq = np.broadcast_to(mult / N, (M0, mult.size)).ravel().astype(self.fft_dtype)
             col = (mult * (-1.0) ** np.arange(mult.size)).astype(self.fft_dtype)
             cache = {"weights": np.zeros((3, sq.size), dtype=self.fft_dtype), "sq": sq, "col": col, "T": None}
-            cache["weights"][0] = parseval(np.ones_like(self.ac))
+            cache["weights"][0] = parseval(np.ones((2 * self.window[0] + 1, 2 * self.window[1] + 1)))
             self._weight_cache[key] = cache
         if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
             cache["T"] = T.copy()
@@ -703,6 +766,257 @@ class IncrementalAutocorrelation:
         wy = self.window[0]
         return sfft.irfft(sfft.ihfft(spec, axis=1)[:, : wy + 1], n=M1, axis=2, overwrite_x=True)
 
+    def _torus_tables(self):
+        """Pruned inverse-DFT tables of the torus, in the complex type of ``fft_dtype``:
+        ``EH (H, H)`` ``exp(2 pi i ky y / H)`` (row ``y``) and ``EW (W // 2 + 1, W)``
+        ``mult(kx) exp(2 pi i kx x / W)`` (column ``x``), so that ``Re(EH[rows] @ S @ EW[:, cols]) / N``
+        is the inverse transform of the half spectrum ``S`` at those rows and columns only."""
+        if "tables" not in self._torus_cache:
+            H, W = self.f.shape
+            ctype = np.complex64 if self.fft_dtype == np.float32 else np.complex128
+            mult = np.full(W // 2 + 1, 2.0)
+            mult[0] = 1.0
+            if W % 2 == 0:
+                mult[-1] = 1.0
+            ky, y = np.arange(H), np.arange(H)
+            EH = np.exp(2j * np.pi * ((y[:, None] * ky[None, :]) % H) / H).astype(ctype)
+            kx, x = np.arange(W // 2 + 1), np.arange(W)
+            EW = (mult[:, None] * np.exp(2j * np.pi * ((kx[:, None] * x[None, :]) % W) / W)).astype(ctype)
+            self._torus_cache["tables"] = (EH, EW, ctype)
+        return self._torus_cache["tables"]
+
+    def _pruned(self, S: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Inverse transform of the half spectrum ``S (H, W // 2 + 1)`` at ``rows x cols`` only."""
+        EH, EW, ctype = self._torus_tables()
+        H, W = self.f.shape
+        return ((EH[rows] @ S.astype(ctype, copy=False)) @ EW[:, cols]).real / (H * W)
+
+    def _pruned_real(self, S: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """:meth:`_pruned` of a real half spectrum (real products for the rows' transform)."""
+        EH, EW, _ = self._torus_tables()
+        H, W = self.f.shape
+        R = S.astype(self.fft_dtype)
+        E = EH[rows]
+        Z = np.empty((len(rows), S.shape[1]), dtype=EH.dtype)
+        Z.real = E.real @ R
+        Z.imag = E.imag @ R
+        return (Z @ EW[:, cols]).real / (H * W)
+
+    def _torus_state(self) -> dict:
+        """What the spectral evaluation needs of the current ``g = f - offset`` (kept until ``f``
+        changes): its half spectrum ``G`` and power ``P = |G|^2`` (float64), the half-period lines of
+        ``AC = autocorr(g)`` and the window sums of ``AC``."""
+        st = self._torus_cache.get("state")
+        if st is not None and st["version"] == self._ac_version:
+            return st
+        H, W = self.f.shape
+        g = self.f - self.offset
+        G = sfft.rfft2(g, workers=2)
+        P = G.real**2 + G.imag**2
+        st = {"version": self._ac_version, "g": g, "G": G, "P": P, "gsum": float(g.sum())}
+        # the lines dy = H / 2 and dx = W / 2 of AC (outside the window), as in the Parseval sums
+        mult = np.full(W // 2 + 1, 2.0)
+        mult[0] = 1.0
+        if W % 2 == 0:
+            mult[-1] = 1.0
+        st["ac_row"] = sfft.irfft((-1.0) ** np.arange(H) @ P, n=W) / H if H % 2 == 0 else None
+        st["ac_col"] = sfft.fft(P @ (mult * (-1.0) ** np.arange(mult.size))).real / (H * W) if W % 2 == 0 else None
+        self._torus_cache["state"] = st
+        return st
+
+    def _spectral_l2(self, y0: int, x0: int, deltas: np.ndarray, T: np.ndarray, workers: int | None):
+        """``(lin (K, 3), quad (K,), base sums)`` of the spectral case without a full-image transform
+        per candidate (:meth:`l2_of_changes`).
+
+        ``dAC(d) = c(d) + c(-d) + a(d)`` with ``c(d) = sum_p delta(p) g(p + d)`` over the torus and
+        ``a = autocorr(delta)`` (support ``|dy| < h``, ``|dx| < w``). Over the window ``Wn`` (every
+        displacement but the half-period lines):
+
+        - ``sum dAC = <delta, U_1> + (sum delta)^2``, ``<dAC, X> = <delta, U_X> + sum a X`` for
+          ``X = T`` and ``X = AC``, where ``U_X(p) = sum_{d in Wn} (X(d) + X(-d)) g(p + d)`` is a
+          fixed field on the block (a pruned inverse DFT of ``X^ G`` at the block's pixels, the
+          lines subtracted by two row/column correlations);
+        - ``sum dAC^2 = 2 sum a AC + 2 sum (delta * delta)(s) Conv(s) + 4 sum a c + sum a^2`` less
+          ``2 sum (c(d)^2 + c(d) c(-d))`` over the lines: ``sum_d c(d)^2 = sum a AC``,
+          ``sum_d c(d) c(-d) = sum_s (delta * delta)(s) Conv(2 p0 + s)`` with ``Conv = g * g``
+          (a pruned inverse DFT of ``G^2`` on ``(2h - 1) x (2w - 1)`` pixels), and ``sum a c``
+          involves ``c`` for ``|d| < (h, w)`` only: every per-candidate term lives on a small grid
+          of about ``3h x 3w`` (one small FFT per candidate), and ``c`` on the lines is a product
+          of the block with fixed row/column strips of ``g``.
+
+        Exact algebra (the same sums as Parseval on the full spectrum of each candidate), so the
+        values agree with a full recompute up to rounding."""
+        K, h, w = deltas.shape
+        H, W = self.f.shape
+        N = H * W
+        ev_y, ev_x = H % 2 == 0, W % 2 == 0
+        st = self._torus_state()
+        g, G, P = st["g"], st["G"], st["P"]
+        weights, sq, _ = self._spectral_weights(h, w, T)
+        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
+        dt = self.fft_dtype
+        # ---- base sums of AC over the window (float64, Parseval less the lines)
+        Pf = P.ravel()
+        ac_sum = float(weights[0].astype(np.float64) @ Pf)
+        ac_t = float(weights[1].astype(np.float64) @ Pf)
+        ac_sq = float((Pf * Pf) @ sq.astype(np.float64))
+        ac_row, ac_col = st["ac_row"], st["ac_col"]
+        if ev_y:
+            ac_sq -= float(ac_row @ ac_row)
+        if ev_x:
+            ac_sq -= float(ac_col @ ac_col)
+        if ev_y and ev_x:
+            ac_sq += float(ac_row[W // 2] ** 2)
+        # ---- fields on the block
+        ry = (y0 + np.arange(h)) % H
+        rx = (x0 + np.arange(w)) % W
+        tau = self._torus_cache.get("tau")
+        if tau is None or tau[0] is not t_key:
+            tau = 2.0 * weights[1].astype(np.float64).reshape(P.shape) * (N / self._mult_row(W))
+            tau = (t_key, tau.astype(dt), float(T.mean()), float((T * T).mean()))
+            self._torus_cache["tau"] = tau
+        EH, EW, ctype = self._torus_tables()
+        K1 = P.shape[1]
+        # the spectra of U_T and of U_ac (before its lines), side by side, in the complex type
+        spectra = np.empty((H, 2 * K1), dtype=ctype)
+        Gc = G.astype(ctype)
+        np.multiply(Gc, tau[1], out=spectra[:, :K1])
+        np.multiply(Gc, (2.0 * P).astype(dt), out=spectra[:, K1:])
+        Z = EH[ry] @ spectra
+        U_T = (Z[:, :K1] @ EW[:, rx]).real / N
+        U_ac = (Z[:, K1:] @ EW[:, rx]).real / N
+        U_1 = np.full((h, w), 2.0 * st["gsum"])
+        if ev_y:  # row strip: M_r[(py, px), j] = g(y0 + H / 2 + py, x0 + px + j)
+            strip = np.roll(g[(ry + H // 2) % H], -(x0 % W), axis=1)
+            U_1 -= 2.0 * strip.sum(axis=1)[:, None]
+            strip = np.concatenate([strip, strip[:, :w]], axis=1).astype(dt)
+            M_r = np.lib.stride_tricks.sliding_window_view(strip, W, axis=1)[:, :w].reshape(h * w, W)
+            U_ac -= 2.0 * (M_r @ ac_row.astype(dt)).reshape(h, w)
+        if ev_x:  # column strip: M_c[(py, px), j] = g(y0 + py + j, x0 + W / 2 + px)
+            strip = np.roll(g[:, (rx + W // 2) % W], -(y0 % H), axis=0)
+            U_1 -= 2.0 * strip.sum(axis=0)[None, :]
+            strip = np.concatenate([strip, strip[:h]], axis=0).astype(dt)
+            M_c = np.lib.stride_tricks.sliding_window_view(strip, H, axis=0)[:h].reshape(h * w, H)
+            U_ac -= 2.0 * (M_c @ ac_col.astype(dt)).reshape(h, w)
+        if ev_y and ev_x:
+            corner = g[np.ix_((ry + H // 2) % H, (rx + W // 2) % W)]
+            U_1 += 2.0 * corner
+            U_ac += 2.0 * ac_row[W // 2] * corner
+        # ---- small grid: a, delta * delta and c near zero displacement
+        My = sfft.next_fast_len(3 * h - 2)
+        Mx = sfft.next_fast_len(3 * w - 2, real=True)
+        msq = np.broadcast_to(self._mult_row(Mx) / (My * Mx), (My, Mx // 2 + 1))
+        sy_ = np.arange(-(h - 1), h) % My
+        sx_ = np.arange(-(w - 1), w) % Mx
+
+        def small_spec(X, rows, cols):  # half spectrum on the small grid of X placed at rows x cols
+            grid = np.zeros((My, Mx))
+            grid[np.ix_(rows, cols)] = X
+            return sfft.rfft2(grid)
+
+        ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+        cache_t = self._torus_cache.get("t_small")
+        if cache_t is None or cache_t[0] is not t_key or cache_t[1] != (h, w):
+            wy, wx = self.window
+            Ts = T[np.ix_(wy + np.arange(-(h - 1), h), wx + np.arange(-(w - 1), w))]
+            cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
+            self._torus_cache["t_small"] = cache_t
+        wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
+        conv = self._pruned(G * G, (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W)
+        w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
+        grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
+        w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)
+        w_grown = w_grown.ravel()
+        wsq = msq.ravel()
+        fields = np.stack([U_1.ravel(), U_T.ravel(), U_ac.ravel()], axis=1)
+        deltas = deltas.astype(dt, copy=False)
+        lin = np.empty((K, 3))
+        quad = np.empty(K)
+
+        def chunk(lo: int, hi: int) -> None:
+            with _one_blas_thread():
+                chunk_sums(lo, hi)
+
+        def chunk_sums(lo: int, hi: int) -> None:
+            d = deltas[lo:hi]
+            flat = d.reshape(hi - lo, h * w)
+            D = sfft.rfft2(d, s=(My, Mx)).reshape(hi - lo, -1).astype(np.complex128)
+            A = D.real**2 + D.imag**2
+            a_lin = A @ wa  # sum a T, sum a AC
+            a_sq = (A * A) @ wsq
+            # sum Re(z conj(v)) as float inner products of the interleaved (re, im) views
+            cv = (D * D).view(np.float64) @ w_conv.view(np.float64)
+            cub = (A * D).view(np.float64) @ w_grown.view(np.float64)
+            f64 = flat.astype(np.float64)
+            sd = f64.sum(axis=1)
+            lin[lo:hi] = f64 @ fields
+            lin[lo:hi, 0] += sd * sd
+            lin[lo:hi, 1] += a_lin[:, 0]
+            lin[lo:hi, 2] += a_lin[:, 1]
+            q = 2.0 * a_lin[:, 1] + 2.0 * cv + 4.0 * cub + a_sq
+            if ev_y:
+                cr = (flat @ M_r).astype(np.float64)
+                q -= 2.0 * (cr * (cr + cr[:, (-np.arange(W)) % W])).sum(axis=1)
+            if ev_x:
+                cc = (flat @ M_c).astype(np.float64)
+                q -= 2.0 * (cc * (cc + cc[:, (-np.arange(H)) % H])).sum(axis=1)
+            if ev_y and ev_x:  # the corner (H / 2, W / 2) is on both lines, its own reflection
+                q += 4.0 * cr[:, W // 2] ** 2
+            quad[lo:hi] = q
+
+        # one chunk per thread (the per-candidate work is small); each candidate's values are
+        # computed alike in any chunk, so any number of threads gives the same bytes
+        threads = max(1, min(int(workers or 1), K))
+        bounds = [round(i * K / threads) for i in range(threads + 1)]
+        jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
+        if threads > 1:
+            list(_executor(threads).map(lambda job: chunk(*job), jobs))
+        else:
+            for job in jobs:
+                chunk(*job)
+        return lin, quad, (ac_sum, ac_t, ac_sq, tau[2], tau[3])
+
+    @staticmethod
+    def _mult_row(M1: int) -> np.ndarray:
+        """``mult(kx) (M1 // 2 + 1,)``: how many columns of a full spectrum a half-spectrum column stands for."""
+        mult = np.full(M1 // 2 + 1, 2.0)
+        mult[0] = 1.0
+        if M1 % 2 == 0:
+            mult[-1] = 1.0
+        return mult
+
+    def _windowed_sums(self, y0: int, x0: int, deltas: np.ndarray, T: np.ndarray, workers: int | None):
+        """``(lin (K, 3), quad (K,), halves)`` of a window smaller than the torus (:meth:`l2_of_changes`):
+        per candidate, the change spectrum on the grown grid and the half window ``dy >= 0``."""
+        K, h, w = deltas.shape
+        wy = self.window[0]
+        (M0, M1), _, _ = self._half_plan(h, w)
+        G2 = self._grown_spectrum(y0, x0, h, w)
+        weights, sq = self._weights(h, w, T)
+        half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
+        deltas = deltas.astype(self.fft_dtype, copy=False)
+        lin = np.empty((K, 3))
+        quad = np.empty(K)
+
+        def chunk(lo: int, hi: int) -> None:
+            spec = self._change_spectra(G2, deltas[lo:hi], (M0, M1))
+            part = self._halves(spec, M1)
+            half[lo:hi] = part
+            flat = part.reshape(hi - lo, -1)
+            quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
+            # (3, n) @ (n, k): OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
+            lin[lo:hi] = (weights @ flat.T).T
+
+        bounds = list(range(0, K, _CHUNK)) + [K]
+        jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
+        threads = max(1, min(int(workers or 1), len(jobs)))
+        if threads > 1:
+            list(_executor(threads).map(lambda job: chunk(*job), jobs))
+        else:
+            for job in jobs:
+                chunk(*job)
+        return lin, quad, half
+
     def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray, *, workers: int | None = None):
         """E_L2 ``(K,)`` of the standardized windows after each change, and the changes' half windows.
 
@@ -739,66 +1053,18 @@ class IncrementalAutocorrelation:
         if h > H // 2 or w > W // 2:
             raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
         T = np.asarray(target, dtype=np.float64)
-        if T.shape != self.ac.shape:
-            raise ValueError(f"target shape {T.shape} differs from the window {self.ac.shape}")
-        wy = self.window[0]
-        (M0, M1), _, _ = self._half_plan(h, w)
+        wshape = (2 * self.window[0] + 1, 2 * self.window[1] + 1)
+        if T.shape != wshape:
+            raise ValueError(f"target shape {T.shape} differs from the window {wshape}")
         spectral = self._spectral(h, w)
-        G2 = self._grown_spectrum(y0, x0, h, w)
         if spectral:
-            weights, sq, colw = self._spectral_weights(h, w, T)
-            signs = ((-1.0) ** np.arange(M0)).astype(self.fft_dtype)
+            with _one_blas_thread():
+                lin, quad, sums = self._spectral_l2(y0, x0, deltas, T, workers)
             half = None
-            # <dAC, ac> over the window: Parseval against the spectrum |G|^2 of the whole current
-            # autocorrelation, less its half-period lines (outside the window), from 1-D transforms
-            power = 0.25 * (G2.real**2 + G2.imag**2)
-            weights[2] = power.ravel() * sq
-            ac_row = sfft.irfft(signs @ power, n=M1) / M0 if M0 % 2 == 0 else None
-            ac_col = sfft.fft(power @ colw).real / (M0 * M1) if M1 % 2 == 0 else None
         else:
-            weights, sq = self._weights(h, w, T)
-            half = np.empty((K, wy + 1, M1), dtype=self.fft_dtype)
-        deltas = deltas.astype(self.fft_dtype, copy=False)
-        lin = np.empty((K, 3))
-        quad = np.empty(K)
-
-        def chunk(lo: int, hi: int) -> None:
-            spec = self._change_spectra(G2, deltas[lo:hi], (M0, M1))
-            if spectral:
-                flat = spec.reshape(hi - lo, -1)
-                total = np.einsum("kj,kj,j->k", flat, flat, sq).astype(np.float64)
-                lines = np.zeros(hi - lo)
-                if M0 % 2 == 0:  # the line dy = H / 2 lies outside the window
-                    row = (sfft.irfft(np.einsum("kyx,y->kx", spec, signs), n=M1, axis=1) / M0).astype(np.float64)
-                    total -= (row**2).sum(axis=1)
-                    lines += row @ ac_row
-                if M1 % 2 == 0:  # the line dx = W / 2, its corner with dy = H / 2 taken once
-                    col = (sfft.fft(spec @ colw, axis=1).real / (M0 * M1)).astype(np.float64)
-                    total -= (col**2).sum(axis=1)
-                    lines += col @ ac_col
-                    if M0 % 2 == 0:
-                        total += row[:, M1 // 2] ** 2
-                        lines -= row[:, M1 // 2] * ac_row[M1 // 2]
-                quad[lo:hi] = total
-            else:
-                part = self._halves(spec, M1)
-                half[lo:hi] = part
-                flat = part.reshape(hi - lo, -1)
-                quad[lo:hi] = np.einsum("kj,kj,j->k", flat, flat, sq)
-            # (3, n) @ (n, k): OpenBLAS is slow on the thin (k, n) @ (n, 3) shapes
-            lin[lo:hi] = (weights @ flat.T).T
-            if spectral:
-                lin[lo:hi, 2] -= lines
-
-        bounds = list(range(0, K, _CHUNK)) + [K]
-        jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
-        threads = max(1, min(int(workers or 1), len(jobs)))
-        if threads > 1:
-            list(_executor(threads).map(lambda job: chunk(*job), jobs))
-        else:
-            for job in jobs:
-                chunk(*job)
-        ac_sum, ac_t, ac_sq, t_mean, t_sq = self._base_sums(T)
+            lin, quad, half = self._windowed_sums(y0, x0, deltas, T, workers)
+            sums = self._base_sums(T)
+        ac_sum, ac_t, ac_sq, t_mean, t_sq = sums
         n = T.size
         s1 = ac_sum + lin[:, 0]
         p = ac_t + lin[:, 1]
@@ -828,14 +1094,17 @@ class IncrementalAutocorrelation:
         """Add ``delta (h, w)`` to ``f`` at ``(y0, x0)`` (wrapping) and update ``ac``.
 
         ``dac`` is the matching window when already computed (:meth:`window_from_half`), otherwise
-        :meth:`change_window` computes it.
+        :meth:`change_window` computes it; with the whole torus as window (the spectral evaluation)
+        nothing is computed and :attr:`ac` is recomputed from ``f`` when next read.
         """
         delta = np.asarray(delta, dtype=np.float64)
-        if dac is None:
-            dac = self.change_window(y0, x0, delta)
         H, W = self.f.shape
+        lazy = dac is None and self._spectral(*delta.shape)
+        if dac is None and not lazy:
+            dac = self.change_window(y0, x0, delta)
         ry = (y0 + np.arange(delta.shape[0])) % H
         rx = (x0 + np.arange(delta.shape[1])) % W
         self.f[np.ix_(ry, rx)] += delta
-        self.ac = self.ac + dac
+        # the spectral evaluation reads f only: ac is recomputed from f when next read
+        self._ac = None if lazy or self._ac is None else self._ac + dac
         self._ac_version += 1

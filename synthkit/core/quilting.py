@@ -113,6 +113,18 @@ def candidates(
     return np.stack(np.unravel_index(idx, cost.shape), axis=1).astype(np.int64)
 
 
+def _channel_sq_sum(d: np.ndarray) -> np.ndarray:
+    """``(d ** 2).sum(axis=-1)`` added channel by channel in the same order (same bytes, no slow
+    reduction over a short last axis); ``d`` is overwritten."""
+    d *= d
+    if d.shape[-1] == 1:
+        return d[..., 0].copy()
+    err = d[..., 0] + d[..., 1]
+    for c in range(2, d.shape[-1]):
+        err += d[..., c]
+    return err
+
+
 def _dp_left_cut(err: np.ndarray) -> np.ndarray:
     """Min-cost vertical path through ``err (K, B, w)``; returns the column per row ``(K, B)``.
 
@@ -180,7 +192,7 @@ def boundary_masks(
         P = P[..., None]
     C = _as3(canvas)
     K, B = P.shape[0], P.shape[1]
-    err = ((P - C[None]) ** 2).sum(axis=3)
+    err = _channel_sq_sum(P - C[None])
     keep = np.ones((K, B, B), dtype=bool)
     top, left, bottom, right = (min(int(v), B) for v in overlaps)
     # each side's cut runs as a "left" cut on a flipped/transposed view; undo maps back

@@ -867,6 +867,14 @@ class IncrementalAutocorrelation:
             ac_sq -= float(ac_col @ ac_col)
         if ev_y and ev_x:
             ac_sq += float(ac_row[W // 2] ** 2)
+        # ---- the kernels near zero displacement, beside the block's fields when there are two threads
+        def kernels():
+            with _one_blas_thread():
+                ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+                rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
+                return ac_small, self._pruned(G * G, rows, cols)
+
+        pending = _executor(2).submit(kernels) if (workers or 1) > 1 else None
         # ---- fields on the block
         ry = (y0 + np.arange(h)) % H
         rx = (x0 + np.arange(w)) % W
@@ -914,7 +922,7 @@ class IncrementalAutocorrelation:
             grid[np.ix_(rows, cols)] = X
             return sfft.rfft2(grid)
 
-        ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+        ac_small, conv = pending.result() if pending is not None else kernels()
         cache_t = self._torus_cache.get("t_small")
         if cache_t is None or cache_t[0] is not t_key or cache_t[1] != (h, w):
             wy, wx = self.window
@@ -922,7 +930,6 @@ class IncrementalAutocorrelation:
             cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
             self._torus_cache["t_small"] = cache_t
         wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
-        conv = self._pruned(G * G, (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W)
         w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
         grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
         w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)

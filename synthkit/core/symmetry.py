@@ -509,7 +509,7 @@ class IncrementalAutocorrelation:
     sums of ``dAC`` over the window (its sum, its inner products with the target and with ``ac``,
     its squared sum), and ``dAC`` is even, so only the rows ``dy >= 0`` are transformed back (a
     real-input FFT along the rows, then ``wy + 1`` row transforms); with a window holding the whole
-    torus, the sums come from the spectra by Parseval with no inverse transform at all.
+    torus, the sums come from per-tile fields and a small FFT per candidate (:meth:`_spectral_l2`).
 
     Requirements: ``wy <= (H - 1) // 2``, ``wx <= (W - 1) // 2`` (distinct displacements) and blocks
     at most half the image in each axis (so a block never meets its own toroidal copy).
@@ -1038,9 +1038,11 @@ class IncrementalAutocorrelation:
         only the ``wy + 1`` rows ``dy >= 0``. The forward transform of each block skips its zero
         rows (one transform per block row, then the column transforms). The four sums are inner
         products of the half windows with fixed weights. When the window holds every displacement
-        of the torus (the paper's unwindowed S_T; :meth:`_spectral`), there is no inverse transform
-        at all: the four sums are Parseval inner products on the spectrum, less the half-period
-        lines outside the window (one weighted sum and one 1-D transform each).
+        of the torus (the paper's unwindowed S_T; :meth:`_spectral`), no full-size transform runs
+        per candidate (:meth:`_spectral_l2`): the sums split into fixed fields of the current image
+        on the block (pruned inverse DFTs, once per tile), terms of the block's own autocorrelation
+        on a small grid (one small FFT per candidate) and the half-period lines outside the window
+        (two matrix products per tile's candidates).
 
         Candidates go through in chunks of ``_CHUNK`` (small arrays stay in cache); ``workers``
         threads (default 1) share the chunks. The chunks are the same for any number of threads

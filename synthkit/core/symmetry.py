@@ -874,6 +874,7 @@ class IncrementalAutocorrelation:
                 rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
                 return ac_small, self._pruned(G * G, rows, cols)
 
+        self._torus_tables()  # built once, before a second thread reads it
         pending = _executor(2).submit(kernels) if (workers or 1) > 1 else None
         # ---- fields on the block
         ry = (y0 + np.arange(h)) % H

@@ -13,8 +13,11 @@ replacing one block is computed from the block and its surroundings only
 (:class:`synthkit.core.symmetry.IncrementalAutocorrelation`), batched over all candidates of the
 tile (in chunks shared by two threads), and E_L2 of the standardized result follows from four
 sums of that change over the window, exactly (the same values as a full recompute, up to
-rounding). ``evaluation="full"`` recomputes S_T of the whole image for every candidate instead
-(the paper's way; for benchmarks and as the reference in tests).
+rounding). With every displacement in the window (``symmetry.window: 0.5``, the default) those
+sums come from fields of the current image computed once per tile and one small FFT per
+candidate, with no full-size transform per candidate. ``evaluation="full"`` recomputes S_T of
+the whole image for every candidate instead (the paper's way; for benchmarks and as the
+reference in tests).
 """
 
 from __future__ import annotations

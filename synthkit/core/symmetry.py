@@ -35,6 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage
+from threadpoolctl import ThreadpoolController
 
 __all__ = [
     "f_lum",
@@ -65,48 +66,21 @@ _CHUNK = 4  # candidates per batched transform in IncrementalAutocorrelation.l2_
 _EXECUTORS: dict[int, ThreadPoolExecutor] = {}
 
 
-def _blas_local_threads():
-    """OpenBLAS's ``openblas_set_num_threads_local`` (the calling thread's BLAS thread count) of the
-    library numpy is linked with, or None where there is none."""
-    global _BLAS_LOCAL
-    if _BLAS_LOCAL is False:
-        _BLAS_LOCAL = None
-        try:
-            import ctypes
-            import glob
-            import os
-
-            libs = os.path.join(os.path.dirname(os.path.dirname(np.__file__)), "numpy.libs")
-            for path in sorted(glob.glob(os.path.join(libs, "*openblas*"))):
-                fn = getattr(ctypes.CDLL(path), "openblas_set_num_threads_local", None)
-                if fn is not None:
-                    fn.argtypes, fn.restype = [ctypes.c_int], ctypes.c_int
-                    _BLAS_LOCAL = fn
-                    break
-        except OSError:
-            _BLAS_LOCAL = None
-    return _BLAS_LOCAL
+_BLAS: ThreadpoolController | None = None
 
 
-class _one_blas_thread:
-    """Context: matrix products of this thread run on one BLAS thread (restored on exit).
+def _one_blas_thread():
+    """Context: the BLAS libraries loaded (numpy's and scipy's OpenBLAS) run on one thread, and
+    get their thread counts back on exit (process-wide: entered by the calling thread only, around
+    work whose helper threads it waits for).
 
     The spectral evaluation's products are a few milliseconds each; OpenBLAS's own threads, on a
     machine shared with other work, then wait for a core more than they compute (measured: a 512
     sweep at window 0.5 took 30 s with them and 12 s without). Work is shared by our threads instead."""
-
-    def __enter__(self):
-        fn = _blas_local_threads()
-        self._prev = fn(1) if fn is not None else None
-        return self
-
-    def __exit__(self, *exc):
-        if self._prev is not None:
-            _blas_local_threads()(self._prev)
-        return False
-
-
-_BLAS_LOCAL = False
+    global _BLAS
+    if _BLAS is None:
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1, user_api="blas")
 
 
 def _executor(threads: int) -> ThreadPoolExecutor:
@@ -869,10 +843,9 @@ class IncrementalAutocorrelation:
             ac_sq += float(ac_row[W // 2] ** 2)
         # ---- the kernels near zero displacement, beside the block's fields when there are two threads
         def kernels():
-            with _one_blas_thread():
-                ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
-                rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
-                return ac_small, self._pruned(G * G, rows, cols)
+            ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+            rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
+            return ac_small, self._pruned(G * G, rows, cols)
 
         self._torus_tables()  # built once, before a second thread reads it
         pending = _executor(2).submit(kernels) if (workers or 1) > 1 else None
@@ -942,10 +915,6 @@ class IncrementalAutocorrelation:
         quad = np.empty(K)
 
         def chunk(lo: int, hi: int) -> None:
-            with _one_blas_thread():
-                chunk_sums(lo, hi)
-
-        def chunk_sums(lo: int, hi: int) -> None:
             d = deltas[lo:hi]
             flat = d.reshape(hi - lo, h * w)
             D = sfft.rfft2(d, s=(My, Mx)).reshape(hi - lo, -1).astype(np.complex128)

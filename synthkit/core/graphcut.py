@@ -26,7 +26,7 @@ INF = 1e12
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 _REL_TOL = 1e-12
-_KEPT_EDGES = 1 << 21  # pairwise entries kept across moves: 36 bytes each, 72 MB at most
+_KEPT_EDGES = 3 << 20  # edge entries kept across moves (per label): 36 bytes each, 113 MB at most
 
 
 # --------------------------------------------------------------------------------------------------
@@ -377,16 +377,21 @@ class ExpansionResult:
 
 @dataclass
 class _Kept:
-    """Pairwise values of one label's move kept across moves, for the edges ``idx`` (k,) int
-    both of whose ends can take the label: ``V(l_p, alpha)``, ``V(alpha, l_q)``, ``V(alpha, alpha)``
-    (k,) each (NaN until first needed); the first two hold for the labels of move ``at`` (k,) int64
-    (0: never evaluated)."""
+    """One label's edges and pairwise values, kept across moves on that label.
+
+    ``idx`` (k,) int: the edges with at least one end that can take the label (the only ones a
+    move on it can change), ascending. ``v01``, ``v10``, ``v11`` (k,): ``V(l_p, alpha)``,
+    ``V(alpha, l_q)`` and ``V(alpha, alpha)``, evaluated only when a move needs them (``v11`` NaN
+    until then); ``at01`` and ``at10`` (k,) int32: the move at which ``v01`` (for the labels of
+    the edges' first ends) and ``v10`` (second ends) were evaluated (0: never).
+    """
 
     idx: np.ndarray
     v01: np.ndarray
     v10: np.ndarray
     v11: np.ndarray
-    at: np.ndarray
+    at01: np.ndarray
+    at10: np.ndarray
 
 
 class _Expansion:
@@ -404,89 +409,90 @@ class _Expansion:
         self.pv = pw(np.arange(len(e)), self.lab[self.e0], self.lab[self.e1])
         self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
         self.pos = np.zeros(self.n, dtype=np.int64)
-        self.buf = np.zeros(len(e))
         self.changed_at = np.zeros(self.n, dtype=np.int64)
         self.step = 0
         self.kept: dict[int, _Kept] = {}
         self.n_kept = 0
 
-    def _both_sided(self, alpha: int, act: np.ndarray, a0: np.ndarray):
-        """Edges ``bi`` with both ends active and their ``V(l_p, alpha), V(alpha, l_q), V(alpha, alpha)``.
-
-        For a pairwise function the values are kept per label for the edges both of whose ends
-        can take alpha (while at most ``_KEPT_EDGES`` such entries are kept in all): ``V(alpha,
-        alpha)`` never changes, ``V(l_p, alpha)`` and ``V(alpha, l_q)`` only when ``l_p`` or ``l_q``
-        does, so each move evaluates the function only on the edges one of whose ends changed label
-        since their values were evaluated (moves are numbered from 1, changes carry their move's
-        number, so an edge evaluated at move ``at`` is stale once an end has ``changed_at >= at``).
-        """
-        lab, e0, e1, pw = self.lab, self.e0, self.e1, self.pw
+    def _label_edges(self, alpha: int) -> _Kept:
+        """The kept edges and values of ``alpha`` (created on first use); past ``_KEPT_EDGES``
+        entries in all, a fresh, unkept one for this move only."""
         kept = self.kept.get(alpha)
-        if kept is None and pw.fn is not None:
-            idx = np.flatnonzero(self.okT[alpha][e0] & self.okT[alpha][e1])
-            if self.n_kept + len(idx) <= _KEPT_EDGES:
-                small = np.int32 if len(e0) < 2**31 else np.int64
-                kept = _Kept(idx.astype(small), np.empty(len(idx)), np.empty(len(idx)),
-                             np.full(len(idx), np.nan), np.zeros(len(idx), dtype=np.int64))
-                self.kept[alpha] = kept
-                self.n_kept += len(idx)
         if kept is None:
-            bi = np.flatnonzero(a0 & act[e1])
-            nb = len(bi)
-            full = np.full(nb, alpha)
-            vals = pw(np.concatenate([bi, bi, bi]), np.concatenate([lab[e0[bi]], full, full]),
-                      np.concatenate([full, lab[e1[bi]], full]))
-            return bi, vals[:nb], vals[nb : 2 * nb], vals[2 * nb :]
-        p, q = e0[kept.idx], e1[kept.idx]
-        sel = np.flatnonzero(act[p] & act[q])
-        bi = kept.idx[sel].astype(np.int64)
-        bp, bq = p[sel], q[sel]
-        at = kept.at[sel]
-        stale = sel[(self.changed_at[bp] >= at) | (self.changed_at[bq] >= at)]
-        miss = sel[np.isnan(kept.v11[sel])]
-        if len(stale) + len(miss):
-            k, m = kept.idx[stale].astype(np.int64), kept.idx[miss].astype(np.int64)
-            ns = len(k)
-            full = np.full(2 * ns + len(m), alpha)
-            vals = pw(np.concatenate([k, k, m]), np.concatenate([lab[e0[k]], full[ns:]]),
-                      np.concatenate([full[:ns], lab[e1[k]], full[2 * ns :]]))
-            kept.v01[stale] = vals[:ns]
-            kept.v10[stale] = vals[ns : 2 * ns]
-            kept.v11[miss] = vals[2 * ns :]
-            kept.at[stale] = self.step
-        return bi, kept.v01[sel], kept.v10[sel], kept.v11[sel]
+            ok = self.okT[alpha]
+            idx = np.flatnonzero(ok[self.e0] | ok[self.e1])
+            k = len(idx)
+            small = np.int32 if len(self.e0) < 2**31 else np.int64
+            kept = _Kept(idx.astype(small), np.empty(k), np.empty(k), np.full(k, np.nan),
+                         np.zeros(k, dtype=np.int32), np.zeros(k, dtype=np.int32))
+            if self.n_kept + k <= _KEPT_EDGES:
+                self.kept[alpha] = kept
+                self.n_kept += k
+        return kept
+
+    def _refresh(self, kept: _Kept, alpha: int, idx: np.ndarray, p: np.ndarray, q: np.ndarray,
+                 w01: np.ndarray, w10: np.ndarray, w11: np.ndarray) -> None:
+        """Evaluate, in one call of the pairwise function, the kept values the move needs that are
+        missing or stale: ``v01`` at the positions ``w01``, ``v10`` at ``w10``, ``v11`` at ``w11``
+        (positions into ``kept``; ``idx``, ``p``, ``q`` are the kept edges and their ends).
+
+        ``V(alpha, alpha)`` never changes; ``V(l_p, alpha)`` only when ``l_p`` does and ``V(alpha,
+        l_q)`` only when ``l_q`` does. Moves are numbered from 1 and a label change carries its
+        move's number, so a value evaluated at move ``at`` is stale once its end has ``changed_at
+        >= at``.
+        """
+        ch = self.changed_at
+        w01 = w01[ch[p[w01]] >= kept.at01[w01]]
+        w10 = w10[ch[q[w10]] >= kept.at10[w10]]
+        w11 = w11[np.isnan(kept.v11[w11])]
+        n01, n10 = len(w01), len(w10)
+        if n01 + n10 + len(w11) == 0:
+            return
+        lab = self.lab
+        full = np.full(n01 + n10 + len(w11), alpha)
+        vals = self.pw(idx[np.concatenate([w01, w10, w11])].astype(np.int64),
+                       np.concatenate([lab[p[w01]], full[n01:]]),
+                       np.concatenate([full[:n01], lab[q[w10]], full[n01 + n10 :]]))
+        kept.v01[w01] = vals[:n01]
+        kept.v10[w10] = vals[n01 : n01 + n10]
+        kept.v11[w11] = vals[n01 + n10 :]
+        kept.at01[w01] = self.step
+        kept.at10[w10] = self.step
 
     def energy(self) -> float:
         return _sum_terms(self.un, self.pv)
 
-    def _one_sided(self, act: np.ndarray, alpha: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Edges with exactly one active end, their cost after that end switches to alpha, and
-        ``act[e0]`` for the final ``act``.
+    def move_terms(self, alpha: int, act: np.ndarray):
+        """The edge terms of the move on ``alpha`` for the active nodes ``act`` (updated in place).
+
+        Returns ``(oi, ov, o0, bi, e01, e10, e11)``: the edges with exactly one active end, their
+        cost after that end switches to alpha and whether that end is the first; the edges with
+        both ends active and their ``V(l_p, alpha)``, ``V(alpha, l_q)``, ``V(alpha, alpha)``.
+        Edge indices ascend.
 
         When the current energy is finite, an active node whose switch would meet an infinite
         cost with a fixed neighbour keeps its label in every finite move result: it is made fixed
-        (``act`` is updated in place) and the test repeats on the edges this creates.
+        and the test repeats on the edges this creates.
         """
-        lab, e0, e1, buf = self.lab, self.e0, self.e1, self.buf
-        a0 = act[e0]
-        one = a0 != act[e1]
-        new = np.flatnonzero(one)
-        while len(new):
-            side0 = a0[new]
-            la = np.where(side0, alpha, lab[e0[new]])
-            lb = np.where(side0, lab[e1[new]], alpha)
-            v = self.pw(new, la, lb)
-            buf[new] = v
-            bad = np.isinf(v)
-            if self.n_inf or not bad.any():
+        kept = self._label_edges(alpha)
+        idx = kept.idx
+        p, q = self.e0[idx], self.e1[idx]
+        while True:
+            ap, aq = act[p], act[q]
+            o = np.flatnonzero(ap != aq)
+            o0 = ap[o]
+            self._refresh(kept, alpha, idx, p, q, o[~o0], o[o0], o[:0])
+            ov = np.where(o0, kept.v10[o], kept.v01[o])
+            if self.n_inf:
                 break
-            act[np.where(side0[bad], e0[new[bad]], e1[new[bad]])] = False
-            a0 = act[e0]
-            now = a0 != act[e1]
-            new = np.flatnonzero(now & ~one)
-            one = now
-        oi = np.flatnonzero(one)
-        return oi, buf[oi], a0
+            bad = np.isinf(ov)
+            if not bad.any():
+                break
+            act[np.where(o0[bad], p[o[bad]], q[o[bad]])] = False
+        b = np.flatnonzero(ap & aq)
+        self._refresh(kept, alpha, idx, p, q, b, b, b)
+        return (idx[o].astype(np.int64), ov, o0, idx[b].astype(np.int64),
+                kept.v01[b], kept.v10[b], kept.v11[b])
 
     def move(self, alpha: int) -> bool:
         """One expansion move on ``alpha``; applies it and returns True when it lowers the energy."""
@@ -495,22 +501,19 @@ class _Expansion:
         act = self.okT[alpha] & (lab != alpha)
         if not act.any():
             return False
-        oi, ov, a0 = self._one_sided(act, alpha)
+        oi, ov, o0, bi, e01, e10, e11 = self.move_terms(alpha, act)
         nodes = np.flatnonzero(act)
         na = len(nodes)
         if na == 0:
             return False
         pos = self.pos
         pos[nodes] = np.arange(na)
-        o0 = a0[oi]
         on = pos[np.where(o0, e0[oi], e1[oi])]  # the active end of each one-sided edge
-        bi, e01, e10, e11 = self._both_sided(alpha, act, a0)
-        bp, bq = e0[bi], e1[bi]
         e00 = self.pv[bi]
         o00 = self.pv[oi]
         c0 = self.un[nodes]
         c1 = self.uT[alpha, nodes]
-        bp, bq = pos[bp], pos[bq]
+        bp, bq = pos[e0[bi]], pos[e1[bi]]
 
         raw = (c0, c1, e00, e11, e01, e10, o00, ov)
         sums = [float(np.abs(r).sum()) for r in raw]
@@ -594,7 +597,7 @@ def alpha_expansion(
     best choice is certain whatever their neighbours do (the persistency test of ``_binary_cut``)
     are fixed, which leaves the same minimum. A pairwise function is evaluated, per move, only on
     the edges whose values are not kept from an earlier move on the same label (see
-    ``_Expansion._both_sided``): both change nothing in the result, only the time.
+    ``_Expansion._refresh``): both change nothing in the result, only the time.
 
     Infinite costs: the initial labeling is the per-node cheapest unary label when ``init`` is not
     given. Within a move every infinite term becomes a finite constant larger than twice the sum

@@ -380,9 +380,10 @@ def test_callable_matches_table(seed):
 
 
 def test_callable_values_kept_across_moves_or_not(monkeypatch):
-    # A callable's values on edges both of whose ends can take alpha are kept per label within a
+    # A callable's values on edges with an end that can take alpha are kept per label within a
     # budget and re-evaluated only where a label changed; past the budget every move evaluates
-    # them afresh. Same labels, same history, either way; the kept values equal fresh ones.
+    # them afresh. Same labels, same history, either way; the kept values equal fresh ones, for
+    # the edges with one active end as for those with two.
     rng = np.random.default_rng(310)
     n, n_labels = 14, 5
     edges = random_graph(rng, n, 36)
@@ -390,17 +391,21 @@ def test_callable_values_kept_across_moves_or_not(monkeypatch):
     unary[rng.random((n, n_labels)) < 0.2] = np.inf
     unary[:, 0] = 2.0
     table = np.stack([metric_table(rng, n_labels) for _ in edges]) * 0.5 + 0.2  # V(a, a) = 0.2
-    both_sided = graphcut._Expansion._both_sided
+    move_terms = graphcut._Expansion.move_terms
     checked = []
 
-    def checking(self, alpha, act, a0):
-        bi, v01, v10, v11 = both_sided(self, alpha, act, a0)
+    def checking(self, alpha, act):
+        out = move_terms(self, alpha, act)
+        oi, ov, o0, bi, v01, v10, v11 = out
         la, lb = self.lab[edges[bi, 0]], self.lab[edges[bi, 1]]
         np.testing.assert_array_equal(v01, table[bi, la, alpha])
         np.testing.assert_array_equal(v10, table[bi, alpha, lb])
         np.testing.assert_array_equal(v11, table[bi, alpha, alpha])
+        la, lb = self.lab[edges[oi, 0]], self.lab[edges[oi, 1]]
+        np.testing.assert_array_equal(o0, act[edges[oi, 0]] & ~act[edges[oi, 1]])
+        np.testing.assert_array_equal(ov, np.where(o0, table[oi, alpha, lb], table[oi, la, alpha]))
         checked.append(len(bi))
-        return bi, v01, v10, v11
+        return out
 
     dtypes = set()
 
@@ -408,11 +413,11 @@ def test_callable_values_kept_across_moves_or_not(monkeypatch):
         dtypes.update((k.dtype, la.dtype, lb.dtype))
         return table[k, la, lb]
 
-    monkeypatch.setattr(graphcut._Expansion, "_both_sided", checking)
+    monkeypatch.setattr(graphcut._Expansion, "move_terms", checking)
     a = alpha_expansion(unary, edges, V, init=np.zeros(n, dtype=int), rng=1)
     assert dtypes == {np.dtype(np.int64)}  # kept edge indices are stored smaller, passed as int64
     assert a.cycles == 3 and len(checked) > n_labels  # labels met again after changes
-    monkeypatch.setattr(graphcut._Expansion, "_both_sided", both_sided)
+    monkeypatch.setattr(graphcut._Expansion, "move_terms", move_terms)
     monkeypatch.setattr(graphcut, "_KEPT_EDGES", 2 * len(edges))
     b = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
     monkeypatch.setattr(graphcut, "_KEPT_EDGES", 0)

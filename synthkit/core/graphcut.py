@@ -450,7 +450,7 @@ class _Expansion:
             return
         lab = self.lab
         full = np.full(n01 + n10 + len(w11), alpha)
-        vals = self.pw(idx[np.concatenate([w01, w10, w11])].astype(np.int64),
+        vals = self.pw(idx[np.concatenate([w01, w10, w11])],
                        np.concatenate([lab[p[w01]], full[n01:]]),
                        np.concatenate([full[:n01], lab[q[w10]], full[n01 + n10 :]]))
         kept.v01[w01] = vals[:n01]
@@ -475,7 +475,7 @@ class _Expansion:
         and the test repeats on the edges this creates.
         """
         kept = self._label_edges(alpha)
-        idx = kept.idx
+        idx = kept.idx.astype(np.intp)  # indexing by int32 arrays is several times slower
         p, q = self.e0[idx], self.e1[idx]
         while True:
             ap, aq = act[p], act[q]
@@ -491,7 +491,7 @@ class _Expansion:
             act[np.where(o0[bad], p[o[bad]], q[o[bad]])] = False
         b = np.flatnonzero(ap & aq)
         self._refresh(kept, alpha, idx, p, q, b, b, b)
-        return (idx[o].astype(np.int64), ov, o0, idx[b].astype(np.int64),
+        return (idx[o], ov, o0, idx[b],
                 kept.v01[b], kept.v10[b], kept.v11[b])
 
     def move(self, alpha: int) -> bool:

@@ -161,29 +161,47 @@ def crack_measure(
                 LA, LB = lib.local[A], lib.local[B]
                 ia = np.flatnonzero(np.abs(LA[:, t] - 1) <= tol)
                 ib = np.flatnonzero(np.abs(LB[:, t]) <= tol)
-                if len(ia) and len(ib):
-                    d, j = cKDTree(LB[ib][:, others]).query(LA[ia][:, others])
-                    ok = d <= tol
-                    match_cache[key] = (ia[ok], ib[j[ok]])
-                    unmatched += int((~ok).sum())
-                    # B's boundary vertices without a partner in A
-                    d2, _ = cKDTree(LA[ia][:, others]).query(LB[ib][:, others])
-                    unmatched += int((d2 > tol).sum())
-                else:
-                    match_cache[key] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-                    unmatched += len(ia) + len(ib)
+                CA = LA[ia][:, others] if len(ia) and len(ib) else None
+                CB = LB[ib][:, others] if CA is not None else None
+                match_cache[key], missing = _match_face(ia, ib, CA, CB, tol)
+                unmatched += missing
             ia, ib = match_cache[key]
             if len(ia) == 0:
                 continue
             ks = np.asarray(ks)
-            XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[first[ks]])
-            XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[second[ks]])
-            max_gap = max(max_gap, float(np.linalg.norm(XA - XB, axis=-1).max()))
-            if offsets is not None:
-                oa, ob = offsets[first[ks]], offsets[second[ks]]
-                seams.append(np.stack([(oa[:, None] + ia[None]).ravel(), (ob[:, None] + ib[None]).ravel()], 1))
+            gap, seam = _gap_and_seam(lib, A, B, ia, ib, corners, first[ks], second[ks], offsets)
+            max_gap = max(max_gap, gap)
+            if seam is not None:
+                seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
     return max_gap, unmatched, seams
+
+
+def _match_face(ia, ib, CA, CB, tol: float):
+    """Match the face vertices ``ia`` of piece A to ``ib`` of piece B by their face coordinates
+    ``CA (len(ia), 2)``, ``CB (len(ib), 2)`` (None when either side has none) within ``tol``.
+
+    Returns ``((ia matched, ib partners), unmatched)``, ``unmatched`` counting the vertices of
+    either side without a partner on the other."""
+    if CA is None:
+        return (np.zeros(0, np.int64), np.zeros(0, np.int64)), len(ia) + len(ib)
+    dist, j = cKDTree(CB).query(CA)
+    ok = dist <= tol
+    d2, _ = cKDTree(CA).query(CB)  # B's face vertices without a partner in A
+    return (ia[ok], ib[j[ok]]), int((~ok).sum()) + int((d2 > tol).sum())
+
+
+def _gap_and_seam(lib, A, B, ia, ib, corners, cells_a, cells_b, offsets):
+    """Largest distance between matched vertices ``ia`` of label A in ``cells_a (g,)`` and ``ib`` of
+    label B in ``cells_b (g,)`` after deformation by their ``corners``, and the ``(g * m, 2)``
+    output-vertex pairs to weld (None without ``offsets``, the first output vertex of each cell)."""
+    XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[cells_a])
+    XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[cells_b])
+    gap = float(np.linalg.norm(XA - XB, axis=-1).max())
+    if offsets is None:
+        return gap, None
+    oa, ob = offsets[cells_a], offsets[cells_b]
+    return gap, np.stack([(oa[:, None] + ia[None]).ravel(), (ob[:, None] + ib[None]).ravel()], 1)
 
 
 def label_colors(n: int) -> np.ndarray:
@@ -246,26 +264,18 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
                 u = L[idx, 1 - t]
                 return np.stack([1.0 - u if flipped else u, L[idx, 2]], axis=1)
 
-            if len(ia) and len(ib):
-                CA, CB = face_coords(LA, ia, ta, fl), face_coords(LB, ib, tb, False)
-                dist, j = cKDTree(CB).query(CA)
-                ok = dist <= tol
-                cache[key] = (ia[ok], ib[j[ok]])
-                unmatched += int((~ok).sum())
-                d2, _ = cKDTree(CA).query(CB)
-                unmatched += int((d2 > tol).sum())
-            else:
-                cache[key] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-                unmatched += len(ia) + len(ib)
+            both = len(ia) and len(ib)
+            CA = face_coords(LA, ia, ta, fl) if both else None
+            CB = face_coords(LB, ib, tb, False) if both else None
+            cache[key], missing = _match_face(ia, ib, CA, CB, tol)
+            unmatched += missing
         ia, ib = cache[key]
         if len(ia) == 0:
             continue
         P = np.asarray(pairs, np.int64)
-        XA = np.einsum("mk,gkd->gmd", lib.weights[A][ia], corners[P[:, 0]])
-        XB = np.einsum("mk,gkd->gmd", lib.weights[B][ib], corners[P[:, 1]])
-        max_gap = max(max_gap, float(np.linalg.norm(XA - XB, axis=-1).max()))
-        if offsets is not None:
-            oa, ob = offsets[P[:, 0]], offsets[P[:, 1]]
-            seams.append(np.stack([(oa[:, None] + ia[None]).ravel(), (ob[:, None] + ib[None]).ravel()], 1))
+        gap, seam = _gap_and_seam(lib, A, B, ia, ib, corners, P[:, 0], P[:, 1], offsets)
+        max_gap = max(max_gap, gap)
+        if seam is not None:
+            seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
     return max_gap, unmatched, seams

@@ -68,11 +68,7 @@ class ConstructionSpace:
 
     def world(self, uv: np.ndarray, w: np.ndarray) -> np.ndarray:
         """World points ``(..., 3)`` from plane points ``uv (..., 2)`` and sweep coordinates ``w (...)``."""
-        out = np.zeros(uv.shape[:-1] + (3,))
-        out[..., self.point_axes[0]] = uv[..., 0]
-        out[..., self.point_axes[1]] = uv[..., 1]
-        out[..., self.axes[2]] = w
-        return out
+        return plane_to_world(uv, w, self.point_axes, self.axes[2])
 
     def hex_corners(self) -> np.ndarray:
         """Eight control points per cell, ``(S_X * S_Y * S_Z, 8, 3)`` world, cells in C order of (i, j, k).
@@ -168,6 +164,16 @@ def units_along(length: float, unit: float) -> int:
     if length < unit:
         return 0
     return max(1, int(np.floor(length / unit + 0.5)))
+
+
+def plane_to_world(uv: np.ndarray, w: np.ndarray, point_axes, sweep_axis: int) -> np.ndarray:
+    """World points ``(..., 3)``: plane points ``uv (..., 2)`` on the world axes ``point_axes`` and
+    sweep coordinates ``w (...)`` on ``sweep_axis``."""
+    out = np.zeros(uv.shape[:-1] + (3,))
+    out[..., point_axes[0]] = uv[..., 0]
+    out[..., point_axes[1]] = uv[..., 1]
+    out[..., sweep_axis] = w
+    return out
 
 
 def mitre_directions(P: np.ndarray, closed: bool, key: str):

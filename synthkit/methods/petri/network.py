@@ -65,6 +65,7 @@ from synthkit.methods.petri.construction import (
     _point_polyline_distance,
     _resample,
     mitre_directions,
+    plane_to_world,
     polyline_problem,
     units_along,
 )
@@ -146,11 +147,8 @@ class NetworkSpace:
         return len(self.sweep) - 1
 
     def world(self, uv: np.ndarray, w: np.ndarray) -> np.ndarray:
-        out = np.zeros(uv.shape[:-1] + (3,))
-        out[..., self.point_axes[0]] = uv[..., 0]
-        out[..., self.point_axes[1]] = uv[..., 1]
-        out[..., self.axes[2]] = w
-        return out
+        """World points ``(..., 3)`` from plane points ``uv (..., 2)`` and sweep coordinates ``w (...)``."""
+        return plane_to_world(uv, w, self.point_axes, self.axes[2])
 
     def hex_corners(self) -> np.ndarray:
         """Eight control points per cell ``(n_cells, 8, 3)``, corner ``ia + 2 jb + 4 kc``."""

@@ -117,6 +117,12 @@ def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: i
         periodic=(space.closed, False, False),
         corners=corners,
     )
+    return infer_and_deform(net, library, corners, grid, rng, max_restarts=max_restarts)
+
+
+def infer_and_deform(net: ColouredPetriNet, library: PieceLibrary, corners, grid, rng, *, max_restarts: int):
+    """Algorithm 2 on ``net``, its deforming transitions placing pieces into the hexahedra ``corners``
+    (the origin cell prefers the example's piece at (0, 0, 0)). Returns (net, assembler, restarts)."""
     assembler = Assembler(library, corners)
     restarts = net.infer(
         rng,
@@ -393,15 +399,7 @@ def synthesize_network(space: network.NetworkSpace, cons, library: PieceLibrary,
         corners=corners,
         graph=(nbr, back, coords, space.describe),
     )
-    assembler = Assembler(library, corners)
-    restarts = net.infer(
-        rng,
-        origin_labels=origin_preference(grid),
-        deform=assembler,
-        max_restarts=max_restarts,
-        on_restart=assembler.clear,
-    )
-    return net, assembler, restarts
+    return infer_and_deform(net, library, corners, grid, rng, max_restarts=max_restarts)
 
 
 def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library: PieceLibrary, assembler) -> dict:

@@ -26,7 +26,7 @@ INF = 1e12
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 _REL_TOL = 1e-12
-_KEPT_EDGES = 3 << 20  # edge entries kept across moves (per label): 36 bytes each, 113 MB at most
+_KEPT_EDGES = 3 << 20  # edge entries kept across moves, summed over labels: 36 bytes each, 113 MB at most
 
 
 # --------------------------------------------------------------------------------------------------

@@ -662,10 +662,7 @@ class IncrementalAutocorrelation:
         wy, wx = self.window
         key = ("spectral", h, w)
         cache = self._weight_cache.get(key)
-        mult = np.full(M1 // 2 + 1, 2.0)
-        mult[0] = 1.0
-        if M1 % 2 == 0:
-            mult[-1] = 1.0
+        mult = self._mult_row(M1)
         N = M0 * M1
 
         def parseval(X):  # in fft_dtype, the precision the weights are used in
@@ -748,10 +745,7 @@ class IncrementalAutocorrelation:
         if "tables" not in self._torus_cache:
             H, W = self.f.shape
             ctype = np.complex64 if self.fft_dtype == np.float32 else np.complex128
-            mult = np.full(W // 2 + 1, 2.0)
-            mult[0] = 1.0
-            if W % 2 == 0:
-                mult[-1] = 1.0
+            mult = self._mult_row(W)
             ky, y = np.arange(H), np.arange(H)
             EH = np.exp(2j * np.pi * ((y[:, None] * ky[None, :]) % H) / H).astype(ctype)
             kx, x = np.arange(W // 2 + 1), np.arange(W)
@@ -789,10 +783,7 @@ class IncrementalAutocorrelation:
         P = G.real**2 + G.imag**2
         st = {"version": self._ac_version, "g": g, "G": G, "P": P, "gsum": float(g.sum())}
         # the lines dy = H / 2 and dx = W / 2 of AC (outside the window), as in the Parseval sums
-        mult = np.full(W // 2 + 1, 2.0)
-        mult[0] = 1.0
-        if W % 2 == 0:
-            mult[-1] = 1.0
+        mult = self._mult_row(W)
         st["ac_row"] = sfft.irfft((-1.0) ** np.arange(H) @ P, n=W) / H if H % 2 == 0 else None
         st["ac_col"] = sfft.fft(P @ (mult * (-1.0) ** np.arange(mult.size))).real / (H * W) if W % 2 == 0 else None
         self._torus_cache["state"] = st

@@ -80,32 +80,57 @@ def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> 
         raise InputError(f"{source}: face indices out of range [0, {V.shape[0]})")
 
 
-def save_mesh(mesh: trimesh.Trimesh, path: Path | str, *, face_labels: np.ndarray | None = None) -> None:
+def save_mesh(
+    mesh: trimesh.Trimesh,
+    path: Path | str,
+    *,
+    face_labels: np.ndarray | None = None,
+    face_colors: np.ndarray | None = None,
+) -> None:
     """Write ``mesh`` to ``path`` (format by suffix), atomically.
 
-    ``face_labels (#F,) int`` is stored as an int32 per-face ``label`` property (PLY only; for
-    other formats it raises ValueError).
+    ``face_labels (#F,) int`` is stored as an int32 per-face ``label`` property, and with it
+    ``face_colors (#F, 3) uint8`` as per-face ``red green blue`` (PLY only; for other formats, or
+    colours without labels, it raises ValueError).
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"unsupported mesh format {suffix!r}")
     tmp = path.with_name(path.name + ".tmp" + suffix)
+    if face_colors is not None and face_labels is None:
+        raise ValueError("face colours are stored beside face labels only")
     if face_labels is not None:
         if suffix != ".ply":
             raise ValueError("face labels are stored in PLY files only")
         labels = np.asarray(face_labels)
         if labels.shape != (len(mesh.faces),):
             raise ValueError(f"face_labels has shape {labels.shape}, expected ({len(mesh.faces)},)")
-        data = _ply_with_face_labels(mesh, labels.astype(np.int32))
+        colors = None
+        if face_colors is not None:
+            colors = np.asarray(face_colors)
+            if colors.shape != (len(mesh.faces), 3):
+                raise ValueError(f"face_colors has shape {colors.shape}, expected ({len(mesh.faces)}, 3)")
+            colors = colors.astype(np.uint8)
+        data = _ply_with_face_labels(mesh, labels.astype(np.int32), colors)
         tmp.write_bytes(data)
     else:
         mesh.export(tmp, file_type=suffix.lstrip("."))
     os.replace(tmp, path)
 
 
+_FACE_RECORDS = {
+    ("list uchar int vertex_indices", "int label"): [("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")],
+    ("list uchar int vertex_indices", "int label", "uchar red", "uchar green", "uchar blue"): [
+        ("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))
+    ],
+}
+"""Face record layouts :func:`save_mesh` writes (by their header property lines), as numpy dtypes."""
+
+
 def load_face_labels(path: Path | str) -> np.ndarray:
-    """Per-face ``label`` property of a PLY written by :func:`save_mesh`, as ``(#F,) int32``."""
+    """Per-face ``label`` property of a PLY written by :func:`save_mesh` (with or without face
+    colours), as ``(#F,) int32``."""
     path = Path(path)
     with open(path, "rb") as fh:
         header = []
@@ -118,32 +143,44 @@ def load_face_labels(path: Path | str) -> np.ndarray:
                 break
         body = fh.read()
     n_vertices = n_faces = 0
+    face_props: list[str] = []
+    element = None
     for line in header:
-        if line.startswith("element vertex"):
-            n_vertices = int(line.split()[-1])
-        elif line.startswith("element face"):
-            n_faces = int(line.split()[-1])
-    if "property int label" not in header:
+        if line.startswith("element "):
+            element = line.split()[1]
+            if element == "vertex":
+                n_vertices = int(line.split()[-1])
+            elif element == "face":
+                n_faces = int(line.split()[-1])
+        elif line.startswith("property ") and element == "face":
+            face_props.append(line.removeprefix("property "))
+    if "int label" not in face_props:
         raise InputError(f"{path}: PLY has no per-face 'label' property")
+    layout = _FACE_RECORDS.get(tuple(face_props))
+    if layout is None:
+        raise InputError(f"{path}: face properties {face_props} are not a layout synthkit writes")
     vertex_bytes = n_vertices * 3 * 4
-    face_dtype = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")])
-    faces = np.frombuffer(body, dtype=face_dtype, count=n_faces, offset=vertex_bytes)
+    faces = np.frombuffer(body, dtype=np.dtype(layout), count=n_faces, offset=vertex_bytes)
     return faces["label"].astype(np.int32)
 
 
-def _ply_with_face_labels(mesh: trimesh.Trimesh, labels: np.ndarray) -> bytes:
-    """Binary little-endian PLY: float32 xyz, triangles with an int32 ``label`` per face."""
+def _ply_with_face_labels(mesh: trimesh.Trimesh, labels: np.ndarray, colors: np.ndarray | None = None) -> bytes:
+    """Binary little-endian PLY: float32 xyz, triangles with an int32 ``label`` per face and, with
+    ``colors (#F, 3) uint8``, ``uchar red green blue``."""
     V = np.asarray(mesh.vertices, dtype="<f4")
     F = np.asarray(mesh.faces)
+    props = ("list uchar int vertex_indices", "int label") + (
+        () if colors is None else ("uchar red", "uchar green", "uchar blue")
+    )
     header = (
         "ply\nformat binary_little_endian 1.0\n"
         f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
-        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int label\n"
-        "end_header\n"
+        f"element face {len(F)}\n" + "".join(f"property {p}\n" for p in props) + "end_header\n"
     ).encode("ascii")
-    face_dtype = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")])
-    faces = np.empty(len(F), dtype=face_dtype)
+    faces = np.empty(len(F), dtype=np.dtype(_FACE_RECORDS[props]))
     faces["n"] = 3
     faces["idx"] = F
     faces["label"] = labels
+    if colors is not None:
+        faces["rgb"] = colors
     return header + V.tobytes() + faces.tobytes()

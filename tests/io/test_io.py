@@ -34,6 +34,19 @@ def test_ply_face_labels_int32(tmp_path, tetra):
     np.testing.assert_allclose(load_mesh(path).vertices, tetra.vertices)
 
 
+def test_ply_face_labels_with_colours(tmp_path, tetra):
+    path = tmp_path / "coloured.ply"
+    colours = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [9, 8, 7]], np.uint8)
+    save_mesh(tetra, path, face_labels=np.array([3, 1, 4, 1]), face_colors=colours)
+    np.testing.assert_array_equal(load_face_labels(path), [3, 1, 4, 1])
+    face = trimesh.load(path, process=False).metadata["_ply_raw"]["face"]["data"]
+    np.testing.assert_array_equal(np.stack([face[c].ravel() for c in ("red", "green", "blue")], 1), colours)
+    with pytest.raises(ValueError, match="face colours are stored beside face labels only"):
+        save_mesh(tetra, path, face_colors=colours)
+    with pytest.raises(ValueError, match=r"face_colors has shape \(3, 3\), expected \(4, 3\)"):
+        save_mesh(tetra, path, face_labels=np.zeros(4), face_colors=colours[:3])
+
+
 def test_face_labels_shape_and_format_checked(tmp_path, tetra):
     with pytest.raises(ValueError, match=r"face_labels has shape \(3,\), expected \(4,\)"):
         save_mesh(tetra, tmp_path / "a.ply", face_labels=np.zeros(3))

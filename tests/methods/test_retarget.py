@@ -17,7 +17,7 @@ from synthkit.cli.main import cli
 from synthkit.core.mesh import normalize_unit, weld
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
-from synthkit.io.meshes import load_mesh
+from synthkit.io.meshes import load_face_labels, load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import (
     analyze,
     dominant_offsets,
@@ -301,13 +301,14 @@ def test_no_invented_geometry_sees_inside_triangles(tmp_path):
     bad = trimesh.Trimesh(inp.vertices, [[0, 1, 2], [0, 1, 3]], process=False)  # 0-1-3 is not on the input
     out = tmp_path / "o"
     out.mkdir()
-    from synthkit.methods.retarget.pipeline import write_labels_ply
+    def write_labels_ply(path, mesh, labels):
+        save_mesh(mesh, path, face_labels=labels, face_colors=label_colours(labels, 1))
 
     report = {"metrics": {"normalisation": {"center": [0, 0, 0], "scale": 1.0}, "grid_basis_normalised": np.eye(3),
                           "label_shifts": [[0, 0, 0]]}}
-    write_labels_ply(out / "labels.ply", bad.vertices, bad.faces, [0, 0], 1)
+    write_labels_ply(out / "labels.ply", bad, np.array([0, 0]))
     assert _no_invented_geometry(report, out, inp) > 0.1
-    write_labels_ply(out / "labels.ply", inp.vertices, inp.faces, [0, 0], 1)
+    write_labels_ply(out / "labels.ply", inp, np.array([0, 0]))
     assert _no_invented_geometry(report, out, inp) <= 1e-6
 
 
@@ -349,6 +350,7 @@ def test_bookshelf_grows_by_two_rows_with_baseline(tmp_path, sample_dir):
     assert labels.dtype == np.int32 and len(labels) == len(lm.faces) == len(res.faces)
     assert set(np.unique(labels).tolist()) == set(np.unique(vol).tolist())
     np.testing.assert_array_equal(colours, label_colours(labels, m["graph_labels"]))
+    np.testing.assert_array_equal(load_face_labels(out / "labels.ply"), labels)
     _, first = np.unique(labels, return_index=True)
     assert len(np.unique(colours[first], axis=0)) == len(first)  # distinct labels, distinct colours
     np.testing.assert_array_equal(np.asarray(lm.visual.face_colors)[:, :3], colours)

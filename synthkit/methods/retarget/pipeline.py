@@ -4,7 +4,7 @@ Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (gri
 sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), and the
 same three prefixed ``baseline_`` when the regular-offset baseline runs. Outputs: the retargeted mesh
 in the input's format, ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
-labels and their colours, :func:`write_labels_ply`), PNG previews (sparsity curve, offset
+int32 labels and their colours, :func:`label_colours`), PNG previews (sparsity curve, offset
 histogram, offsets over the model, before / after / labels renders) and metrics.
 
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
@@ -228,34 +228,6 @@ def label_colours(labels, n_labels: int) -> np.ndarray:
     return pal[np.asarray(labels, dtype=np.int64)]
 
 
-def write_labels_ply(path, V, F, labels, n_labels: int) -> None:
-    """The label colouring: binary little-endian PLY, float32 ``x y z``, triangles with an
-    ``int32 label`` (the label index of ``metrics.label_shifts``) and ``uchar red green blue``, the
-    colour of that label (:func:`label_colours`, the same as ``labels.png``).
-
-    The label property is declared ``int32`` (the PLY alias of ``int``): the face records are longer
-    than those :func:`synthkit.io.meshes.load_face_labels` parses, and it refuses the file instead
-    of misreading it. trimesh, plyfile or MeshLab read both properties."""
-    V = np.asarray(V, dtype="<f4").reshape(-1, 3)
-    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    labels = np.asarray(labels, dtype=np.int64).reshape(-1)
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
-        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int32 label\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    ).encode("ascii")
-    rec = np.dtype([("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
-    faces = np.empty(len(F), dtype=rec)
-    faces["n"] = 3
-    faces["idx"] = F
-    faces["label"] = labels
-    faces["rgb"] = label_colours(labels, n_labels) if len(labels) else np.zeros((0, 3), np.uint8)
-    tmp = Path(path).with_name(Path(path).name + ".tmp.ply")
-    tmp.write_bytes(header + V.tobytes() + faces.tobytes())
-    tmp.replace(path)
-
-
 def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
     """Metrics and previews of the analysis (Fig. 2, Fig. 5)."""
     principal_n = an.principal
@@ -334,7 +306,8 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     )
     colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
     labels_path = ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply")
-    write_labels_ply(labels_path, Vm, res.F, res.face_label, res.problem.n_labels)
+    save_mesh(mesh, labels_path, face_labels=res.face_label,
+              face_colors=label_colours(res.face_label, res.problem.n_labels))
     render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
     return render_mesh_png(
         ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),

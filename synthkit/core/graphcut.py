@@ -6,10 +6,13 @@ too, so callers may use either. Internally an infinite cost becomes a finite con
 the sum of all finite costs of the same cut problem, so that one such cost outweighs any combination of
 finite ones, and results are checked to be finite afterwards.
 
-Min-cuts use PyMaxflow (Boykov-Kolmogorov max-flow, ``maxflow.Graph[float]``). Alpha-expansion
-(Boykov, Veksler and Zabih, PAMI 2001) is built on it here because the retargeting method needs
-pairwise costs that depend on the edge (position-dependent tables or a cost function), which
-PyMaxflow's own ``fastmin`` grid routines cannot express.
+Binary min-cuts use PyMaxflow (Boykov-Kolmogorov max-flow, ``maxflow.Graph[float]``).
+Alpha-expansion (Boykov, Veksler and Zabih, PAMI 2001) is our own because the retargeting method
+needs pairwise costs that depend on the edge (position-dependent tables or a cost function), which
+PyMaxflow's ``fastmin`` grid routines cannot express. Its moves run on the Boykov-Kolmogorov
+max-flow of :mod:`synthkit.core.flow`, which keeps each label's residual graph from one move on
+the label to the next (Kohli and Torr's dynamic graph cuts), compiled with numba like the move
+construction itself.
 """
 
 from __future__ import annotations
@@ -18,7 +21,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import maxflow
+import numba
 import numpy as np
+
+from synthkit.core.flow import ResidualGraph, _bk, _saturate, _update
 
 INF = 1e12
 """Costs at or above this value are treated as infinite (forbidden), exactly like ``np.inf``."""
@@ -26,7 +32,7 @@ INF = 1e12
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 _REL_TOL = 1e-12
-_KEPT_EDGES = 3 << 20  # edge entries kept across moves, summed over labels: 36 bytes each, 113 MB at most
+_KEPT_EDGES = 3 << 20  # edges kept across moves, summed over labels: ~104 bytes each with graph, 330 MB at most
 
 
 # --------------------------------------------------------------------------------------------------
@@ -210,58 +216,6 @@ def grid_mincut(source, sink, weights, *, structure=None) -> tuple[np.ndarray, f
     return side.reshape(shape), flow
 
 
-def _binary_cut(d: np.ndarray, p: np.ndarray, q: np.ndarray, c_pq: np.ndarray, c_qp: np.ndarray,
-                *, rounds: int = 3) -> np.ndarray:
-    """Minimiser ``x (n,) bool`` of ``sum_i d_i x_i + sum_k c_pq[k] (1 - x_p) x_q + c_qp[k] x_p (1 - x_q)``.
-
-    ``d`` (n,) finite, ``p, q`` (m,) int node pairs, ``c_pq, c_qp`` (m,) finite and non-negative.
-    Before the max-flow, nodes are fixed by the exact persistency test: ``x_i = 0`` is optimal
-    when ``d_i`` is at least the sum of the pair costs ``x_i = 0`` can meet, ``x_i = 1`` when
-    ``-d_i`` is at least the sum of those ``x_i = 1`` can meet (flipping such a node in any
-    labeling never costs more). Fixed nodes turn their pairs into unary terms of the other end,
-    and the test repeats (at most ``rounds`` times, and only while a round fixes at least 1 / 20 of
-    the free nodes) on what is left; a min-cut solves the rest. Ties go to ``x = 0``.
-    """
-    n = len(d)
-    fixed = np.full(n, -1, dtype=np.int8)
-    d = d.copy()
-    for _ in range(rounds):
-        if len(p) == 0:
-            break
-        meet0 = np.bincount(p, c_pq, n) + np.bincount(q, c_qp, n)  # costs x_i = 0 can meet
-        meet1 = np.bincount(p, c_qp, n) + np.bincount(q, c_pq, n)
-        free = fixed < 0
-        to0 = free & (d >= meet0)
-        to1 = free & ~to0 & (-d >= meet1)
-        if 20 * (np.count_nonzero(to0) + np.count_nonzero(to1)) < np.count_nonzero(free):
-            break  # too few to pay for the folding: the min-cut settles them
-        fixed[to0] = 0
-        fixed[to1] = 1
-        fp, fq = fixed[p], fixed[q]
-        # a fixed end adds its pair's cost to the free end: x_p = 0 with x_q = 1 costs c_pq, ...
-        m = (fp >= 0) & (fq < 0)
-        d += np.bincount(q[m], np.where(fp[m] == 0, c_pq[m], -c_qp[m]), n)
-        m = (fq >= 0) & (fp < 0)
-        d += np.bincount(p[m], np.where(fq[m] == 0, c_qp[m], -c_pq[m]), n)
-        live = (fp < 0) & (fq < 0)
-        p, q, c_pq, c_qp = p[live], q[live], c_pq[live], c_qp[live]
-    x = fixed == 1
-    free = np.flatnonzero(fixed < 0)
-    if len(free) == 0:
-        return x
-    pos = np.zeros(n, dtype=np.int64)
-    pos[free] = np.arange(len(free))
-    g = maxflow.Graph[float](len(free), max(len(p), 1))
-    ids = g.add_nodes(len(free))
-    df = d[free]
-    g.add_grid_tedges(ids, np.maximum(df, 0.0), np.maximum(-df, 0.0))
-    if len(p):
-        g.add_edges(pos[p], pos[q], c_pq, c_qp)
-    g.maxflow()
-    x[free] = g.get_grid_segments(ids)
-    return x
-
-
 # --------------------------------------------------------------------------------------------------
 # multi-label energies
 
@@ -377,21 +331,34 @@ class ExpansionResult:
 
 @dataclass
 class _Kept:
-    """One label's edges and pairwise values, kept across moves on that label.
+    """One label's edges, pairwise values and move graph, kept across moves on that label.
 
-    ``idx`` (k,) int: the edges with at least one end that can take the label (the only ones a
-    move on it can change), ascending. ``v01``, ``v10``, ``v11`` (k,): ``V(l_p, alpha)``,
-    ``V(alpha, l_q)`` and ``V(alpha, alpha)``, evaluated only when a move needs them (``v11`` NaN
-    until then); ``at01`` and ``at10`` (k,) int32: the move at which ``v01`` (for the labels of
-    the edges' first ends) and ``v10`` (second ends) were evaluated (0: never).
+    ``idx`` (k,) int32: the edges with at least one end that can take the label (the only ones a
+    move on it can change), ascending; ``gp``, ``gq`` (k,) int32 their first and second ends.
+    ``v01``, ``v10``, ``v11`` (k,): ``V(l_p, alpha)``, ``V(alpha, l_q)`` and ``V(alpha, alpha)``,
+    evaluated only when a move needs them (``v11`` NaN until then); ``at01`` and ``at10`` (k,)
+    int32: the move at which ``v01`` (for the labels of the edges' first ends) and ``v10`` (second
+    ends) were evaluated (0: never).
+
+    ``graph``: the residual graph of the label's last move, over every node that can take the
+    label (``loc`` (N,) int32: a node's index in it, -1 if it cannot) and every kept edge whose
+    ends both can (``slot`` (k,) int32: its index in the graph, -1 if not). ``big``: the finite
+    stand-in for an infinite cost in that graph, never lowered so that more of the kept flow stays
+    valid.
     """
 
     idx: np.ndarray
+    gp: np.ndarray
+    gq: np.ndarray
     v01: np.ndarray
     v10: np.ndarray
     v11: np.ndarray
     at01: np.ndarray
     at10: np.ndarray
+    loc: np.ndarray
+    slot: np.ndarray
+    graph: ResidualGraph
+    big: float = 0.0
 
 
 class _Expansion:
@@ -408,51 +375,45 @@ class _Expansion:
         self.un = u[np.arange(self.n), self.lab]
         self.pv = pw(np.arange(len(e)), self.lab[self.e0], self.lab[self.e1])
         self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
-        self.pos = np.zeros(self.n, dtype=np.int64)
         self.changed_at = np.zeros(self.n, dtype=np.int64)
         self.step = 0
         self.kept: dict[int, _Kept] = {}
         self.n_kept = 0
 
     def _label_edges(self, alpha: int) -> _Kept:
-        """The kept edges and values of ``alpha`` (created on first use); past ``_KEPT_EDGES``
-        entries in all, a fresh, unkept one for this move only."""
+        """The kept edges, values and graph of ``alpha`` (created on first use); past
+        ``_KEPT_EDGES`` edges in all, a fresh, unkept one for this move only."""
         kept = self.kept.get(alpha)
         if kept is None:
             ok = self.okT[alpha]
-            idx = np.flatnonzero(ok[self.e0] | ok[self.e1])
+            idx = np.flatnonzero(ok[self.e0] | ok[self.e1]).astype(np.int32)
+            gp, gq = self.e0[idx].astype(np.int32), self.e1[idx].astype(np.int32)
             k = len(idx)
-            small = np.int32 if len(self.e0) < 2**31 else np.int64
-            kept = _Kept(idx.astype(small), np.empty(k), np.empty(k), np.full(k, np.nan),
-                         np.zeros(k, dtype=np.int32), np.zeros(k, dtype=np.int32))
+            loc = np.full(self.n, -1, dtype=np.int32)
+            loc[ok] = np.arange(np.count_nonzero(ok))
+            lp, lq = loc[gp], loc[gq]
+            both = (lp >= 0) & (lq >= 0)
+            slot = np.full(k, -1, dtype=np.int32)
+            slot[both] = np.arange(np.count_nonzero(both))
+            kept = _Kept(idx, gp, gq, np.empty(k), np.empty(k), np.full(k, np.nan),
+                         np.zeros(k, dtype=np.int32), np.zeros(k, dtype=np.int32),
+                         loc, slot, ResidualGraph.build(int(ok.sum()), lp[both], lq[both]))
             if self.n_kept + k <= _KEPT_EDGES:
                 self.kept[alpha] = kept
                 self.n_kept += k
         return kept
 
-    def _refresh(self, kept: _Kept, alpha: int, idx: np.ndarray, p: np.ndarray, q: np.ndarray,
-                 w01: np.ndarray, w10: np.ndarray, w11: np.ndarray) -> None:
-        """Evaluate, in one call of the pairwise function, the kept values the move needs that are
-        missing or stale: ``v01`` at the positions ``w01``, ``v10`` at ``w10``, ``v11`` at ``w11``
-        (positions into ``kept``; ``idx``, ``p``, ``q`` are the kept edges and their ends).
-
-        ``V(alpha, alpha)`` never changes; ``V(l_p, alpha)`` only when ``l_p`` does and ``V(alpha,
-        l_q)`` only when ``l_q`` does. Moves are numbered from 1 and a label change carries its
-        move's number, so a value evaluated at move ``at`` is stale once its end has ``changed_at
-        >= at``.
-        """
-        ch = self.changed_at
-        w01 = w01[ch[p[w01]] >= kept.at01[w01]]
-        w10 = w10[ch[q[w10]] >= kept.at10[w10]]
-        w11 = w11[np.isnan(kept.v11[w11])]
+    def _refresh(self, kept: _Kept, alpha: int, w01: np.ndarray, w10: np.ndarray, w11: np.ndarray) -> None:
+        """Evaluate, in one call of the pairwise function, ``v01`` at the kept positions ``w01``,
+        ``v10`` at ``w10`` and ``v11`` at ``w11`` (the values ``_stale`` found missing or stale)."""
         n01, n10 = len(w01), len(w10)
         if n01 + n10 + len(w11) == 0:
             return
         lab = self.lab
         full = np.full(n01 + n10 + len(w11), alpha)
-        vals = self.pw(idx[np.concatenate([w01, w10, w11])],
-                       np.concatenate([lab[p[w01]], full[n01:]]),
-                       np.concatenate([full[:n01], lab[q[w10]], full[n01 + n10 :]]))
+        vals = self.pw(kept.idx[np.concatenate([w01, w10, w11])].astype(np.intp),
+                       np.concatenate([lab[kept.gp[w01]], full[n01:]]),
+                       np.concatenate([full[:n01], lab[kept.gq[w10]], full[n01 + n10 :]]))
         kept.v01[w01] = vals[:n01]
         kept.v10[w10] = vals[n01 : n01 + n10]
         kept.v11[w11] = vals[n01 + n10 :]
@@ -462,110 +423,230 @@ class _Expansion:
     def energy(self) -> float:
         return _sum_terms(self.un, self.pv)
 
-    def move_terms(self, alpha: int, act: np.ndarray):
-        """The edge terms of the move on ``alpha`` for the active nodes ``act`` (updated in place).
-
-        Returns ``(oi, ov, o0, bi, e01, e10, e11)``: the edges with exactly one active end, their
-        cost after that end switches to alpha and whether that end is the first; the edges with
-        both ends active and their ``V(l_p, alpha)``, ``V(alpha, l_q)``, ``V(alpha, alpha)``.
-        Edge indices ascend.
+    def _prepare(self, kept: _Kept, alpha: int, act: np.ndarray) -> None:
+        """Bring the kept values that the move on ``alpha`` reads up to date, for the active nodes
+        ``act`` (updated in place): ``V(l_p, alpha)`` or ``V(alpha, l_q)`` on edges with one active
+        end, all three on edges with two.
 
         When the current energy is finite, an active node whose switch would meet an infinite
         cost with a fixed neighbour keeps its label in every finite move result: it is made fixed
         and the test repeats on the edges this creates.
         """
-        kept = self._label_edges(alpha)
-        idx = kept.idx.astype(np.intp)  # indexing by int32 arrays is several times slower
-        p, q = self.e0[idx], self.e1[idx]
+        args = (act, kept.gp, kept.gq, self.changed_at, kept.at01, kept.at10, kept.v11)
         while True:
-            ap, aq = act[p], act[q]
-            o = np.flatnonzero(ap != aq)
-            o0 = ap[o]
-            self._refresh(kept, alpha, idx, p, q, o[~o0], o[o0], o[:0])
-            ov = np.where(o0, kept.v10[o], kept.v01[o])
-            if self.n_inf:
+            self._refresh(kept, alpha, *_stale(*args, False))
+            if self.n_inf or not _fix_blocked(act, kept.gp, kept.gq, kept.v01, kept.v10):
                 break
-            bad = np.isinf(ov)
-            if not bad.any():
-                break
-            act[np.where(o0[bad], p[o[bad]], q[o[bad]])] = False
-        b = np.flatnonzero(ap & aq)
-        self._refresh(kept, alpha, idx, p, q, b, b, b)
-        return (idx[o], ov, o0, idx[b],
-                kept.v01[b], kept.v10[b], kept.v11[b])
+        self._refresh(kept, alpha, *_stale(*args, True))
 
     def move(self, alpha: int) -> bool:
         """One expansion move on ``alpha``; applies it and returns True when it lowers the energy."""
-        lab, e0, e1 = self.lab, self.e0, self.e1
         self.step += 1
-        act = self.okT[alpha] & (lab != alpha)
+        act = self.okT[alpha] & (self.lab != alpha)
         if not act.any():
             return False
-        oi, ov, o0, bi, e01, e10, e11 = self.move_terms(alpha, act)
-        nodes = np.flatnonzero(act)
-        na = len(nodes)
-        if na == 0:
+        kept = self._label_edges(alpha)
+        self._prepare(kept, alpha, act)
+        if not act.any():
             return False
-        pos = self.pos
-        pos[nodes] = np.arange(na)
-        on = pos[np.where(o0, e0[oi], e1[oi])]  # the active end of each one-sided edge
-        e00 = self.pv[bi]
-        o00 = self.pv[oi]
-        c0 = self.un[nodes]
-        c1 = self.uT[alpha, nodes]
-        bp, bq = pos[e0[bi]], pos[e1[bi]]
+        g = kept.graph
+        status, kept.big, d_inf = _move(
+            alpha, self.step, act, self.lab, self.un, self.uT[alpha], self.pv, self.changed_at,
+            kept.idx, kept.gp, kept.gq, kept.v01, kept.v10, kept.v11, kept.loc, kept.slot, kept.big,
+            g.first, g.head, g.sister, g.rcap, g.tr, g.arc_pq, g.arc_qp, g.p, g.q, g.cap_pq, g.term,
+            _REL_TOL)
+        self.n_inf += d_inf
+        return status == 1
 
-        raw = (c0, c1, e00, e11, e01, e10, o00, ov)
-        sums = [float(np.abs(r).sum()) for r in raw]
-        if np.isfinite(sums).all():
-            fin_total = sum(sums)
-            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = raw
+
+@numba.njit(cache=True, nogil=True)
+def _stale(act, gp, gq, changed_at, at01, at10, v11, two_sided):  # pragma: no cover
+    """Kept positions whose values a move with active nodes ``act`` (N,) bool reads and that are
+    missing or stale: ``(w01, w10, w11)`` int arrays for ``v01``, ``v10``, ``v11``.
+
+    An edge with one active end reads the value of that end's switch; with ``two_sided``, an edge
+    with two reads all three. ``V(alpha, alpha)`` never changes; ``V(l_p, alpha)`` only when
+    ``l_p`` does and ``V(alpha, l_q)`` only when ``l_q`` does. Moves are numbered from 1 and a
+    label change carries its move's number, so a value evaluated at move ``at`` is stale once its
+    end has ``changed_at >= at``.
+    """
+    k = len(gp)
+    w01 = np.empty(k, dtype=np.int64)
+    w10 = np.empty(k, dtype=np.int64)
+    w11 = np.empty(k, dtype=np.int64)
+    n01 = 0
+    n10 = 0
+    n11 = 0
+    for e in range(k):
+        ap = act[gp[e]]
+        aq = act[gq[e]]
+        if ap and aq:
+            if not two_sided:
+                continue
+            if np.isnan(v11[e]):
+                w11[n11] = e
+                n11 += 1
+        elif not (ap or aq):
+            continue
+        if aq and changed_at[gp[e]] >= at01[e]:
+            w01[n01] = e
+            n01 += 1
+        if ap and changed_at[gq[e]] >= at10[e]:
+            w10[n10] = e
+            n10 += 1
+    return w01[:n01], w10[:n10], w11[:n11]
+
+
+@numba.njit(cache=True, nogil=True)
+def _fix_blocked(act, gp, gq, v01, v10):  # pragma: no cover
+    """Make fixed (``act`` False) every active node with an edge to a fixed node that its switch
+    makes infinite; the test reads ``act`` as it was on entry. Returns whether any node changed."""
+    k = len(gp)
+    blocked = np.empty(k, dtype=np.int64)
+    nb = 0
+    for e in range(k):
+        ap = act[gp[e]]
+        aq = act[gq[e]]
+        if ap and not aq and np.isinf(v10[e]):
+            blocked[nb] = gp[e]
+            nb += 1
+        elif aq and not ap and np.isinf(v01[e]):
+            blocked[nb] = gq[e]
+            nb += 1
+    for i in range(nb):
+        act[blocked[i]] = False
+    return nb > 0
+
+
+@numba.njit(cache=True, inline="always")
+def _finite(v, big):  # pragma: no cover
+    return big if np.isinf(v) else v
+
+
+@numba.njit(cache=True, nogil=True)
+def _move(alpha, step, act, lab, un, u_alpha, pv, changed_at, idx, gp, gq, v01, v10, v11, loc, slot, big,
+          first, head, sister, rcap, tr, arc_pq, arc_qp, gpl, gql, cap_pq, term, rel_tol):  # pragma: no cover
+    """The expansion move on ``alpha`` for the active nodes ``act`` (N,) bool, compiled.
+
+    Builds the binary move energy (Kolmogorov and Zabih; x = 1 switches to alpha) from the current
+    terms ``un`` (N,), ``pv`` (E,) and the kept values ``v01``, ``v10``, ``v11`` (k,) of the kept
+    edges ``idx`` (k,) with ends ``gp``, ``gq``: one-sided edges are unary terms of their active end,
+    two-sided ones give ``E00 + a x_p + b x_q + c_pq (1 - x_p) x_q + c_qp x_p (1 - x_q)``. A
+    non-submodular term (``E01 + E10 < E00 + E11``) gets ``E01`` raised to ``E00 + E11 - E10``
+    (Rother et al. 2005), an overestimate that is exact at the current labeling (x = 0). ``c_pq +
+    c_qp`` is split so that the unary parts stay small: with ``E00 = E11 = 0`` both vanish, and
+    infinite terms create no large opposite terminal links. Infinite terms become ``big``, at least
+    twice the sum of the move's finite terms plus one.
+
+    The cut runs on the label's kept residual graph (arrays of :class:`ResidualGraph`), brought to
+    the new capacities by ``_update``: nodes and edges outside this move get capacity 0. The move
+    is applied (labels, terms, ``changed_at``) only when it lowers the exact energy, with infinite
+    terms counted first.
+
+    Returns ``(status, big, d_inf)``: status 1 when applied, 0 otherwise; the ``big`` used; the
+    change of the number of infinite terms.
+    """
+    n = len(lab)
+    k = len(idx)
+    fin = 0.0
+    has_inf = False
+    for g in range(n):
+        if act[g]:
+            for v in (un[g], u_alpha[g]):
+                if np.isinf(v):
+                    has_inf = True
+                else:
+                    fin += abs(v)
+    for e in range(k):
+        ap = act[gp[e]]
+        aq = act[gq[e]]
+        if not (ap or aq):
+            continue
+        for v in (pv[idx[e]], v01[e] if aq else 0.0, v10[e] if ap else 0.0, v11[e] if ap and aq else 0.0):
+            if np.isinf(v):
+                has_inf = True
+            else:
+                fin += abs(v)
+    if has_inf and big < 2.0 * fin + 1.0:
+        big = 2.0 * fin + 1.0
+
+    new_pq = np.zeros(len(arc_pq))
+    new_qp = np.zeros(len(arc_pq))
+    new_term = np.zeros(len(tr))
+    for g in range(n):
+        if act[g]:
+            new_term[loc[g]] += _finite(u_alpha[g], big) - _finite(un[g], big)
+    for e in range(k):
+        ap = act[gp[e]]
+        aq = act[gq[e]]
+        if ap and aq:
+            e00 = _finite(pv[idx[e]], big)
+            e01 = _finite(v01[e], big)
+            e10 = _finite(v10[e], big)
+            e11 = _finite(v11[e], big)
+            cap = max(e01 + e10 - e00 - e11, 0.0)
+            c_qp = min(max(e10 - e00, 0.0), cap)
+            new_pq[slot[e]] = cap - c_qp
+            new_qp[slot[e]] = c_qp
+            new_term[loc[gp[e]]] += e10 - e00 - c_qp
+            new_term[loc[gq[e]]] += e11 - e10 + c_qp
+        elif ap:
+            new_term[loc[gp[e]]] += _finite(v10[e], big) - _finite(pv[idx[e]], big)
+        elif aq:
+            new_term[loc[gq[e]]] += _finite(v01[e], big) - _finite(pv[idx[e]], big)
+    _update(rcap, tr, arc_pq, arc_qp, gpl, gql, cap_pq, new_pq, new_qp, term, new_term)
+    cap_pq[:] = new_pq
+    term[:] = new_term
+    _saturate(first, head, sister, rcap, tr, 1)
+    sink = _bk(first, head, sister, rcap, tr)
+
+    # exact change of the energy, infinite terms counted separately
+    n_old = 0
+    n_new = 0
+    f_old = 0.0
+    f_new = 0.0
+    switched = False
+    for g in range(n):
+        if act[g] and sink[loc[g]]:
+            switched = True
+            if np.isinf(un[g]):
+                n_old += 1
+            else:
+                f_old += un[g]
+            if np.isinf(u_alpha[g]):
+                n_new += 1
+            else:
+                f_new += u_alpha[g]
+    if not switched:
+        return 0, big, 0
+    for e in range(k):
+        xp = act[gp[e]] and sink[loc[gp[e]]]
+        xq = act[gq[e]] and sink[loc[gq[e]]]
+        if not (xp or xq):
+            continue
+        old = pv[idx[e]]
+        new = v11[e] if xp and xq else (v10[e] if xp else v01[e])
+        if np.isinf(old):
+            n_old += 1
         else:
-            fin_total = sum(_finite_sum(np.abs(r)) for r in raw)
-            big = 2.0 * fin_total + 1.0
-            c0f, c1f, e00f, e11f, e01f, e10f, o00f, ovf = (_finite_or(r, big) for r in raw)
-
-        # Kolmogorov-Zabih: x = 1 switches to alpha. One-sided edges are unary terms of their
-        # active end; two-sided edges give E00 + a x_p + b x_q + c_pq (1 - x_p) x_q + c_qp x_p (1 - x_q).
-        # Rother et al. 2005 truncation: a non-submodular term (E01 + E10 < E00 + E11) gets E01
-        # raised to E00 + E11 - E10, an overestimate that is exact at the current labeling (x = 0).
-        cap = np.maximum(e01f + e10f - e00f - e11f, 0.0)
-        # Split cap between the two directions so that the unary parts a, b stay small: with
-        # E00 = E11 = 0 both vanish, and infinite terms create no large opposite terminal links.
-        c_qp = np.clip(e10f - e00f, 0.0, cap)
-        c_pq = cap - c_qp
-        d = c1f - c0f
-        d += np.bincount(on, weights=ovf - o00f, minlength=na)
-        d += np.bincount(bp, weights=e10f - e00f - c_qp, minlength=na)
-        d += np.bincount(bq, weights=e11f - e10f + c_qp, minlength=na)
-        keep = np.flatnonzero(cap > 0)
-        x = _binary_cut(d, bp[keep], bq[keep], c_pq[keep], c_qp[keep])
-        if not x.any():
-            return False
-
-        # exact change of the energy (infinite terms counted separately)
-        xo = x[on]
-        xp, xq = x[bp], x[bq]
-        bch = xp | xq
-        new_b = np.where(xp, np.where(xq, e11, e10), e01)[bch]
-        old_terms = (self.un[nodes[x]], o00[xo], e00[bch])
-        new_terms = (c1[x], ov[xo], new_b)
-        n_old = sum(int(np.isinf(t).sum()) for t in old_terms)
-        n_new = sum(int(np.isinf(t).sum()) for t in new_terms)
-        if n_new > n_old:
-            return False
-        if n_new == n_old:
-            f_old = sum(float(t[np.isfinite(t)].sum()) for t in old_terms)
-            f_new = sum(float(t[np.isfinite(t)].sum()) for t in new_terms)
-            if not f_new < f_old - _REL_TOL * (fin_total + 1.0):
-                return False
-        lab[nodes[x]] = alpha
-        self.changed_at[nodes[x]] = self.step
-        self.un[nodes[x]] = new_terms[0]
-        self.pv[oi[xo]] = new_terms[1]
-        self.pv[bi[bch]] = new_b
-        self.n_inf += n_new - n_old
-        return True
+            f_old += old
+        if np.isinf(new):
+            n_new += 1
+        else:
+            f_new += new
+    if n_new > n_old or (n_new == n_old and not f_new < f_old - rel_tol * (fin + 1.0)):
+        return 0, big, 0
+    for e in range(k):
+        xp = act[gp[e]] and sink[loc[gp[e]]]
+        xq = act[gq[e]] and sink[loc[gq[e]]]
+        if xp or xq:
+            pv[idx[e]] = v11[e] if xp and xq else (v10[e] if xp else v01[e])
+    for g in range(n):
+        if act[g] and sink[loc[g]]:
+            lab[g] = alpha
+            changed_at[g] = step
+            un[g] = u_alpha[g]
+    return 1, big, n_new - n_old
 
 
 def alpha_expansion(
@@ -593,11 +674,16 @@ def alpha_expansion(
     in Rother et al. 2005 (``E01`` raised until submodular), which overestimates the move energy
     everywhere except at the current labeling, so such moves can still only lower the energy.
 
-    Each move's graph has only the nodes that can switch to alpha; before its min-cut, nodes whose
-    best choice is certain whatever their neighbours do (the persistency test of ``_binary_cut``)
-    are fixed, which leaves the same minimum. A pairwise function is evaluated, per move, only on
-    the edges whose values are not kept from an earlier move on the same label (see
-    ``_Expansion._refresh``): both change nothing in the result, only the time.
+    Each label keeps its move graph (the nodes that can take it and the edges between them) with
+    the flow of its last move: the next move on the label changes the capacities and augments from
+    there (Kohli and Torr 2005). Before the augmentation, a node whose source capacity covers all
+    its outgoing capacity sends it all, and likewise towards the sink (the persistency test: such
+    a node's side is certain whatever its neighbours do). The cut taken is the minimum cut with the
+    largest set of nodes keeping their label, which depends only on the capacities, not on the
+    flow found. A pairwise function is evaluated, per move, only on the edges whose values are not
+    kept from an earlier move on the same label (see ``_stale``). None of this changes the result,
+    only the time; past ``_KEPT_EDGES`` kept edges in all, further labels get a fresh graph and
+    fresh values at every move.
 
     Infinite costs: the initial labeling is the per-node cheapest unary label when ``init`` is not
     given. Within a move every infinite term becomes a finite constant larger than twice the sum
@@ -638,6 +724,8 @@ def alpha_expansion(
     """
     u, e, pw = _check_problem(unary, edges, pairwise)
     n, n_labels = u.shape
+    if max(n, len(e)) >= 2**31:
+        raise ValueError(f"alpha_expansion takes fewer than 2**31 nodes and edges, got {n} and {len(e)}")
     if max_cycles < 1:
         raise ValueError(f"max_cycles must be at least 1, got {max_cycles}")
     feasible = np.isfinite(u).any(axis=1)

@@ -9,7 +9,6 @@ from synthkit.core import graphcut
 from synthkit.core.graphcut import (
     INF,
     ExpansionResult,
-    _binary_cut,
     alpha_expansion,
     energy,
     grid_mincut,
@@ -155,43 +154,6 @@ def test_mincut_without_edges():
 def test_mincut_errors(args, match):
     with pytest.raises(ValueError, match=match):
         mincut(*args)
-
-
-def binary_objective(x, d, p, q, c_pq, c_qp):
-    x = np.asarray(x, dtype=bool)
-    return float(np.sum(d[x]) + np.sum(c_pq[~x[p] & x[q]]) + np.sum(c_qp[x[p] & ~x[q]]))
-
-
-@pytest.mark.parametrize("seed", range(10))
-def test_binary_cut_with_fixed_nodes_matches_enumeration(seed):
-    # Move energies as alpha-expansion builds them: unary d of any sign, non-negative pair costs.
-    # Large |d| lets the persistency test fix nodes over several rounds before the min-cut.
-    rng = np.random.default_rng(900 + seed)
-    n = 9
-    edges = random_graph(rng, n, 14)
-    p, q = edges[:, 0], edges[:, 1]
-    c_pq = rng.random(len(edges)) * 2
-    c_qp = rng.random(len(edges)) * 2
-    c_pq[rng.random(len(edges)) < 0.3] = 0.0
-    d = rng.normal(size=n) * (3.0 if seed % 2 else 0.7)
-    x = _binary_cut(d, p, q, c_pq, c_qp)
-    best = min(binary_objective(bits, d, p, q, c_pq, c_qp) for bits in itertools.product([0, 1], repeat=n))
-    assert x.dtype == bool and x.shape == (n,)
-    assert binary_objective(x, d, p, q, c_pq, c_qp) == pytest.approx(best, abs=1e-12)
-
-
-def test_binary_cut_fixes_a_chain_round_by_round():
-    # Chain 0 - 1 - 2 - 3 with unit pair costs both ways: only node 0 passes the persistency test
-    # at first (-d = 3 >= 1); each fixed node turns its pair into a unary term (-1) of the next
-    # one, which then passes too; the min-cut finishes what the rounds leave.
-    p, q = np.array([0, 1, 2]), np.array([1, 2, 3])
-    c = np.ones(3)
-    d = np.array([-3.0, -0.2, -0.2, -0.2])
-    x = _binary_cut(d, p, q, c, c)
-    assert x.tolist() == [True, True, True, True]
-    assert binary_objective(x, d, p, q, c, c) == pytest.approx(-3.6)
-    x = _binary_cut(-d, p, q, c, c)  # the mirror problem: every node keeps x = 0
-    assert x.tolist() == [False, False, False, False]
 
 
 def test_grid_mincut_matches_general_graph_and_enumeration():
@@ -391,21 +353,21 @@ def test_callable_values_kept_across_moves_or_not(monkeypatch):
     unary[rng.random((n, n_labels)) < 0.2] = np.inf
     unary[:, 0] = 2.0
     table = np.stack([metric_table(rng, n_labels) for _ in edges]) * 0.5 + 0.2  # V(a, a) = 0.2
-    move_terms = graphcut._Expansion.move_terms
+    prepare = graphcut._Expansion._prepare
     checked = []
 
-    def checking(self, alpha, act):
-        out = move_terms(self, alpha, act)
-        oi, ov, o0, bi, v01, v10, v11 = out
-        la, lb = self.lab[edges[bi, 0]], self.lab[edges[bi, 1]]
-        np.testing.assert_array_equal(v01, table[bi, la, alpha])
-        np.testing.assert_array_equal(v10, table[bi, alpha, lb])
-        np.testing.assert_array_equal(v11, table[bi, alpha, alpha])
-        la, lb = self.lab[edges[oi, 0]], self.lab[edges[oi, 1]]
-        np.testing.assert_array_equal(o0, act[edges[oi, 0]] & ~act[edges[oi, 1]])
-        np.testing.assert_array_equal(ov, np.where(o0, table[oi, alpha, lb], table[oi, la, alpha]))
-        checked.append(len(bi))
-        return out
+    def checking(self, kept, alpha, act):
+        prepare(self, kept, alpha, act)
+        ap, aq = act[kept.gp], act[kept.gq]
+        la, lb = self.lab[kept.gp], self.lab[kept.gq]
+        k = kept.idx
+        b = ap & aq
+        np.testing.assert_array_equal(kept.v01[b], table[k[b], la[b], alpha])
+        np.testing.assert_array_equal(kept.v10[b], table[k[b], alpha, lb[b]])
+        np.testing.assert_array_equal(kept.v11[b], table[k[b], alpha, alpha])
+        np.testing.assert_array_equal(kept.v10[ap & ~aq], table[k[ap & ~aq], alpha, lb[ap & ~aq]])
+        np.testing.assert_array_equal(kept.v01[aq & ~ap], table[k[aq & ~ap], la[aq & ~ap], alpha])
+        checked.append(int(b.sum()))
 
     dtypes = set()
 
@@ -413,11 +375,11 @@ def test_callable_values_kept_across_moves_or_not(monkeypatch):
         dtypes.update((k.dtype, la.dtype, lb.dtype))
         return table[k, la, lb]
 
-    monkeypatch.setattr(graphcut._Expansion, "move_terms", checking)
+    monkeypatch.setattr(graphcut._Expansion, "_prepare", checking)
     a = alpha_expansion(unary, edges, V, init=np.zeros(n, dtype=int), rng=1)
-    assert dtypes == {np.dtype(np.int64)}  # kept edge indices are stored smaller, passed as int64
+    assert dtypes == {np.dtype(np.int64)}
     assert a.cycles == 3 and len(checked) > n_labels  # labels met again after changes
-    monkeypatch.setattr(graphcut._Expansion, "move_terms", move_terms)
+    monkeypatch.setattr(graphcut._Expansion, "_prepare", prepare)
     monkeypatch.setattr(graphcut, "_KEPT_EDGES", 2 * len(edges))
     b = alpha_expansion(unary, edges, table_fn(table), init=np.zeros(n, dtype=int), rng=1)
     monkeypatch.setattr(graphcut, "_KEPT_EDGES", 0)

@@ -506,7 +506,7 @@ def faces_across_the_curve(mesh, s, tol=1e-6) -> dict[int, int]:
     P = np.asarray(mesh.vertices)[:, list(s.point_axes)]
     out = {}
     for i in range(s.grid.shape[0]):
-        on = construction._point_polyline_distance(P, s.grid[i]) <= tol
+        on = construction.point_polyline_distance(P, s.grid[i]) <= tol
         n = int(on[np.asarray(mesh.faces)].all(axis=1).sum())
         if n:
             out[i] = n

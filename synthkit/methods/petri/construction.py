@@ -104,11 +104,11 @@ class ConstructionSpace:
             line = self.offset_polyline((j + 0.5 - self.j0) * self.units[1])
             if self.closed:
                 line = np.vstack([line, line[:1]])
-            dev[:, j] = _point_polyline_distance(c, line) / self.units[1]
+            dev[:, j] = point_polyline_distance(c, line) / self.units[1]
         return dev
 
 
-def _point_polyline_distance(P: np.ndarray, line: np.ndarray) -> np.ndarray:
+def point_polyline_distance(P: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Distance ``(n,)`` from points ``P (n, 2)`` to the polyline ``line (m, 2)``."""
     A, B = line[:-1], line[1:]
     AB = B - A
@@ -118,7 +118,7 @@ def _point_polyline_distance(P: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.sqrt(((P[:, None, :] - Q) ** 2).sum(-1)).min(axis=1)
 
 
-def _resample(line: np.ndarray, n_seg: int, closed: bool) -> np.ndarray:
+def resample_polyline(line: np.ndarray, n_seg: int, closed: bool) -> np.ndarray:
     """``n_seg`` equal arc-length parts of ``line (m, 2)``: ``n_seg + 1`` points (``n_seg`` if closed)."""
     pts = np.vstack([line, line[:1]]) if closed else line
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -242,7 +242,7 @@ def build_construction_space(
     _, _, D, _ = mitre_directions(P, closed, "construction.points")
     j0 = {"left": 0.0, "right": float(size_y), "center": size_y / 2.0}[side]
     grid = np.stack(
-        [_resample(P + (j - j0) * units[1] * D, SX, closed) for j in range(size_y + 1)],
+        [resample_polyline(P + (j - j0) * units[1] * D, SX, closed) for j in range(size_y + 1)],
         axis=1,
     )
     sweep = sweep_origin + units[2] * np.arange(size_z + 1)
@@ -288,7 +288,7 @@ def check_cells(space: ConstructionSpace) -> None:
         else [np.vstack([G[:, 0], G[-1, 1:], G[::-1, -1][1:], G[0, ::-1][1:]])]
     )
     segs = np.concatenate([np.stack([L[:-1], L[1:]], axis=1) for L in loops])
-    hit = _first_crossing(segs)
+    hit = first_crossing(segs)
     if hit is not None:
         raise ConfigError(
             f"construction.points with construction.size_y = {SY}: self-intersecting construction cells: the "
@@ -296,7 +296,7 @@ def check_cells(space: ConstructionSpace) -> None:
         )
 
 
-def _first_crossing(segs: np.ndarray):
+def first_crossing(segs: np.ndarray):
     """First pair of segments ``segs (n, 2, 2)`` that cross properly (not at shared end points)."""
     n = len(segs)
     A, B = segs[:, 0], segs[:, 1]

@@ -61,12 +61,12 @@ from synthkit.errors import ConfigError
 from synthkit.methods.petri.construction import (
     PLANE_AXES,
     PLANE_POINT_AXES,
-    _first_crossing,
-    _point_polyline_distance,
-    _resample,
+    first_crossing,
     mitre_directions,
     plane_to_world,
+    point_polyline_distance,
     polyline_problem,
+    resample_polyline,
     units_along,
 )
 
@@ -204,7 +204,7 @@ class NetworkSpace:
                     if self.closed[curve]:
                         line = np.vstack([line, line[:1]])
                     lines[key] = line
-                dev[q] = max(dev[q], float(_point_polyline_distance(C[q : q + 1], lines[key])[0]) / ub)
+                dev[q] = max(dev[q], float(point_polyline_distance(C[q : q + 1], lines[key])[0]) / ub)
         return dev
 
     def plane_segments(self) -> np.ndarray:
@@ -514,7 +514,7 @@ def _arms_of(c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quad
         SX = units_along(length, ua) if length > 0 else 0
         if SX < 1:
             raise ConfigError(near)
-        grid = np.stack([_resample(ln, SX, False) for ln in lines], axis=1)
+        grid = np.stack([resample_polyline(ln, SX, False) for ln in lines], axis=1)
         for j, ln in enumerate(lines):  # the ends exactly on the cuts
             grid[0, j], grid[-1, j] = ln[0], ln[-1]
         parts.append({"kind": "arm", "name": f"{label}", "curves": [c.index], "shape": [SX, SY]})
@@ -556,7 +556,7 @@ def _arms_of(c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quad
                 raise ConfigError(
                     f"{name}: the curve is {cen_len:.6g} long, shorter than one unit along it ({ua:.6g}, {unit_key})"
                 )
-            grid = np.stack([_resample(r[:-1], SX, True) for r in rows], axis=1)
+            grid = np.stack([resample_polyline(r[:-1], SX, True) for r in rows], axis=1)
             grid = np.concatenate([grid, grid[:1]], axis=0)
             parts.append({"kind": "arm", "name": f"curve {c.index}", "curves": [c.index], "shape": [SX, SY]})
             add_quads(grid, len(parts) - 1, lambda i, j: [(c.index, j)])
@@ -638,7 +638,7 @@ def _check_network_cells(space: NetworkSpace) -> None:
                 f"construction.size_y or smooth the curves"
             )
     segs = space.plane_segments()
-    hit = _first_crossing(segs)
+    hit = first_crossing(segs)
     if hit is not None:
         raise ConfigError(
             f"construction.curves with construction.size_y = {space.size_y}: self-intersecting construction "

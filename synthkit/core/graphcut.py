@@ -341,8 +341,8 @@ class _Kept:
     ends) were evaluated (0: never).
 
     ``graph``: the residual graph of the label's last move, over every node that can take the
-    label (``loc`` (N,) int32: a node's index in it, -1 if it cannot) and every kept edge whose
-    ends both can (``slot`` (k,) int32: its index in the graph, -1 if not). ``big``: the finite
+    label (``nodes`` (n,) int32, ascending: graph node ``i`` is node ``nodes[i]``) and every kept
+    edge whose ends both can (``slot`` (k,) int32: its index in the graph, -1 if not). ``big``: the finite
     stand-in for an infinite cost in that graph, never lowered so that more of the kept flow stays
     valid.
     """
@@ -355,7 +355,7 @@ class _Kept:
     v11: np.ndarray
     at01: np.ndarray
     at10: np.ndarray
-    loc: np.ndarray
+    nodes: np.ndarray
     slot: np.ndarray
     graph: ResidualGraph
     big: float = 0.0
@@ -376,6 +376,7 @@ class _Expansion:
         self.pv = pw(np.arange(len(e)), self.lab[self.e0], self.lab[self.e1])
         self.n_inf = int(np.isinf(self.un).sum() + np.isinf(self.pv).sum())
         self.changed_at = np.zeros(self.n, dtype=np.int64)
+        self.loc = np.full(self.n, -1, dtype=np.int32)  # graph index of a node, set for each move's label
         self.step = 0
         self.kept: dict[int, _Kept] = {}
         self.n_kept = 0
@@ -389,15 +390,16 @@ class _Expansion:
             idx = np.flatnonzero(ok[self.e0] | ok[self.e1]).astype(np.int32)
             gp, gq = self.e0[idx].astype(np.int32), self.e1[idx].astype(np.int32)
             k = len(idx)
+            nodes = np.flatnonzero(ok).astype(np.int32)
             loc = np.full(self.n, -1, dtype=np.int32)
-            loc[ok] = np.arange(np.count_nonzero(ok))
+            loc[nodes] = np.arange(len(nodes))
             lp, lq = loc[gp], loc[gq]
             both = (lp >= 0) & (lq >= 0)
             slot = np.full(k, -1, dtype=np.int32)
             slot[both] = np.arange(np.count_nonzero(both))
             kept = _Kept(idx, gp, gq, np.empty(k), np.empty(k), np.full(k, np.nan),
                          np.zeros(k, dtype=np.int32), np.zeros(k, dtype=np.int32),
-                         loc, slot, ResidualGraph.build(int(ok.sum()), lp[both], lq[both]))
+                         nodes, slot, ResidualGraph.build(len(nodes), lp[both], lq[both]))
             if self.n_kept + k <= _KEPT_EDGES:
                 self.kept[alpha] = kept
                 self.n_kept += k
@@ -450,9 +452,10 @@ class _Expansion:
         if not act.any():
             return False
         g = kept.graph
+        self.loc[kept.nodes] = np.arange(len(kept.nodes), dtype=np.int32)  # read for active nodes only
         status, kept.big, d_inf = _move(
             alpha, self.step, act, self.lab, self.un, self.uT[alpha], self.pv, self.changed_at,
-            kept.idx, kept.gp, kept.gq, kept.v01, kept.v10, kept.v11, kept.loc, kept.slot, kept.big,
+            kept.idx, kept.gp, kept.gq, kept.v01, kept.v10, kept.v11, self.loc, kept.slot, kept.big,
             g.first, g.head, g.sister, g.rcap, g.tr, g.arc_pq, g.arc_qp, g.p, g.q, g.cap_pq, g.term,
             _REL_TOL)
         self.n_inf += d_inf
@@ -770,3 +773,11 @@ def alpha_expansion(
             "pairwise terms remain)"
         )
     return ExpansionResult(labels=state.lab, energy=final, cycles=cycles, history=history, moves=moves)
+
+
+def compile_kernels() -> None:
+    """Compile the numba kernels of :func:`alpha_expansion` (or load them from numba's cache beside
+    the sources) by running it on a 3-node problem, so that the first real run is not timed with
+    the compilation (about 8 s). ``make install`` and the benchmarks call it."""
+    alpha_expansion(np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]]), np.array([[0, 1], [1, 2]]),
+                    np.array([[0.0, 1.0], [1.0, 0.0]]))

@@ -183,38 +183,24 @@ def _bk(first, head, sister, rcap, tr):  # pragma: no cover
                 if cur < 0:
                     break
             i = cur
-            if tree[i] == 1:
-                for a in range(first[i], first[i + 1]):
-                    if rcap[a] > 0.0:
-                        j = head[a]
-                        if tree[j] == 0:
-                            tree[j] = 1
-                            parent[j] = sister[a]
-                            stamp[j] = stamp[i]
-                            dist[j] = dist[i] + 1
-                            if not queued[j]:
-                                queue[qt] = j
-                                qt = qt + 1 if qt < n else 0
-                                queued[j] = True
-                        elif tree[j] == 2:
-                            mid = a
-                            break
-            else:
-                for a in range(first[i], first[i + 1]):
-                    if rcap[sister[a]] > 0.0:
-                        j = head[a]
-                        if tree[j] == 0:
-                            tree[j] = 2
-                            parent[j] = sister[a]
-                            stamp[j] = stamp[i]
-                            dist[j] = dist[i] + 1
-                            if not queued[j]:
-                                queue[qt] = j
-                                qt = qt + 1 if qt < n else 0
-                                queued[j] = True
-                        elif tree[j] == 1:
-                            mid = sister[a]
-                            break
+            t = tree[i]
+            for a in range(first[i], first[i + 1]):
+                # the source tree grows along residual arcs out of its nodes, the sink tree along
+                # residual arcs into them
+                if (rcap[a] if t == 1 else rcap[sister[a]]) > 0.0:
+                    j = head[a]
+                    if tree[j] == 0:
+                        tree[j] = t
+                        parent[j] = sister[a]
+                        stamp[j] = stamp[i]
+                        dist[j] = dist[i] + 1
+                        if not queued[j]:
+                            queue[qt] = j
+                            qt = qt + 1 if qt < n else 0
+                            queued[j] = True
+                    elif tree[j] != t:
+                        mid = a if t == 1 else sister[a]
+                        break
             if mid < 0:
                 cur = -1  # every arc of this node has been looked at
         if mid < 0:

@@ -778,6 +778,6 @@ def alpha_expansion(
 def compile_kernels() -> None:
     """Compile the numba kernels of :func:`alpha_expansion` (or load them from numba's cache beside
     the sources) by running it on a 3-node problem, so that the first real run is not timed with
-    the compilation (about 8 s). ``make install`` and the benchmarks call it."""
+    the compilation (6-8 s). ``make install`` and the benchmarks call it."""
     alpha_expansion(np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]]), np.array([[0, 1], [1, 2]]),
                     np.array([[0.0, 1.0], [1.0, 0.0]]))

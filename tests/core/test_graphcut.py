@@ -595,3 +595,25 @@ def test_expansion_without_edges_and_single_label():
     res = alpha_expansion(np.array([[1.0], [2.0]]), [[0, 1]], np.array([[0.5]]))
     assert res.labels.tolist() == [0, 0]
     assert res.energy == 3.5 and res.cycles == 1 and res.moves == 0
+
+
+def test_compile_kernels_covers_the_types_of_real_runs():
+    # make install compiles the kernels on a 3-node problem: real problems (callable or table
+    # costs, infinite terms, several labels) must reuse those compilations, not add new ones
+    from synthkit.core import flow
+
+    graphcut.compile_kernels()
+    kernels = (graphcut._move, graphcut._stale, graphcut._fix_blocked, flow._arcs)
+    before = [len(k.signatures) for k in kernels]
+    assert min(before) >= 1
+    rng = np.random.default_rng(5)
+    n, n_labels = 30, 4
+    edges = random_graph(rng, n, 60)
+    unary = rng.random((n, n_labels))
+    unary[rng.random((n, n_labels)) < 0.2] = np.inf
+    unary[:, 0] = 1.0
+    table = rng.random((len(edges), n_labels, n_labels))
+    table[:, 1, 2] = np.inf
+    for pairwise in (table, table_fn(table), table[0]):
+        alpha_expansion(unary, edges, pairwise, allow_infinite=True)
+    assert [len(k.signatures) for k in kernels] == before

@@ -253,6 +253,34 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
     preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
 
+def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out, *, restarts,
+                    violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
+    """The metrics a single-curve and a network run share, and the example's normal histogram
+    (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
+    net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` and ``unmatched``
+    boundary vertices."""
+    h_ex = analysis.normal_histogram(V, F, plane_axes)
+    h_res = analysis.normal_histogram(RV, RF, plane_axes)
+    return h_ex, {
+        "labels": int(cons.n_labels),
+        "example_pieces": int(grid.size),
+        "example_lattice": {"unit": spec.unit, "origin": spec.origin, "counts": spec.counts},
+        "transitions": dict(net.fired),
+        "restarts": int(restarts),
+        "adjacency_violations": int(violations),
+        "unfilled_cells": int((labels_out < 0).sum()),
+        "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.ravel().tolist())),
+        "crack_max": gap / float(spec.unit.min()),
+        "boundary_unmatched_vertices": int(unmatched),
+        "curve_max_deviation": float(deviation.max()),
+        "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
+        "normal_histogram_example": h_ex,
+        "normal_histogram_result": h_res,
+        "result_vertices": int(len(RV)),
+        "result_faces": int(len(RF)),
+    }
+
+
 def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("load"):
         mesh = load_mesh(cfg.example)
@@ -286,33 +314,14 @@ def run(cfg: PetriConfig, ctx) -> None:
         _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
-        plane_axes = space.point_axes
-        h_ex = analysis.normal_histogram(V, F, plane_axes)
-        h_res = analysis.normal_histogram(RV, RF, plane_axes)
-        D = analysis.histogram_discrimination(h_ex, h_res)
         violations = adjacency_violations(
             labels_out, net.allowed, cons.n_labels, boundary=cons.boundary, periodic=net.periodic
         )
-        metrics = {
-            "cells": int(net.n_cells),
-            "construction_shape": list(space.shape),
-            "labels": int(cons.n_labels),
-            "example_pieces": int(grid.size),
-            "example_lattice": {"unit": spec.unit, "origin": spec.origin, "counts": spec.counts},
-            "transitions": dict(net.fired),
-            "restarts": int(restarts),
-            "adjacency_violations": int(violations),
-            "unfilled_cells": int((labels_out < 0).sum()),
-            "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.ravel().tolist())),
-            "crack_max": gap / float(spec.unit.min()),
-            "boundary_unmatched_vertices": int(unmatched),
-            "curve_max_deviation": float(deviation.max()),
-            "normal_histogram_D": D,
-            "normal_histogram_example": h_ex,
-            "normal_histogram_result": h_res,
-            "result_vertices": int(len(RV)),
-            "result_faces": int(len(RF)),
-        }
+        plane_axes = space.point_axes
+        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+                                       restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
+                                       deviation=deviation)
+        metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
 
     bnet = None
     if cfg.output.baseline:
@@ -455,11 +464,12 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
-        plane_axes = space.point_axes
-        h_ex = analysis.normal_histogram(V, F, plane_axes)
-        h_res = analysis.normal_histogram(RV, RF, plane_axes)
         nbr, back, _, _ = space.graph()
         violations = graph_violations(labels_out, nbr, back, net.allowed, cons.n_labels, boundary=cons.boundary)
+        plane_axes = space.point_axes
+        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+                                       restarts=restarts, violations=violations, gap=jm["gap"],
+                                       unmatched=jm["unmatched"], deviation=deviation)
         metrics = {
             "cells": int(net.n_cells),
             "construction_shape": {
@@ -473,22 +483,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
             "junction_adjacency_violations": jm["junction_adjacency_violations"],
             "junction_crack_max": jm["junction_gap"] / float(spec.unit.min()),
             "junction_unmatched_vertices": jm["junction_unmatched"],
-            "labels": int(cons.n_labels),
-            "example_pieces": int(grid.size),
-            "example_lattice": {"unit": spec.unit, "origin": spec.origin, "counts": spec.counts},
-            "transitions": dict(net.fired),
-            "restarts": int(restarts),
-            "adjacency_violations": int(violations),
-            "unfilled_cells": int((labels_out < 0).sum()),
-            "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.tolist())),
-            "crack_max": jm["gap"] / float(spec.unit.min()),
-            "boundary_unmatched_vertices": int(jm["unmatched"]),
-            "curve_max_deviation": float(deviation.max()),
-            "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
-            "normal_histogram_example": h_ex,
-            "normal_histogram_result": h_res,
-            "result_vertices": int(len(RV)),
-            "result_faces": int(len(RF)),
+            **shared,
         }
 
     bnet = None

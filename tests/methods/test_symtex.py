@@ -5,7 +5,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
@@ -15,12 +14,6 @@ from synthkit.runner import run_config
 from synthkit.samples import textures
 
 REPO = Path(__file__).resolve().parents[2]
-
-
-def write_config(folder: Path, name: str, **cfg) -> Path:
-    path = folder / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
-    return path
 
 
 @pytest.fixture
@@ -50,7 +43,7 @@ TRANSFER = dict(
 
 
 @pytest.mark.slow
-def test_transfer_dot_lattice_period_and_beats_unguided(inputs):
+def test_transfer_dot_lattice_period_and_beats_unguided(inputs, write_config):
     report = run_config(write_config(inputs, "t", **TRANSFER), out_dir=inputs / "out", show_progress=False)
     m = report["metrics"]
     out = load_image(inputs / "out" / "result.png")
@@ -70,7 +63,7 @@ def test_transfer_dot_lattice_period_and_beats_unguided(inputs):
     )
 
 
-def test_determinism_same_seed_same_bytes(inputs):
+def test_determinism_same_seed_same_bytes(inputs, write_config):
     cfg = dict(TRANSFER, output_size=[64, 64], synth={"patch": 16, "overlap": 6, "candidates": 4, "sweeps": 1})
     path = write_config(inputs, "d", **cfg)
     run_config(path, out_dir=inputs / "a", show_progress=False)
@@ -82,7 +75,7 @@ def test_determinism_same_seed_same_bytes(inputs):
 
 
 @pytest.mark.parametrize("window", [0.25, 0.5])  # 0.5: every displacement, the spectral evaluation
-def test_incremental_and_full_evaluation_agree(inputs, window):
+def test_incremental_and_full_evaluation_agree(inputs, window, write_config):
     cfg = dict(
         TRANSFER,
         output_size=[64, 64],
@@ -125,7 +118,7 @@ def test_guided_walk_threads_and_full_evaluation_agree(window):
 
 
 @pytest.mark.slow
-def test_filter_scale_doubles_period(inputs):
+def test_filter_scale_doubles_period(inputs, write_config):
     cfg = dict(
         mode="filter",
         source="wavy.png",
@@ -141,7 +134,7 @@ def test_filter_scale_doubles_period(inputs):
     assert abs(p_out - 2 * p_in) <= 0.1 * 2 * p_in
 
 
-def test_lens_recovers_k1(tmp_path):
+def test_lens_recovers_k1(tmp_path, write_config):
     save_image(tmp_path / "b.png", textures.radial_distort(textures.bricks(160), 0.25))
     cfg = dict(mode="symmetrize", perturbation="lens", source="b.png", lens={"samples": 21}, symmetry={"window": 0.25})
     report = run_config(write_config(tmp_path, "l", **cfg), out_dir=tmp_path / "out", show_progress=False)
@@ -157,37 +150,9 @@ def test_undistort_inverts_distort():
 
 
 @pytest.mark.slow
-def test_symmetrize_lattice_moves_toward_unwarped(tmp_path):
+def test_symmetrize_lattice_moves_toward_unwarped(tmp_path, symmetrized_toward):
     lattice = textures.dots(96)
-    warped = textures.smooth_warp(lattice, 3.0)
-    save_image(tmp_path / "w.png", warped)
-    cfg = dict(
-        mode="symmetrize",
-        source="w.png",
-        symmetry={"window": 0.5},
-        deform={"points": 24, "levels": 2, "step": 4.0, "max_cycles": 2, "max_evaluations": 500},
-    )
-    report = run_config(write_config(tmp_path, "s", **cfg), out_dir=tmp_path / "out", show_progress=False)
-    m = report["metrics"]
-    assert m["objective_end"] > m["objective_start"]
-    out = load_image(tmp_path / "out" / "result.png")
-    w = load_image(tmp_path / "w.png")
-    ref = load_image_like(lattice)
-    assert np.abs(out - ref).mean() < np.abs(w - ref).mean()
-
-
-def load_image_like(img):
-    """The 8-bit round trip of ``img`` (as the pipeline sees inputs)."""
-    return np.round(np.clip(img, 0, 1) * 255).astype(np.float32) / 255
-
-
-def seam_and_interior(img: np.ndarray) -> tuple[float, float]:
-    """Mean squared luminance step across the toroidal seams (column W-1 -> 0, row H-1 -> 0) and
-    the mean over every interior step, computed here independently of the pipeline's metric."""
-    lum = sy.f_lum(img).astype(np.float64)
-    interior = 0.5 * ((np.diff(lum, axis=1) ** 2).mean() + (np.diff(lum, axis=0) ** 2).mean())
-    seam = 0.5 * (((lum[:, 0] - lum[:, -1]) ** 2).mean() + ((lum[0] - lum[-1]) ** 2).mean())
-    return seam, interior
+    symmetrized_toward(tmp_path, lattice, textures.smooth_warp(lattice, 3.0))
 
 
 TILE = dict(
@@ -199,7 +164,7 @@ TILE = dict(
 
 
 @pytest.fixture(scope="module")
-def tile_run(tmp_path_factory):
+def tile_run(tmp_path_factory, write_config):
     tmp_path = tmp_path_factory.mktemp("tile")
     save_image(tmp_path / "c.png", textures.wavy(160)[13:109, 7:103])  # not tileable as cut
     report = run_config(write_config(tmp_path, "t", **TILE), out_dir=tmp_path / "out", show_progress=False)
@@ -207,11 +172,11 @@ def tile_run(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_tile_is_seamless(tile_run):
+def test_tile_is_seamless(tile_run, seam_steps):
     tmp_path, report = tile_run
     out = load_image(tmp_path / "out" / "result.png")
-    seam, interior = seam_and_interior(out)
-    naive, _ = seam_and_interior(load_image(tmp_path / "c.png"))
+    seam, interior = seam_steps(out)
+    naive, _ = seam_steps(load_image(tmp_path / "c.png"))
     assert seam <= 1.5 * interior
     assert seam < naive
     # a genuine period (H, W): no repeated row or column at the seam (the old blend copied the
@@ -252,7 +217,7 @@ def test_tile_optimization_raises_e_symm(tile_run):
     assert m["objective_history"][-1] > m["objective_history"][0]
 
 
-def test_bad_inputs(tmp_path, inputs):
+def test_bad_inputs(tmp_path, inputs, write_config):
     save_image(tmp_path / "blank.png", np.full((32, 32, 3), 0.5, np.float32))
     save_image(tmp_path / "tiny.png", textures.dots(96)[:4, :4])
     base = dict(TRANSFER, output_size=[64, 64])
@@ -318,7 +283,7 @@ SMALL_DEFORM = {"points": 12, "levels": 1, "step": 3.0, "max_cycles": 1, "max_ev
 
 
 @pytest.mark.parametrize("name", sorted(FIG14))
-def test_fig14_combinations_run(tmp_path, name):
+def test_fig14_combinations_run(tmp_path, name, write_config):
     save_image(tmp_path / "src.png", textures.dots(48, period=12)[:, :, :] * 0.9 + 0.05)
     save_image(tmp_path / "dots.png", textures.dots(48, period=16))
     cfg = dict(source="src.png", deform=SMALL_DEFORM, synth={"patch": 12, "overlap": 4, "candidates": 4, "sweeps": 1})
@@ -335,7 +300,7 @@ def test_fig14_combinations_run(tmp_path, name):
     assert {"result", "s_input", "s_result"} <= set(report["outputs"])
 
 
-def test_deform_determinism(tmp_path):
+def test_deform_determinism(tmp_path, write_config):
     save_image(tmp_path / "w.png", textures.smooth_warp(textures.dots(48, period=12), 2.0))
     cfg = dict(mode="symmetrize", source="w.png", deform=SMALL_DEFORM)
     path = write_config(tmp_path, "s", **cfg)
@@ -403,7 +368,7 @@ def test_control_points_count_spacing_and_determinism():
     assert sorted(order.tolist()) == list(range(40))
 
 
-def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog):
+def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog, write_config):
     from synthkit.methods.symtex import deform
 
     img = textures.dots(24)
@@ -419,7 +384,7 @@ def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog):
     assert 0 < m["control_points"] < 400
 
 
-def test_zero_padded_st_rejected_for_synth(tmp_path, inputs):
+def test_zero_padded_st_rejected_for_synth(tmp_path, inputs, write_config):
     cfg = dict(TRANSFER, symmetry={"window": 0.25, "mode": "zero"})
     with pytest.raises(ConfigError, match="symmetry.mode 'zero' applies to perturbation 'deform' or 'lens'"):
         run_config(write_config(inputs, "z", **cfg), out_dir=tmp_path / "oz")

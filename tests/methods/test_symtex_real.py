@@ -6,7 +6,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-import yaml
 
 from synthkit.core import symmetry as sy
 from synthkit.io.images import load_image, save_image
@@ -17,12 +16,6 @@ REPO = Path(__file__).resolve().parents[2]
 REAL = REPO.parent / "shared" / "data" / "textures"
 
 
-def write_config(folder: Path, name: str, **cfg) -> Path:
-    path = folder / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
-    return path
-
-
 def real_texture(name: str, size: int) -> np.ndarray:
     """``(size, size, 3)`` float32: the photograph ``name`` resized (area) to ``size`` pixels."""
     path = REAL / name
@@ -31,16 +24,8 @@ def real_texture(name: str, size: int) -> np.ndarray:
     return cv2.resize(load_image(path), (size, size), interpolation=cv2.INTER_AREA)
 
 
-def toroidal_steps(img: np.ndarray) -> tuple[float, float]:
-    """Mean squared luminance step across the toroidal seams and over every interior step."""
-    lum = sy.f_lum(img).astype(np.float64)
-    interior = 0.5 * ((np.diff(lum, axis=1) ** 2).mean() + (np.diff(lum, axis=0) ** 2).mean())
-    seam = 0.5 * (((lum[:, 0] - lum[:, -1]) ** 2).mean() + ((lum[0] - lum[-1]) ** 2).mean())
-    return seam, interior
-
-
 @pytest.mark.slow
-def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path):
+def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path, write_config):
     """The issue's transfer check with skimage's gravel as the stochastic source (period P = 16)."""
     from skimage import data
 
@@ -74,30 +59,15 @@ def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path):
 
 
 @pytest.mark.slow
-def test_real_grid_photo_warped_is_symmetrized_back(tmp_path):
+def test_real_grid_photo_warped_is_symmetrized_back(tmp_path, symmetrized_toward):
     """A photographed grid (lattice-p4) warped by a known smooth field: ARAP symmetrization raises
     E_symm and brings the image closer to the unwarped photograph."""
     grid = real_texture("lattice-p4.jpg", 96)
-    warped = textures.smooth_warp(grid, 3.0)
-    save_image(tmp_path / "grid.png", grid)
-    save_image(tmp_path / "w.png", warped)
-    cfg = dict(
-        mode="symmetrize",
-        source="w.png",
-        symmetry={"window": 0.5},
-        deform={"points": 24, "levels": 2, "step": 4.0, "max_cycles": 2, "max_evaluations": 500},
-    )
-    report = run_config(write_config(tmp_path, "s", **cfg), out_dir=tmp_path / "out", show_progress=False)
-    m = report["metrics"]
-    assert m["objective_end"] > m["objective_start"]
-    out = load_image(tmp_path / "out" / "result.png")
-    ref = load_image(tmp_path / "grid.png")
-    w = load_image(tmp_path / "w.png")
-    assert np.abs(out - ref).mean() < np.abs(w - ref).mean()
+    symmetrized_toward(tmp_path, grid, textures.smooth_warp(grid, 3.0))
 
 
 @pytest.mark.slow
-def test_real_photo_crop_tiles_seamlessly(tmp_path):
+def test_real_photo_crop_tiles_seamlessly(tmp_path, write_config, seam_steps):
     """A crop of a photographed facade of cars (lattice-p2-2) that does not tile as cut."""
     path = REAL / "lattice-p2-2.jpg"
     if not path.is_file():
@@ -114,8 +84,8 @@ def test_real_photo_crop_tiles_seamlessly(tmp_path):
     )
     report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
     out = load_image(tmp_path / "out" / "result.png")
-    seam, interior = toroidal_steps(out)
-    naive, _ = toroidal_steps(load_image(tmp_path / "c.png"))
+    seam, interior = seam_steps(out)
+    naive, _ = seam_steps(load_image(tmp_path / "c.png"))
     assert seam <= 1.5 * interior
     assert seam < naive
     assert report["metrics"]["objective_warped"] >= report["metrics"]["objective_start"]

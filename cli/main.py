@@ -2,23 +2,12 @@
 
 from __future__ import annotations
 
-import importlib
-
 import click
 
 from synthkit import __version__
-from synthkit.methods import METHODS, available_methods
+from synthkit.methods import available_methods, package_module
 
-from .options import configure_logging
-
-# subcommand -> module in this package defining ``command``
-_COMMAND_MODULES = {
-    "retarget": "retarget",
-    "surface-by-numbers": "surfacing",
-    "reshape": "reshape",
-    "petri-synth": "petri",
-    "symmetry-texture": "symtex",
-}
+from .options import configure_logging, method_command
 
 
 class _Group(click.Group):
@@ -32,8 +21,10 @@ class _Group(click.Group):
             from .validate import command
         elif name == "run":
             from .run import command
-        elif name in METHODS and name in available_methods():
-            command = importlib.import_module(f".{_COMMAND_MODULES[name]}", __package__).command
+        elif name in available_methods():
+            package = package_module(name)
+            help_text = (package.__doc__ or name).strip().splitlines()[0]
+            command = method_command(name, help_text, flags=getattr(package, "CLI_FLAGS", None))
         else:
             return None
         return command

@@ -1,7 +1,12 @@
 """Registry of the methods: subcommand name -> package with ``config.CONFIG`` and ``pipeline.run``.
 
-Each method package provides:
+This dict is the only registry: the CLI builds one subcommand per available entry, so a method
+registered here appears in ``synthkit --help`` and in ``synthkit run`` at once. Each method package
+provides:
 
+- ``__init__.py`` whose docstring's first line is the subcommand's help text, and optionally
+  ``CLI_FLAGS``: extra boolean options, ``{"--analyze-only": ("analyze_only=true", "help")}``, each
+  adding a ``--set`` override when given;
 - ``config.py`` with the schema class bound to the module name ``CONFIG`` (a
   :class:`synthkit.config.RunConfig` subclass whose ``method`` is ``Literal['<name>']``);
 - ``pipeline.py`` with ``run(cfg, ctx: synthkit.runner.RunContext) -> None``, which reads inputs
@@ -39,6 +44,11 @@ def available_methods() -> list[str]:
         if present:
             found.append(name)
     return found
+
+
+def package_module(name: str) -> ModuleType:
+    """The package of method ``name`` (its docstring and ``CLI_FLAGS`` describe the subcommand)."""
+    return importlib.import_module(METHODS[name])
 
 
 def config_module(name: str) -> ModuleType:

@@ -1,4 +1,6 @@
-"""petri-synth: synthesis of 3D models by a coloured Petri net (Song, Sun, Zhang, Zhang 2013).
+"""Synthesize a model along a user curve with a coloured Petri net and FFD (Song et al.).
+
+Synthesis of 3D models by a coloured Petri net (Song, Sun, Zhang, Zhang 2013).
 
 Stages: :mod:`.analysis` cuts the example by a lattice into pieces, labels them by their feature
 vectors and collects the adjacency constraints; :mod:`.construction` turns the user's polyline

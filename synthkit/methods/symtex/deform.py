@@ -32,6 +32,7 @@ import scipy.linalg
 from synthkit.core import symmetry as sy
 from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates
 from synthkit.io.images import save_image
+from synthkit.methods.symtex.common import build_objective, build_targets, write_common
 from synthkit.preview import montage_png
 
 log = logging.getLogger("synthkit")
@@ -333,14 +334,14 @@ def seam_ratio(img: np.ndarray, *, width: int = 0) -> float:
     return float(seam / max(interior, 1e-12))
 
 
-def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
+def run_deform(cfg, ctx, src, tgt) -> None:
     """Run ``perturbation: deform`` for transfer / filter / symmetrize / tile."""
     dc = cfg.deform
     shape = src.shape[:2]
     H, W = shape
     with ctx.stage("target"):
-        targets = targets_fn(cfg, src, tgt, shape)
-        objective = objective_fn(cfg, shape, targets)
+        targets = build_targets(cfg, src, tgt, shape)
+        objective = build_objective(cfg, shape, targets)
     with ctx.stage("mesh"):
         ctrl = control_points(src, dc.points, ctx.rng)
         spacing = max(4.0, np.sqrt(H * W / dc.points))
@@ -400,9 +401,7 @@ def run_deform(cfg, ctx, src, tgt, *, targets_fn, objective_fn) -> None:
         )
     ctx.metrics.update(metrics)
     with ctx.stage("write"):
-        from synthkit.methods.symtex.pipeline import _write_common
-
-        _write_common(cfg, ctx, src, image, objective, targets)
+        write_common(cfg, ctx, src, image, objective, targets)
         if cfg.mode == "tile":
             save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
             save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))

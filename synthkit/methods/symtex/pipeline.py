@@ -20,9 +20,9 @@ from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image, save_image
 from synthkit.methods.symtex import lens as lens_mod
 from synthkit.methods.symtex import synth as synth_mod
+from synthkit.methods.symtex.common import build_objective, build_targets, write_common
 from synthkit.methods.symtex.config import SymtexConfig
-from synthkit.methods.symtex.objective import Objective, st_window
-from synthkit.preview import heatmap_png, montage_png, plot_curve_png
+from synthkit.preview import montage_png, plot_curve_png
 
 MIN_SIZE = 8
 
@@ -42,71 +42,6 @@ def _check_signals(img: np.ndarray, signals, path: Path, what: str) -> None:
             raise InputError(f"{path}: {what} has a constant {s} signal: its symmetry representation is undefined")
 
 
-def _apply_filter(S: np.ndarray, cfg: SymtexConfig) -> np.ndarray:
-    flt = cfg.filter
-    if flt.kind == "identity":
-        return sy.standardize(S)
-    if flt.kind == "blur":
-        return sy.blur(S, flt.sigma)
-    if flt.kind == "sharpen":
-        return sy.sharpen(S, flt.power)
-    if flt.kind == "contrast":
-        return sy.contrast(S, flt.amount)
-    if flt.kind == "scale":
-        if S.ndim != 2:
-            raise ConfigError("filter.kind 'scale' needs the translational representation (symmetry.kind)")
-        return sy.scale(S, flt.factor)
-    if S.ndim != 2:
-        shift = int(round(flt.angle / 360.0 * S.shape[0]))
-        return sy.standardize(np.roll(S, shift))
-    return sy.rotate(S, flt.angle)
-
-
-def _objective(cfg: SymtexConfig, shape, targets=None, center=None) -> Objective:
-    sym = cfg.symmetry
-    return Objective(
-        representation=sym.kind,
-        signals=sym.signals,
-        kind=cfg.objective_kind(),
-        targets=targets,
-        window=st_window(shape, sym.window) if sym.kind == "translational" else None,
-        mode=sym.mode,
-        center=center if center is not None else sym.center,
-        n_angles=sym.n_angles,
-    )
-
-
-def _targets(cfg: SymtexConfig, src: np.ndarray, tgt: np.ndarray | None, out_shape) -> list[np.ndarray] | None:
-    """Standardized target per signal: S(g) for transfer, FLT(S(f)) for filter (and quilt's identity)."""
-    if cfg.objective_kind() != "l2":
-        return None
-    sym = cfg.symmetry
-    image = tgt if cfg.mode == "transfer" else src
-    # S_T of the target image over the output's window (toroidal, so a small sketch extends
-    # periodically); S_R / S_Ref about the target image's own centre.
-    own = Objective(
-        representation=sym.kind,
-        signals=sym.signals,
-        kind="symm",
-        window=st_window(out_shape, sym.window) if sym.kind == "translational" else None,
-        mode="toroidal" if sym.kind == "translational" else sym.mode,
-        center=None,
-        n_angles=sym.n_angles,
-    )
-    reps = [own.represent(sy.signal(image, s), standardize=True) for s in sym.signals]
-    if cfg.mode == "filter":
-        reps = [_apply_filter(S, cfg) for S in reps]
-    return reps
-
-
-def _preview_rep(path: Path, S: np.ndarray, title: str) -> None:
-    if S.ndim == 2:
-        heatmap_png(path, S, title=title)
-    else:
-        deg = np.arange(S.shape[0]) * (360.0 if title.startswith("S_R") else 180.0) / S.shape[0]
-        plot_curve_png(path, deg, S, xlabel="degrees", ylabel="S", title=title)
-
-
 def run(cfg: SymtexConfig, ctx) -> None:
     """Run one symmetry-texture config (see the module docstring)."""
     pert = cfg.resolved_perturbation()
@@ -124,7 +59,7 @@ def run(cfg: SymtexConfig, ctx) -> None:
     else:
         from synthkit.methods.symtex import deform as deform_mod
 
-        deform_mod.run_deform(cfg, ctx, src, tgt, targets_fn=_targets, objective_fn=_objective)
+        deform_mod.run_deform(cfg, ctx, src, tgt)
 
 
 def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> None:
@@ -137,8 +72,8 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
     if sc.patch > min(out_shape):
         raise ConfigError(f"output_size {out_shape[0]}x{out_shape[1]} is smaller than one patch ({sc.patch})")
     with ctx.stage("target"):
-        targets = _targets(cfg, src, tgt, out_shape)
-        objective = _objective(cfg, out_shape, targets)
+        targets = build_targets(cfg, src, tgt, out_shape)
+        objective = build_objective(cfg, out_shape, targets)
     base_rng, walk_rng = ctx.rng.spawn(2)
     with ctx.stage("baseline"):
         baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams, rng=base_rng)
@@ -188,7 +123,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         window=list(objective.window),
     )
     with ctx.stage("write"):
-        _write_common(cfg, ctx, src, image, objective, targets)
+        write_common(cfg, ctx, src, image, objective, targets)
         if cfg.mode != "quilt":
             save_image(ctx.path("baseline", "baseline.png"), baseline.image)
             montage_png(
@@ -198,29 +133,9 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
             )
 
 
-def _write_common(cfg, ctx, src, image, objective: Objective, targets) -> None:
-    save_image(ctx.path("result", "result.png"), image)
-    name = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}[cfg.symmetry.kind]
-    sig_in = sy.signal(src, cfg.symmetry.signals[0])
-    if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
-        rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
-    else:
-        rep_in = objective.represent(sig_in, standardize=True)
-    _preview_rep(ctx.path("s_input", "s_input.png"), rep_in, f"{name} input")
-    if targets is not None:
-        _preview_rep(ctx.path("s_target", "s_target.png"), targets[0], f"{name} target")
-    rep_out = objective.represent(sy.signal(image, cfg.symmetry.signals[0]), standardize=True)
-    _preview_rep(ctx.path("s_result", "s_result.png"), rep_out, f"{name} result")
-    if rep_out.ndim == 2:
-        try:
-            ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))
-        except ValueError:
-            ctx.metrics["result_peak"] = None  # a window too small to hold a peak
-
-
 def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
     lc = cfg.lens
-    objective = _objective(cfg, src.shape[:2])
+    objective = build_objective(cfg, src.shape[:2])
     with ctx.stage("optimize"):
 
         def score(k1: float) -> float:
@@ -239,7 +154,7 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
         k1=k1,
     )
     with ctx.stage("write"):
-        _write_common(cfg, ctx, src, image, objective, None)
+        write_common(cfg, ctx, src, image, objective, None)
         ks, vals = np.array(sorted(history)).T
         plot_curve_png(
             ctx.path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm", title="lens search"

@@ -23,6 +23,7 @@ import numpy as np
 from synthkit import __version__
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
 from synthkit.errors import ConfigError, SynthkitError
+from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
 
 log = logging.getLogger("synthkit")
@@ -43,9 +44,12 @@ class RunContext:
         Seconds per stage, accumulated by :meth:`stage`.
     outputs : dict[str, str]
         Output key -> file name relative to the output folder, registered by :meth:`path`.
+    budget : Budget
+        The run's memory budget; call ``ctx.budget.require(key, value, count, unit, bytes_each=...)``
+        with each size estimate before allocating (see :mod:`synthkit.limits`).
     """
 
-    def __init__(self, out_dir: Path, *, seed: int, show_progress: bool = True):
+    def __init__(self, out_dir: Path, *, seed: int, show_progress: bool = True, budget: Budget | None = None):
         self.out_dir = Path(out_dir)
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
@@ -53,6 +57,7 @@ class RunContext:
         self.metrics: dict[str, Any] = {}
         self.timings: dict[str, float] = {}
         self.outputs: dict[str, str] = {}
+        self.budget = budget if budget is not None else Budget()
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:

@@ -33,9 +33,10 @@ __all__ = [
 
 
 class StrictModel(BaseModel):
-    """A pydantic model that refuses unknown keys and re-validates on assignment."""
+    """A pydantic model that refuses unknown keys and non-finite floats (NaN, infinities, in fields
+    and in lists of points alike), and re-validates on assignment."""
 
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
 
 
 class MissingInputFile(ValueError):
@@ -69,9 +70,84 @@ class RunConfig(StrictModel):
     seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of every random choice; --seed overrides.")
 
 
+YAML_NODE_BUDGET = 100_000
+"""Most YAML nodes a config may expand to once aliases are followed (a real config has hundreds;
+an alias bomb of 1 KB expands to billions)."""
+
+
+class _DuplicateKey(yaml.constructor.ConstructorError):
+    """A mapping that names one key twice (YAML would silently keep the last)."""
+
+
+class _ConfigLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses duplicate keys in a mapping."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict[Any, int] = {}
+        for key_node, _value in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, typing.Hashable) and key in seen:
+                raise _DuplicateKey(
+                    None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark
+                )
+            if isinstance(key, typing.Hashable):
+                seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
+def _expanded_size(root: yaml.Node, budget: int) -> int:
+    """Nodes of the YAML graph under ``root`` counted as a tree (every alias expanded), stopping
+    past ``budget``; a recursive alias counts as unbounded."""
+    sizes: dict[int, int] = {}
+    on_path: set[int] = set()
+
+    def size(node: yaml.Node) -> int:
+        key = id(node)
+        if key in sizes:
+            return sizes[key]
+        if key in on_path:
+            return budget + 1
+        on_path.add(key)
+        total = 1
+        if isinstance(node, yaml.SequenceNode):
+            children = node.value
+        elif isinstance(node, yaml.MappingNode):
+            children = [item for pair in node.value for item in pair]
+        else:
+            children = []
+        for child in children:
+            total += size(child)
+            if total > budget:
+                break
+        on_path.discard(key)
+        sizes[key] = total
+        return total
+
+    return size(root)
+
+
+def _parse_yaml(text: str, path: Path) -> Any:
+    """Compose ``text``, refuse an alias expansion past :data:`YAML_NODE_BUDGET`, then construct it."""
+    loader = _ConfigLoader(text)
+    try:
+        root = loader.get_single_node()
+        if root is None:
+            return None
+        if _expanded_size(root, YAML_NODE_BUDGET) > YAML_NODE_BUDGET:
+            raise ConfigError(
+                f"{path}: YAML aliases expand past {YAML_NODE_BUDGET} nodes; refusing to expand them"
+            )
+        return loader.construct_document(root)
+    finally:
+        loader.dispose()
+
+
 def load_yaml(path: Path) -> dict[str, Any]:
-    """Read ``path`` as a YAML mapping; raise ConfigError for a missing, empty or malformed file."""
+    """Read ``path`` as a YAML mapping; raise ConfigError for a missing, empty or malformed file, a
+    duplicate key in a mapping, or aliases that expand past :data:`YAML_NODE_BUDGET` nodes."""
     path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{path}: config is a folder, not a YAML file")
     if not path.is_file():
         raise ConfigError(f"{path}: config file not found")
     try:
@@ -79,7 +155,12 @@ def load_yaml(path: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read config file: {exc}") from None
     try:
-        data = yaml.safe_load(text)
+        data = _parse_yaml(text, path)
+    except RecursionError:
+        raise ConfigError(f"{path}: YAML nesting is too deep") from None
+    except _DuplicateKey as exc:
+        mark = exc.problem_mark
+        raise ConfigError(f"{path}: line {mark.line + 1}: {exc.problem}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -153,8 +234,24 @@ def validate_config(
         missing = [isinstance(e.get("ctx", {}).get("error"), MissingInputFile) for e in errors]
         if all(missing):
             raise InputError(f"{source}: {_describe(errors[0], model)}") from None
-        first = errors[missing.index(False)]
-        raise ConfigError(f"{source}: {_describe(first, model)}") from None
+        problems = [e for e, is_file in zip(errors, missing, strict=True) if not is_file]
+        hints = [_misspelt_hint(e, errors) for e in problems]
+        first = next((i for i, hint in enumerate(hints) if hint), 0)
+        raise ConfigError(f"{source}: {_describe(problems[first], model)}{hints[first]}") from None
+
+
+def _misspelt_hint(err: dict[str, Any], errors: list[dict[str, Any]]) -> str:
+    """For a missing key, " (found unknown key 'inptu': did you mean 'input'?)" when an unknown key
+    beside it is a close spelling; empty otherwise."""
+    if err["type"] != "missing":
+        return ""
+    loc = tuple(err["loc"])
+    strays = [tuple(e["loc"]) for e in errors if e["type"] == "extra_forbidden" and tuple(e["loc"])[:-1] == loc[:-1]]
+    names = [str(stray[-1]) for stray in strays]
+    close = difflib.get_close_matches(str(loc[-1]), names, n=1, cutoff=0.6)
+    if not close:
+        return ""
+    return f" (found unknown key '{close[0]}': did you mean '{loc[-1]}'?)"
 
 
 def _describe(err: dict[str, Any], model: type[BaseModel]) -> str:

@@ -11,13 +11,25 @@ from collections.abc import Callable
 
 import click
 
-SET_HELP = "Override a config key, e.g. --set graphcut.max_cycles=5 (repeatable; values are YAML)."
+from synthkit.errors import Terminated
+
+SET_HELP = "Override a config key (repeatable; values are YAML), e.g. --set {example}."
+DEFAULT_SET_EXAMPLE = "seed=7"
+"""The ``--set`` example of a method whose package gives no ``SET_EXAMPLE``."""
 
 config_argument = click.argument("config", type=click.Path(dir_okay=False, path_type=str))
 seed_option = click.option(
     "--seed", type=click.IntRange(0, 2**32 - 1), default=None, help="Seed (overrides the config's seed)."
 )
-set_option = click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help=SET_HELP)
+
+
+def set_option_for(example: str = DEFAULT_SET_EXAMPLE):
+    """The repeatable ``--set KEY.PATH=VALUE`` option, its help showing ``example``."""
+    return click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE",
+                        help=SET_HELP.format(example=example))
+
+
+set_option = set_option_for()
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace an existing output folder.")
 progress_option = click.option("--no-progress", is_flag=True, help="Do not show progress bars.")
 json_option = click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
@@ -27,6 +39,15 @@ def verbosity(ctx: click.Context) -> int:
     """-1 quiet, 0 normal, 1 verbose (from the group's -v/-q)."""
     root = ctx.find_root()
     return int(root.obj.get("verbosity", 0)) if root.obj else 0
+
+
+def run_budget(ctx: click.Context):
+    """The :class:`~synthkit.limits.Budget` of each run, from the group's ``--max-memory`` (GiB)."""
+    from synthkit.limits import Budget
+
+    root = ctx.find_root()
+    gib = root.obj.get("max_memory") if root.obj else None
+    return Budget(None if gib is None else int(gib * 2**30))
 
 
 def report_errors(fn: Callable) -> Callable:
@@ -44,6 +65,9 @@ def report_errors(fn: Callable) -> Callable:
         except KeyboardInterrupt:
             click.echo("error: interrupted", err=True)
             ctx.exit(130)
+        except Terminated:
+            click.echo("error: terminated (SIGTERM)", err=True)
+            ctx.exit(Terminated.exit_code)
         except Exception as exc:
             code, line = describe_exception(exc)
             if verbosity(ctx) > 0:
@@ -96,8 +120,14 @@ def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline})", err=True)
 
 
-def method_command(name: str, help_text: str, *, flags: dict[str, tuple[str, str]] | None = None) -> click.Command:
-    """Build the click command for method ``name``.
+def method_command(
+    name: str,
+    help_text: str,
+    *,
+    flags: dict[str, tuple[str, str]] | None = None,
+    set_example: str = DEFAULT_SET_EXAMPLE,
+) -> click.Command:
+    """Build the click command for method ``name``; ``set_example`` is its ``--set`` help example.
 
     ``flags`` maps an extra boolean option name (e.g. ``--analyze-only``) to ``(override, help)``:
     giving the flag adds the ``--set`` override ``override`` (e.g. ``analyze_only=true``).
@@ -109,7 +139,7 @@ def method_command(name: str, help_text: str, *, flags: dict[str, tuple[str, str
     @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=str), default=None,
                   help="Output folder (default: out/<config name>).")
     @seed_option
-    @set_option
+    @set_option_for(set_example)
     @overwrite_option
     @progress_option
     @json_option
@@ -128,6 +158,7 @@ def method_command(name: str, help_text: str, *, flags: dict[str, tuple[str, str
             overrides=[*extra_sets, *overrides],
             overwrite=overwrite,
             show_progress=not no_progress and verbosity(ctx) >= 0,
+            budget=run_budget(ctx),
         )
         if as_json:
             click.echo(json.dumps(report, indent=2))

@@ -12,6 +12,7 @@ dotted key path and the value, with a "did you mean" for misspelt keys.
 from __future__ import annotations
 
 import difflib
+import os
 import types
 import typing
 from pathlib import Path
@@ -50,12 +51,16 @@ def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
     path = Path(value).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = Path(base_dir) / path
+    named = Path(os.path.abspath(path))
     path = path.resolve()
     if context.get("check_files", True) and not path.is_file():
         raise MissingInputFile(f"file not found: {path}")
     inputs = context.get("inputs")
     if inputs is not None:
         inputs.append(path)
+    named_inputs = context.get("named_inputs")
+    if named_inputs is not None:
+        named_inputs.append(named)
     return path
 
 
@@ -219,14 +224,16 @@ def validate_config(
     base_dir: Path | None = None,
     check_files: bool = True,
     inputs: list[Path] | None = None,
+    named_inputs: list[Path] | None = None,
 ) -> RunConfig:
     """Validate ``data`` into ``model``; raise one ConfigError line naming ``source`` and the key.
 
     Config problems come first: only when every problem is an input file that does not exist is
     the line an InputError (about the first such file). ``inputs``, when given, collects the
-    resolved paths of every :data:`InputFile` field.
+    resolved paths of every :data:`InputFile` field; ``named_inputs`` their absolute paths as the
+    config names them (symbolic links not followed).
     """
-    context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs}
+    context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs, "named_inputs": named_inputs}
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:

@@ -33,3 +33,10 @@ class InputError(SynthkitError):
     """Input data that is missing, unreadable or degenerate (exit code 3)."""
 
     exit_code = 3
+
+
+class Terminated(BaseException):
+    """The process received SIGTERM (from ``timeout``, a batch scheduler or ``kill``): unwinds like
+    KeyboardInterrupt, so staging folders are removed, and exits with 128 + 15 = 143."""
+
+    exit_code = 143

@@ -2,7 +2,8 @@
 
 The output folder is built in a hidden staging folder beside it and renamed into place only when
 the run succeeded, so an output folder is always complete or absent. An existing output folder is
-replaced only with ``overwrite=True``, and never when it holds an input of the run.
+replaced only with ``overwrite=True``, only when it is a previous synthkit output, and never when
+it holds an input of the run (:mod:`synthkit.outdir`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from synthkit import __version__
+from synthkit import __version__, outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
 from synthkit.errors import ConfigError, SynthkitError
 from synthkit.limits import Budget
@@ -95,11 +96,14 @@ def load_method_config(
     overrides: Iterable[str] = (),
     seed: int | None = None,
     check_files: bool = True,
+    named_inputs: list[Path] | None = None,
 ) -> tuple[str, RunConfig, list[Path]]:
     """Load and validate a config file; return (method name, config, resolved input files).
 
     ``method`` None dispatches on the file's ``method:`` key; otherwise the key must agree (or be
     absent). ``overrides`` are ``key.path=value`` strings; ``seed`` replaces the config's seed.
+    ``named_inputs``, when given, receives the input files as the config names them (absolute,
+    symbolic links not followed).
     """
     config_path = Path(config_path)
     data = load_yaml(config_path)
@@ -127,13 +131,18 @@ def load_method_config(
         base_dir=config_path.resolve().parent,
         check_files=check_files,
         inputs=inputs,
+        named_inputs=named_inputs,
     )
     return method, cfg, inputs
 
 
-def default_out_dir(config_path: Path) -> Path:
-    """``out/<config file stem>`` under the current folder."""
-    return Path("out") / Path(config_path).stem
+def default_out_dir(config_path: Path, out_root: Path | str = "out") -> Path:
+    """``<out_root>/<config file stem>``; refuses stems that are not a plain folder name."""
+    out_root = Path(out_root)
+    target = out_root / outdir.output_name(config_path)
+    if not outdir.inside(target, out_root):
+        raise ConfigError(f"{config_path}: output folder {target} would lie outside {out_root}")
+    return target
 
 
 def _naming_config(exc: SynthkitError, config_path: Path) -> SynthkitError:
@@ -154,77 +163,92 @@ def run_config(
     overrides: Iterable[str] = (),
     overwrite: bool = False,
     show_progress: bool = True,
+    budget: Budget | None = None,
 ) -> dict[str, Any]:
-    """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report."""
-    method, cfg, inputs = load_method_config(config_path, method=method, overrides=overrides, seed=seed)
+    """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report.
+
+    See :mod:`synthkit.outdir` for what may be replaced, the lock and the staging folder.
+    """
+    named: list[Path] = []
+    method, cfg, inputs = load_method_config(
+        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named
+    )
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
-    out_abs = out_dir.resolve()
-    for item in [*inputs, Path(config_path).resolve()]:
-        if item == out_abs or out_abs in item.parents:
-            raise ConfigError(f"--out {out_dir}: output folder holds the input {item}; choose another folder")
-    if out_abs.exists() and not overwrite:
-        raise ConfigError(f"--out {out_dir}: output folder exists; pass --overwrite to replace it")
-    if out_abs.exists() and not out_abs.is_dir():
-        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
-
-    out_abs.parent.mkdir(parents=True, exist_ok=True)
-    staging = out_abs.parent / f".{out_abs.name}.partial-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress)
-    start = time.perf_counter()
-
-    def make_report(status: str, error: str | None = None) -> dict[str, Any]:
-        ctx.timings["total"] = time.perf_counter() - start
-        report = {
-            "method": method,
-            "version": __version__,
-            "status": status,
-            "seed": cfg.seed,
-            "config": cfg.model_dump(mode="json"),
-            "config_file": str(Path(config_path).resolve()),
-            "timings": ctx.timings,
-            "metrics": ctx.metrics,
-            "outputs": {**ctx.outputs, "report": "report.json"},
-        }
-        if error is not None:
-            report["error"] = error
-        report = _finite_or_none(to_jsonable(report))
-        write_json(staging / "report.json", report)
-        return report
-
-    try:
-        pipeline_module(method).run(cfg, ctx)
-        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
-            raise RuntimeError(f"method {method} wrote no PNG preview")
-        report = make_report("ok")
-        _replace_dir(staging, out_abs)
-    except SynthkitError as exc:
-        named = _naming_config(exc, config_path)
-        if named.keep_outputs:
-            make_report("refused", str(named))
-            _replace_dir(staging, out_abs)
-        else:
+    config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
+    target = outdir.check_target(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with outdir.target_lock(target):
+        for leftover in outdir.remove_leftovers(target):
+            log.info("removed %s, left by a run that is gone", leftover)
+        outdir.check_target(out_dir, [], overwrite=overwrite)
+        staging = outdir.make_staging(target)
+        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget)
+        try:
+            try:
+                report = _run_staged(method, cfg, ctx, config_path)
+            except _RefusalKept as kept:
+                outdir.move_into_place(staging, target, overwrite=overwrite)
+                raise kept.error from None
+            outdir.move_into_place(staging, target, overwrite=overwrite)
+        except BaseException:
             shutil.rmtree(staging, ignore_errors=True)
-        if named is exc:
             raise
-        raise named from None
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
     log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
     return report
 
 
-def _replace_dir(staging: Path, target: Path) -> None:
-    """Move ``staging`` to ``target``, replacing an existing folder only after the move is ready."""
-    if target.exists():
-        old = target.parent / f".{target.name}.old-{os.getpid()}"
-        os.replace(target, old)
-        os.replace(staging, target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(staging, target)
+def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path) -> dict[str, Any]:
+    """Run the pipeline into ``ctx.out_dir`` and write report.json there; return the report.
+
+    A refusal that keeps its outputs (``keep_outputs``) writes its report with ``status: refused``
+    and comes out as :class:`_RefusalKept`, so that the caller moves the folder into place before
+    raising the refusal itself."""
+    start = time.perf_counter()
+    try:
+        pipeline_module(method).run(cfg, ctx)
+        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
+            raise RuntimeError(f"method {method} wrote no PNG preview")
+        return _write_report(method, cfg, ctx, config_path, start, "ok")
+    except SynthkitError as exc:
+        named = _naming_config(exc, config_path)
+        if named.keep_outputs:
+            _write_report(method, cfg, ctx, config_path, start, "refused", str(named))
+            raise _RefusalKept(named) from None
+        if named is exc:
+            raise
+        raise named from None
+
+
+class _RefusalKept(Exception):
+    """A refusal whose staged outputs and report are complete: moved into place, then re-raised."""
+
+    def __init__(self, error: SynthkitError):
+        super().__init__(str(error))
+        self.error = error
+
+
+def _write_report(
+    method: str, cfg: RunConfig, ctx: RunContext, config_path: Path, start: float, status: str,
+    error: str | None = None,
+) -> dict[str, Any]:
+    """Write ``report.json`` into the staging folder and return it."""
+    ctx.timings["total"] = time.perf_counter() - start
+    report = {
+        "method": method,
+        "version": __version__,
+        "status": status,
+        "seed": cfg.seed,
+        "config": cfg.model_dump(mode="json"),
+        "config_file": str(Path(config_path).resolve()),
+        "timings": ctx.timings,
+        "metrics": ctx.metrics,
+        "outputs": {**ctx.outputs, "report": "report.json"},
+    }
+    if error is not None:
+        report["error"] = error
+    report = _finite_or_none(to_jsonable(report))
+    write_json(ctx.out_dir / "report.json", report)
+    return report
 
 
 def _json_default(obj: Any) -> Any:

@@ -8,3 +8,9 @@ into a space of hexahedral cells (Algorithm 1); :mod:`.net` holds the coloured P
 inference (Algorithm 2) plus the plain AC-3 baseline; :mod:`.assembly` deforms the chosen pieces
 into their cells and measures the result; :mod:`.pipeline` runs it all.
 """
+
+SET_EXAMPLE = "inference.max_restarts=5"
+"""A real key of this method, shown in ``--set``'s help."""
+
+INIT_VALUES = {"lattice.unit": [1.0, 1.0, 1.0], "construction.points": [[0.0, 0.0], [10.0, 0.0]]}
+"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""

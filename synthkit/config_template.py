@@ -1,0 +1,103 @@
+"""A commented YAML config holding every key of a method's schema (``synthkit init``).
+
+Each key is written with its default and a comment giving its description and its range or
+choices. Sub-sections are nested mappings. Keys without a default, and keys a method needs one of
+(such as petri-synth's ``lattice.unit`` or ``construction.points``), take the method's
+``INIT_VALUES`` (dotted key -> value, from the method package) marked ``example value``; input
+files left to the user are ``null`` marked ``REQUIRED``.
+"""
+
+from __future__ import annotations
+
+import json
+import types
+import typing
+from typing import Any
+
+import annotated_types
+from pydantic import BaseModel
+from pydantic.fields import FieldInfo
+
+INDENT = "  "
+
+
+def config_template(model: type[BaseModel], *, method: str, values: dict[str, Any] | None = None) -> str:
+    """The commented YAML text of ``model`` (a RunConfig subclass) for subcommand ``method``."""
+    values = dict(values or {})
+    lines = [f"# synthkit {method} config: every key with its default (synthkit init {method}).",
+             "# Relative paths resolve against this file's folder.", ""]
+    lines += _model_lines(model, values, prefix="", depth=0, method=method)
+    return "\n".join(lines) + "\n"
+
+
+def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: int, method: str) -> list[str]:
+    lines: list[str] = []
+    for name, field in model.model_fields.items():
+        key = field.alias or name
+        dotted = prefix + key
+        pad = INDENT * depth
+        if dotted == "method":
+            lines.append(f"{pad}method: {method}")
+            continue
+        sub = _sub_model(field.annotation)
+        if dotted in values:
+            lines.append(f"{pad}{key}: {_flow(values[dotted])}  # example value; {_comment(field)}")
+        elif sub is not None and (field.is_required() or field.default_factory is not None
+                                  or any(k.startswith(dotted + ".") for k in values)):
+            lines.append(f"{pad}{key}:  # {_comment(field)}")
+            lines += _model_lines(sub, values, prefix=dotted + ".", depth=depth + 1, method=method)
+        elif field.is_required():
+            lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
+        else:
+            default = field.get_default(call_default_factory=True)
+            if isinstance(default, BaseModel):
+                default = default.model_dump(mode="json")
+            lines.append(f"{pad}{key}: {_flow(default)}  # {_comment(field)}")
+    return lines
+
+
+def _sub_model(annotation: Any) -> type[BaseModel] | None:
+    """The StrictModel class of a field that is a section (``Model`` or ``Model | None``)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        models = [a for a in typing.get_args(annotation) if isinstance(a, type) and issubclass(a, BaseModel)]
+        return models[0] if len(models) == 1 else None
+    return None
+
+
+def _flow(value: Any) -> str:
+    """``value`` as one line of YAML flow style (JSON is valid YAML)."""
+    if hasattr(value, "__fspath__"):
+        value = str(value)
+    return json.dumps(value, default=str)
+
+
+def _comment(field: FieldInfo) -> str:
+    """Description, then range and choices, on one line."""
+    parts = [(field.description or "").replace("\n", " ").rstrip(".")]
+    bounds = []
+    for meta in field.metadata:
+        for attr, sign in (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<")):
+            if isinstance(meta, getattr(annotated_types, attr.capitalize())):
+                bounds.append(f"{sign} {getattr(meta, attr)}")
+    if bounds:
+        parts.append("range " + ", ".join(bounds))
+    choices = _choices(field.annotation)
+    if choices:
+        parts.append("one of " + ", ".join(map(str, choices)))
+    return "; ".join(p for p in parts if p)
+
+
+def _choices(annotation: Any) -> list[Any]:
+    if typing.get_origin(annotation) is typing.Literal:
+        return list(typing.get_args(annotation))
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        found = []
+        for arg in typing.get_args(annotation):
+            found += _choices(arg)
+        return found
+    return []
+
+
+__all__ = ["config_template"]

@@ -57,9 +57,9 @@ class Budget:
         limit = self.limit(bytes_each)
         if math.isfinite(count) and count <= limit:
             return
-        shown = f"{count:.2g}" if math.isfinite(count) else "unboundedly many"
+        shown = f"about {count:.2g}" if math.isfinite(count) else "unboundedly many"
         raise ConfigError(
-            f"{key}: {value} needs about {shown} {unit} (limit {limit:.2g} at "
+            f"{key}: {value} needs {shown} {unit} (limit {limit:.2g} at "
             f"{self.max_bytes / 2**30:.3g} GiB; --max-memory raises it)"
         )
 

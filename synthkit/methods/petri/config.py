@@ -9,8 +9,12 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from synthkit.config import InputFile, RunConfig, StrictModel
 from synthkit.methods.petri.construction import polyline_problem
 
-Point2 = tuple[float, float]
-Point3 = tuple[float, float, float]
+COORDINATE_LIMIT = 1e9
+"""Largest magnitude of a coordinate in model units (keeps lengths and products finite)."""
+
+Coordinate = Annotated[float, Field(ge=-COORDINATE_LIMIT, le=COORDINATE_LIMIT)]
+Point2 = tuple[Coordinate, Coordinate]
+Point3 = tuple[Coordinate, Coordinate, Coordinate]
 
 
 class Annotation(StrictModel):

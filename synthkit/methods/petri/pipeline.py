@@ -281,6 +281,33 @@ def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, la
     }
 
 
+CELL_BYTES = 4096
+"""Bytes per construction cell besides its piece geometry: places, tokens, candidate sets (estimate)."""
+GEOMETRY_COPIES = 3
+"""Copies of a piece's geometry a cell holds while it is deformed, assembled and welded."""
+
+
+def check_construction_budget(budget, cfg: PetriConfig, spec, V: np.ndarray, F: np.ndarray, n_pieces: int) -> None:
+    """Refuse a curve whose cells (S_X S_Y S_Z over every curve), each with its deformed piece,
+    exceed the memory budget, before the construction space is built."""
+    con = cfg.construction
+    axes = construction.PLANE_AXES[con.plane]
+    unit = float(spec.unit[axes[0]])
+    curves = [(c.points, c.closed) for c in con.curves] if con.curves is not None else [(con.points, con.closed)]
+    length = 0.0
+    for points, closed in curves:
+        P = np.asarray(points, np.float64)
+        if closed:
+            P = np.vstack([P, P[:1]])
+        length += float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+    size_y = con.size_y if con.size_y is not None else int(spec.counts[axes[1]])
+    size_z = con.size_z if con.size_z is not None else int(spec.counts[axes[2]])
+    cells = (length / unit + 0.5) * size_y * size_z
+    piece_bytes = (V.nbytes + F.nbytes) / max(n_pieces, 1) * GEOMETRY_COPIES
+    key = "construction.curves" if con.curves is not None else "construction.points"
+    budget.require(key, f"{length:.6g} units long", cells, "cells", bytes_each=CELL_BYTES + piece_bytes)
+
+
 def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("load"):
         mesh = load_mesh(cfg.example)
@@ -290,6 +317,7 @@ def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("analysis"):
         spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
 
+    check_construction_budget(ctx.budget, cfg, spec, V, F, len(pieces.index))
     if cfg.construction.curves is not None:
         return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
 

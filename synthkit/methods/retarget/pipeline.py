@@ -23,6 +23,7 @@ runner keeps the folder, ``report.json`` has ``"status": "refused"``).
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -344,6 +345,33 @@ def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: floa
     }
 
 
+SAMPLE_BYTES = 200
+"""Bytes per Poisson-disk sample: position, normal, pool share, kd-tree (estimate)."""
+PAIR_BYTES = 64
+"""Bytes per (feature, support sample) pair gathered by the descriptor (estimate)."""
+
+
+def _disk_count(area: float, radius: float) -> float:
+    """Poisson-disk samples of spacing ``radius`` on ``area`` (hexagonal packing), inf when it
+    overflows."""
+    try:
+        return area * 2.0 / (math.sqrt(3.0) * radius * radius)
+    except (OverflowError, ZeroDivisionError):
+        return float("inf")
+
+
+def check_analysis_budget(budget, a, area: float, n_vertices: int) -> None:
+    """Refuse sampling radii whose samples or descriptor neighbourhoods exceed the memory budget,
+    before anything is sampled. ``area`` is the normalised mesh's surface area."""
+    dense = _disk_count(area, a.dense_radius)
+    budget.require("analysis.dense_radius", a.dense_radius, dense, "samples", bytes_each=SAMPLE_BYTES)
+    features = _disk_count(area, a.feature_radius) + (n_vertices if a.use_vertices else 0)
+    budget.require("analysis.feature_radius", a.feature_radius, features, "features", bytes_each=SAMPLE_BYTES)
+    support = min(dense, _disk_count(np.pi * a.descriptor_radius**2, a.dense_radius))
+    budget.require("analysis.dense_radius", a.dense_radius, features * support, "descriptor neighbour pairs",
+                   bytes_each=PAIR_BYTES)
+
+
 def run(cfg, ctx) -> None:
     """Run the retargeting described by ``cfg`` (a :class:`RetargetConfig`) into ``ctx``."""
     with ctx.stage("load"):
@@ -366,6 +394,7 @@ def run(cfg, ctx) -> None:
         suffix = Path(cfg.input).suffix.lower()
         suffix = suffix if suffix in _MESH_OUT else ".ply"
     a = cfg.analysis
+    check_analysis_budget(ctx.budget, a, float(area.sum()), len(np.unique(F)))
     with ctx.stage("analysis"):
         an = analyze(
             Vn,

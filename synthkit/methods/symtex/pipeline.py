@@ -42,6 +42,20 @@ def _check_signals(img: np.ndarray, signals, path: Path, what: str) -> None:
             raise InputError(f"{path}: {what} has a constant {s} signal: its symmetry representation is undefined")
 
 
+PIXEL_BYTES = 512
+"""Bytes per pixel of the working image: signals, their padded transforms, S fields and candidate
+buffers (estimate)."""
+
+
+def check_image_budget(budget, cfg: SymtexConfig, src: np.ndarray) -> None:
+    """Refuse a source or output size whose working fields exceed the memory budget."""
+    H, W = src.shape[:2]
+    budget.require("source", f"{cfg.source} ({H}x{W})", H * W, "pixels", bytes_each=PIXEL_BYTES)
+    if cfg.output_size is not None:
+        h, w = cfg.output_size
+        budget.require("output_size", f"{h}x{w}", float(h) * float(w), "pixels", bytes_each=PIXEL_BYTES)
+
+
 def run(cfg: SymtexConfig, ctx) -> None:
     """Run one symmetry-texture config (see the module docstring)."""
     pert = cfg.resolved_perturbation()
@@ -52,6 +66,7 @@ def run(cfg: SymtexConfig, ctx) -> None:
         if cfg.target is not None and cfg.mode == "transfer":
             tgt = _load(cfg.target, "target image")
             _check_signals(tgt, cfg.symmetry.signals, cfg.target, "target image")
+    check_image_budget(ctx.budget, cfg, src)
     if pert == "synth":
         _run_synth(cfg, ctx, src, tgt)
     elif pert == "lens":

@@ -310,3 +310,21 @@ def test_rgba_16bit_is_composited_over_white(tmp_path):
     assert cv2.imwrite(str(path), arr)
     a = np.float32(32768 / 65535)
     np.testing.assert_allclose(load_image(path), [[[1, 1, 1], [1 - a, 1 - a, a + (1 - a)]]], rtol=0, atol=1e-7)
+
+
+# -- the capture itself ----------------------------------------------------------------------------
+
+
+def test_capture_restores_fd2_and_opencv_log_level(tmp_path, capfd):
+    from synthkit.io._capture import captured_stderr
+
+    level = cv2.utils.logging.getLogLevel()
+    with pytest.raises(RuntimeError), captured_stderr() as lines:
+        os.write(2, b"from C\n\nsecond line  \n")
+        raise RuntimeError("boom")
+    assert lines == ["from C", "second line"]
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "after\n"
+    with pytest.raises(InputError):
+        load_image(_truncated_jpeg(tmp_path))
+    assert cv2.utils.logging.getLogLevel() == level

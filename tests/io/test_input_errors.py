@@ -1,6 +1,7 @@
 """Bad input files give one line in synthkit's words: corrupt images (decoder warnings captured from
 fd 2), permission denied, meshes naming missing textures, and the RGBA compositing rule."""
 
+import hashlib
 import logging
 import os
 import shutil
@@ -20,6 +21,12 @@ from synthkit.io.meshes import load_mesh
 
 TEXTURES = Path(__file__).resolve().parents[2] / "data-samples" / "textures"
 CLI = [sys.executable, "-c", "from synthkit.cli.main import main; main()"]
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    """Relative path -> SHA-256 of every file under ``folder`` (folders as "dir")."""
+    return {p.relative_to(folder).as_posix(): "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in folder.rglob("*")}
 
 
 def _jpeg(tmp_path, name="ok.jpg"):
@@ -129,13 +136,13 @@ def test_cli_truncated_jpeg_one_line_exit_3(tmp_path):
     """Through the real process: libjpeg's own line never reaches the terminal, ours does."""
     source = _truncated_jpeg(tmp_path, "wavy.jpg")
     cfg = _quilt_config(tmp_path, source)
-    before = {p: p.read_bytes() for p in tmp_path.iterdir()}
+    before = _snapshot(tmp_path)
     proc = subprocess.run([*CLI, "symmetry-texture", str(cfg), "--out", str(tmp_path / "out")],
                           capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert proc.returncode == 3
     assert proc.stderr == f"error: {cfg}: {source}: corrupt image: Premature end of JPEG file\n"
     assert proc.stdout == ""
-    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == before
+    assert _snapshot(tmp_path) == before
 
 
 # -- permission denied -----------------------------------------------------------------------------
@@ -156,25 +163,30 @@ def _without_dac_override(cmd: list[str]) -> list[str]:
 def test_cli_unreadable_image_says_permission_denied(tmp_path):
     source = tmp_path / "wavy.png"
     shutil.copy(TEXTURES / "wavy.png", source)
-    source.chmod(0)
     cfg = _quilt_config(tmp_path, source)
+    before = _snapshot(tmp_path)
+    source.chmod(0)
     proc = subprocess.run(_without_dac_override([*CLI, "symmetry-texture", str(cfg), "--out", str(tmp_path / "o")]),
                           capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert proc.returncode == 3
     assert proc.stderr == f"error: {cfg}: {source}: permission denied (cannot read image)\n"
-    assert not (tmp_path / "o").exists()
+    source.chmod(0o644)
+    assert _snapshot(tmp_path) == before
 
 
 def test_cli_unreadable_mesh_says_permission_denied(tmp_path):
     mesh = tmp_path / "m.obj"
     mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    mesh.chmod(0)
     cfg = tmp_path / "r.yaml"
     cfg.write_text("method: retarget\ninput: m.obj\nseed: 0\nanalyze_only: true\n")
+    before = _snapshot(tmp_path)
+    mesh.chmod(0)
     proc = subprocess.run(_without_dac_override([*CLI, "retarget", str(cfg), "--out", str(tmp_path / "o")]),
                           capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert proc.returncode == 3
     assert proc.stderr == f"error: {cfg}: {mesh}: permission denied (cannot read mesh)\n"
+    mesh.chmod(0o644)
+    assert _snapshot(tmp_path) == before
 
 
 def test_folder_and_empty_file_are_named(tmp_path):

@@ -56,10 +56,9 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
     Parameters
     ----------
     path : PNG, JPEG or TIFF file, 8 or 16 bit, grey, RGB or RGBA.
-    mode : "rgb" gives ``(H, W, 3)`` (alpha dropped, grey replicated); "gray" gives ``(H, W)``
-        luminance (Rec. 601 weights); "any" keeps the file's channels (``(H, W)``, 3 or 4).
-
-    An alpha channel is composited over white in "rgb" and "gray" mode (see the module docstring).
+    mode : "rgb" gives ``(H, W, 3)`` (grey replicated); "gray" gives ``(H, W)`` luminance
+        (Rec. 601 weights); in both an alpha channel is composited over white (module docstring).
+        "any" keeps the file's channels (``(H, W)``, or 2 to 4 channels, alpha last, unchanged).
 
     Raises
     ------
@@ -87,14 +86,14 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
         if not np.isfinite(img).all():
             raise InputError(f"{path}: image has non-finite values")
         img = np.clip(img, 0.0, 1.0)
-    if img.ndim == 3:
+    if img.ndim == 3 and img.shape[2] in (3, 4):
         img = img[..., [2, 1, 0, 3]] if img.shape[2] == 4 else img[..., ::-1]
     if mode == "any":
         return np.ascontiguousarray(img)
-    if img.ndim == 3 and img.shape[2] == 4:
+    if img.ndim == 3 and img.shape[2] in (2, 4):
         img = _over_white(img, path)
-    elif img.ndim == 3:
-        img = img[..., :3]
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
     if mode == "rgb":
         if img.ndim == 2:
             img = np.repeat(img[..., None], 3, axis=2)
@@ -141,18 +140,21 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
 
 
 def _over_white(img: np.ndarray, path: Path) -> np.ndarray:
-    """RGB of ``img (H, W, 4)`` (straight alpha) composited over white; one warning if any pixel is
-    not opaque."""
-    alpha = img[..., 3:4]
-    translucent = int(np.count_nonzero(alpha[..., 0] < 1.0))
+    """Colour of ``img (H, W, 4)`` RGBA or ``(H, W, 2)`` grey + alpha (straight alpha) composited
+    over white, ``(H, W, 3)`` or ``(H, W)``; one warning if any pixel is not opaque."""
+    colour, alpha = img[..., :-1], img[..., -1:]
+    if colour.shape[2] == 1:
+        colour = colour[..., 0]
+        alpha = alpha[..., 0]
+    translucent = int(np.count_nonzero(img[..., -1] < 1.0))
     if translucent == 0:
-        return img[..., :3]
-    total = alpha.shape[0] * alpha.shape[1]
+        return colour
+    total = img.shape[0] * img.shape[1]
     log.warning(
         "%s: %d of %d pixels are transparent or translucent; composited over white (synthkit uses colour only)",
         path, translucent, total,
     )
-    return (img[..., :3] * alpha + (1.0 - alpha)).astype(np.float32)
+    return (colour * alpha + (1.0 - alpha)).astype(np.float32)
 
 
 @contextlib.contextmanager

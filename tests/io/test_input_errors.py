@@ -340,3 +340,10 @@ def test_capture_restores_fd2_and_opencv_log_level(tmp_path, capfd):
     with pytest.raises(InputError):
         load_image(_truncated_jpeg(tmp_path))
     assert cv2.utils.logging.getLogLevel() == level
+
+
+def test_grey_alpha_is_composited_over_white(tmp_path):
+    from synthkit.io.images import _over_white
+
+    la = np.array([[[0.2, 0.5], [0.2, 1.0], [0.9, 0.0]]], dtype=np.float32)
+    np.testing.assert_allclose(_over_white(la, tmp_path / "la.tif"), [[0.6, 0.2, 1.0]], rtol=0, atol=1e-7)

@@ -20,7 +20,11 @@ residual graph. That is the minimum cut with the largest source side, the one Py
 
 from __future__ import annotations
 
+import os
+import stat
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -29,6 +33,46 @@ _NONE = -1  # not in a tree
 _TERMINAL = -2  # parent is the source or the sink
 _ORPHAN = -3  # lost its parent during an augmentation
 _FAR = 1 << 30
+
+
+def _numba_cache_usable() -> bool:
+    """Whether the kernels of this module and of :mod:`synthkit.core.graphcut` can keep numba's
+    on-disk cache (``cache=True``); makes sure they can where possible.
+
+    numba caches beside the sources (``__pycache__``), else in ``$XDG_CACHE_HOME/numba``
+    (``~/.cache/numba``), or first in ``NUMBA_CACHE_DIR`` when that is set. A read-only install
+    falls back to the user's cache silently. When none of these is writable (a read-only
+    site-packages and a read-only home, as in some containers and services), numba refuses to
+    decorate a ``cache=True`` function with a RuntimeError. Then numba's cache folder is set to
+    ``<tempdir>/synthkit-numba-<uid>``, created mode 0700 and used only if it is this user's own and
+    writable by no one else (numba's cache files are pickles); failing that, the kernels are
+    compiled in each process (no cache).
+    """
+    try:
+        from numba.core.caching import FunctionCache
+
+        FunctionCache(_numba_cache_usable)
+        return True
+    except RuntimeError:
+        pass
+    except Exception:  # numba's internals moved: leave caching to numba, as cache=True does
+        return True
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    folder = Path(tempfile.gettempdir()) / f"synthkit-numba-{uid if uid is not None else 'user'}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        info = folder.lstat()
+        if not stat.S_ISDIR(info.st_mode) or info.st_mode & 0o022 or (uid is not None and info.st_uid != uid):
+            return False
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    numba.config.CACHE_DIR = str(folder)
+    return True
+
+
+NUMBA_CACHE = _numba_cache_usable()
+"""``cache=`` of every numba kernel in synthkit.core (see :func:`_numba_cache_usable`)."""
 
 
 @dataclass
@@ -81,7 +125,7 @@ class ResidualGraph:
         return _bk(self.first, self.head, self.sister, self.rcap, self.tr)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _arcs(n, p, q):  # pragma: no cover
     """Compressed rows of the arcs ``p -> q`` and ``q -> p`` of each edge, by a counting sort on
     their tails; returns ``first, head, sister, arc_pq, arc_qp``."""
@@ -111,7 +155,7 @@ def _arcs(n, p, q):  # pragma: no cover
     return first, head, sister, arc_pq, arc_qp
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _update(rcap, tr, arc_pq, arc_qp, p, q, old_pq, new_pq, new_qp, old_term, new_term):  # pragma: no cover
     """Bring the residual graph from capacities ``old_*`` to ``new_*`` (Kohli and Torr 2005).
 
@@ -141,7 +185,7 @@ def _update(rcap, tr, arc_pq, arc_qp, p, q, old_pq, new_pq, new_qp, old_term, ne
         tr[i] += new_term[i] - old_term[i]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _bk(first, head, sister, rcap, tr):  # pragma: no cover
     """Boykov-Kolmogorov max-flow (PAMI 2004) on the residual graph, in place; fresh search trees.
 
@@ -334,7 +378,7 @@ def _bk(first, head, sister, rcap, tr):  # pragma: no cover
     return tree == 2
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _saturate(first, head, sister, rcap, tr, rounds):  # pragma: no cover
     """Greedy pushes that are part of some maximum flow: a node whose source residual covers all
     its outgoing residual arcs sends their full capacity (it stays on the source side in every

@@ -24,7 +24,7 @@ import maxflow
 import numba
 import numpy as np
 
-from synthkit.core.flow import ResidualGraph, _bk, _saturate, _update
+from synthkit.core.flow import NUMBA_CACHE, ResidualGraph, _bk, _saturate, _update
 
 INF = 1e12
 """Costs at or above this value are treated as infinite (forbidden), exactly like ``np.inf``."""
@@ -462,7 +462,7 @@ class _Expansion:
         return status == 1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _stale(act, gp, gq, changed_at, at01, at10, v11, two_sided):  # pragma: no cover
     """Kept positions whose values a move with active nodes ``act`` (N,) bool reads and that are
     missing or stale: ``(w01, w10, w11)`` int arrays for ``v01``, ``v10``, ``v11``.
@@ -500,7 +500,7 @@ def _stale(act, gp, gq, changed_at, at01, at10, v11, two_sided):  # pragma: no c
     return w01[:n01], w10[:n10], w11[:n11]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _fix_blocked(act, gp, gq, v01, v10):  # pragma: no cover
     """Make fixed (``act`` False) every active node with an edge to a fixed node that its switch
     makes infinite; the test reads ``act`` as it was on entry. Returns whether any node changed."""
@@ -521,12 +521,12 @@ def _fix_blocked(act, gp, gq, v01, v10):  # pragma: no cover
     return nb > 0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=NUMBA_CACHE, inline="always")
 def _finite(v, big):  # pragma: no cover
     return big if np.isinf(v) else v
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
 def _move(alpha, step, act, lab, un, u_alpha, pv, changed_at, idx, gp, gq, v01, v10, v11, loc, slot, big,
           first, head, sister, rcap, tr, arc_pq, arc_qp, gpl, gql, cap_pq, term, rel_tol):  # pragma: no cover
     """The expansion move on ``alpha`` for the active nodes ``act`` (N,) bool, compiled.

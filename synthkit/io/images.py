@@ -3,11 +3,39 @@
 Images are ``float32 (H, W)`` or ``(H, W, C)`` arrays in [0, 1] inside synthkit. 8- and 16-bit
 PNG, JPEG and TIFF files in grey, RGB or RGBA are read; writing turns floats into 8-bit (or keeps
 ``uint16`` arrays 16-bit).
+
+Transparency. synthkit's methods work on colour only, so :func:`load_image` in ``"rgb"`` and
+``"gray"`` mode flattens an image with an alpha channel the way an image viewer shows it on a
+white page and the way ``magick -flatten`` or GIMP's "Remove Alpha Channel" do: every pixel is
+composited over white, ``rgb = a * rgb + (1 - a)``, before the grey conversion. A fully opaque
+alpha channel (every pixel at the maximum value) changes nothing. When some pixels are not
+opaque, one warning says how many were composited. ``"any"`` mode returns the file's channels,
+alpha included and unchanged (straight, not premultiplied).
+
+Decoder messages. libjpeg, libpng, libtiff and OpenCV print their warnings on the process's
+stderr (fd 2), past Python. :func:`load_image` and :func:`save_image` capture fd 2 during the
+OpenCV call (:mod:`synthkit.io._capture`), with OpenCV's log level held at WARNING so that its
+INFO/DEBUG lines (which go to stdout) are not printed either. Nothing a decoder prints reaches
+the terminal. The captured lines are read by this rule:
+
+- metadata warnings are benign and ignored (logged at DEBUG level only): libpng warnings about an
+  ancillary chunk (colour profile ``iCCP``, ``sRGB``, ``cHRM``, ``gAMA``, text and time chunks
+  ...), libtiff's "Unknown field with tag" and "ASCII value for tag", EXIF warnings, and OpenCV's
+  own "can't open/read file" line (synthkit says what is wrong with the file itself);
+- every other line is a decoder warning or error about the pixel data (libjpeg's "Premature end
+  of JPEG file" or "Corrupt JPEG data: ...", "libpng error: ...", a libtiff error, an OpenCV
+  decoder warning): the image is corrupt, even if OpenCV returned pixels (libjpeg fills a
+  truncated image with grey), and :func:`load_image` raises
+  ``InputError("<path>: corrupt image: <first such line>")`` (exit code 3).
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
+import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Literal
 
@@ -15,6 +43,9 @@ import cv2
 import numpy as np
 
 from synthkit.errors import InputError
+from synthkit.io._capture import captured_stderr, check_readable
+
+log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 
@@ -25,17 +56,23 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
     Parameters
     ----------
     path : PNG, JPEG or TIFF file, 8 or 16 bit, grey, RGB or RGBA.
-    mode : "rgb" gives ``(H, W, 3)`` (alpha dropped, grey replicated); "gray" gives ``(H, W)``
-        luminance (Rec. 601 weights); "any" keeps the file's channels (``(H, W)``, 3 or 4).
+    mode : "rgb" gives ``(H, W, 3)`` (grey replicated); "gray" gives ``(H, W)`` luminance
+        (Rec. 601 weights); in both an alpha channel is composited over white (module docstring).
+        "any" keeps the file's channels (``(H, W)``, or 2 to 4 channels, alpha last, unchanged).
 
     Raises
     ------
-    InputError : missing, unreadable, empty (zero-sized) image.
+    InputError : missing, unreadable (permission denied, a folder), empty, corrupt (any decoder
+        warning about the pixel data, see the module docstring) or non-finite image.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: image file not found")
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if check_readable(path, "image") == 0:
+        raise InputError(f"{path}: image file is empty (0 bytes)")
+    with _opencv_captured() as lines:
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    problem = _decoder_problem(lines, path)
+    if problem is not None:
+        raise InputError(f"{path}: corrupt image: {problem}")
     if raw is None:
         raise InputError(f"{path}: cannot read image (corrupt or unsupported format)")
     if raw.size == 0 or raw.shape[0] == 0 or raw.shape[1] == 0:
@@ -49,12 +86,14 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
         if not np.isfinite(img).all():
             raise InputError(f"{path}: image has non-finite values")
         img = np.clip(img, 0.0, 1.0)
-    if img.ndim == 3:
+    if img.ndim == 3 and img.shape[2] in (3, 4):
         img = img[..., [2, 1, 0, 3]] if img.shape[2] == 4 else img[..., ::-1]
     if mode == "any":
         return np.ascontiguousarray(img)
-    if img.ndim == 3:
-        img = img[..., :3]
+    if img.ndim == 3 and img.shape[2] in (2, 4):
+        img = _over_white(img, path)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
     if mode == "rgb":
         if img.ndim == 2:
             img = np.repeat(img[..., None], 3, axis=2)
@@ -85,6 +124,80 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
         else:
             raise ValueError(f"image must have 1, 3 or 4 channels, got {arr.shape[2]}")
     tmp = path.with_name(path.name + ".tmp" + suffix)
-    if not cv2.imwrite(str(tmp), np.ascontiguousarray(arr)):
-        raise OSError(f"cannot write image {path}")
+    with _opencv_captured() as lines:
+        try:
+            ok = cv2.imwrite(str(tmp), np.ascontiguousarray(arr))
+        except cv2.error as exc:
+            ok, lines = False, [*lines, str(exc).strip().splitlines()[-1]]
+    if not ok:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        said = [_strip_prefix(line) for line in lines]
+        raise OSError(f"cannot write image {path}" + (f": {said[0]}" if said else ""))
+    for line in lines:
+        log.debug("%s: encoder said: %s", path, line)
     os.replace(tmp, path)
+
+
+def _over_white(img: np.ndarray, path: Path) -> np.ndarray:
+    """Colour of ``img (H, W, 4)`` RGBA or ``(H, W, 2)`` grey + alpha (straight alpha) composited
+    over white, ``(H, W, 3)`` or ``(H, W)``; one warning if any pixel is not opaque."""
+    colour, alpha = img[..., :-1], img[..., -1:]
+    if colour.shape[2] == 1:
+        colour = colour[..., 0]
+        alpha = alpha[..., 0]
+    translucent = int(np.count_nonzero(img[..., -1] < 1.0))
+    if translucent == 0:
+        return colour
+    total = img.shape[0] * img.shape[1]
+    log.warning(
+        "%s: %d of %d pixels are transparent or translucent; composited over white (synthkit uses colour only)",
+        path, translucent, total,
+    )
+    return (colour * alpha + (1.0 - alpha)).astype(np.float32)
+
+
+@contextlib.contextmanager
+def _opencv_captured() -> Iterator[list[str]]:
+    """Capture fd 2 (see :func:`~synthkit.io._capture.captured_stderr`) with OpenCV's log level at
+    WARNING; the list is filled when the block ends."""
+    with captured_stderr() as lines:
+        previous = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_WARNING)
+        try:
+            yield lines
+        finally:
+            cv2.utils.logging.setLogLevel(previous)
+
+
+_OPENCV_PREFIX = re.compile(r"^\[\s*[A-Z]+:[^\]]*\]\s*(?:global\s+)?(?:\S+\.\w+:\d+\s+)?(?:\S+\s+)?")
+"""OpenCV's log line prefix: ``[ WARN:0@0.039] global grfmt_png.cpp:793 readFromStreamOrBuffer ``."""
+
+_BENIGN = re.compile(
+    r"libpng warning: (iCCP|sRGB|cHRM|gAMA|sBIT|bKGD|hIST|pHYs|oFFs|pCAL|sCAL|sPLT|tIME|tEXt|zTXt|iTXt|eXIf|cICP)\b"
+    r"|Unknown field with tag|ASCII value for tag"
+    r"|exif"
+    r"|findDecoder|can't open/read file",
+    re.IGNORECASE,
+)
+"""Captured lines about metadata, or OpenCV's own "cannot open" line: not a sign of corrupt pixels."""
+
+
+def _strip_prefix(line: str) -> str:
+    """A decoder line without its library's prefix (OpenCV's log header, ``libpng error:``, ...)."""
+    line = _OPENCV_PREFIX.sub("", line) if line.startswith("[") else line
+    for prefix in ("libpng error: ", "libpng warning: ", "TIFF_Error ", "TIFF_Warning "):
+        line = line.removeprefix(prefix)
+    return line.strip()
+
+
+def _decoder_problem(lines: list[str], path: Path) -> str | None:
+    """The first captured line that says the pixel data is corrupt (module docstring), without its
+    library prefix; benign lines are logged at DEBUG level."""
+    problem = None
+    for line in lines:
+        if _BENIGN.search(line):
+            log.debug("%s: decoder said (ignored): %s", path, line)
+        elif problem is None:
+            problem = _strip_prefix(line) or line
+    return problem

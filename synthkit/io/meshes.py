@@ -4,17 +4,31 @@
 transforms applied) and refuses missing, unreadable or degenerate input with an
 :class:`~synthkit.errors.InputError` naming the file. ``save_mesh`` writes by suffix (.obj, .ply,
 .glb, .off, .stl), optionally with an int32 per-face ``label`` property in PLY.
+
+trimesh reports trouble with the files a mesh names (a PLY's ``comment TextureFile``, an OBJ's
+``mtllib`` and the textures its materials name) through :mod:`logging`, a missing texture with a
+whole traceback, and goes on loading. ``load_mesh`` holds trimesh's log records during the load
+and says instead, once per named file, ``<path>: texture file x.png named by the mesh is missing;
+loading without texture`` (or ``material file ... loading without materials``) as a warning of
+its own logger; trimesh's other records go to DEBUG level.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from synthkit.errors import InputError
+from synthkit.io._capture import check_readable
+
+log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".off", ".stl")
 
@@ -35,17 +49,22 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
 
     Raises
     ------
-    InputError : the file is missing, unreadable, has no triangles, or has non-finite vertices.
+    InputError : the file is missing, unreadable (permission denied, a folder), has no triangles,
+        or has non-finite vertices.
+
+    A texture or material file the mesh names but that is missing gives one warning (see the
+    module docstring) and the mesh is loaded without it.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: mesh file not found")
+    check_readable(path, "mesh")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise InputError(f"{path}: unsupported mesh format {path.suffix!r} (use {', '.join(MESH_SUFFIXES)})")
-    try:
-        loaded = trimesh.load(path, process=process)
-    except Exception as exc:  # trimesh raises many types for corrupt files
-        raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    with _trimesh_records() as records:
+        try:
+            loaded = trimesh.load(path, process=process)
+        except Exception as exc:  # trimesh raises many types for corrupt files
+            raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    _report_trimesh_records(records, path)
     if isinstance(loaded, trimesh.Scene):
         geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         if not geoms:
@@ -61,6 +80,62 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
         raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
     check_mesh(mesh.vertices, mesh.faces, source=path)
     return mesh
+
+
+class _Collect(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+_TRIMESH_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _trimesh_records() -> Iterator[list[logging.LogRecord]]:
+    """Hold every record of the ``trimesh`` loggers during the block (none is printed) and yield
+    the list they are collected in."""
+    logger = logging.getLogger("trimesh")
+    collect = _Collect()
+    with _TRIMESH_LOCK:
+        saved = (logger.handlers[:], logger.level, logger.propagate)
+        logger.handlers[:] = [collect]
+        logger.setLevel(logging.DEBUG)
+        logger.propagate = False
+        try:
+            yield collect.records
+        finally:
+            logger.handlers[:], logger.propagate = saved[0], saved[2]
+            logger.setLevel(saved[1])
+
+
+def _report_trimesh_records(records: list[logging.LogRecord], path: Path) -> None:
+    """One warning per texture or material file the mesh names that trimesh could not load; the
+    other records at DEBUG level."""
+    said: set[str] = set()
+    for record in records:
+        message = record.getMessage()
+        exc = record.exc_info[1] if record.exc_info else None
+        if message.startswith("unable to load materials from"):
+            kind, name = "material", message.split(":", 1)[-1].strip()
+        elif "image" in message and exc is not None:
+            kind, name = "texture", str(exc) if isinstance(exc, FileNotFoundError) else ""
+        else:
+            log.debug("%s: trimesh: %s", path, message)
+            continue
+        without = "materials" if kind == "material" else "texture"
+        if name and not (path.parent / name).exists():
+            warning = f"{kind} file {name} named by the mesh is missing; loading without {without}"
+        else:
+            reason = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}" if exc else "unreadable"
+            warning = (f"{kind} file {name or '(unnamed)'} named by the mesh cannot be read ({reason}); "
+                       f"loading without {without}")
+        if warning not in said:
+            said.add(warning)
+            log.warning("%s: %s", path, warning)
 
 
 def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> None:

@@ -143,7 +143,7 @@ def test_installed_wheel_is_the_whole_tool(installed, tmp_path):
     listed = [line.split()[0] for line in commands.splitlines() if line.strip()]
     methods = available_methods()
     assert {"retarget", "petri-synth", "symmetry-texture"} <= set(methods)
-    assert listed == [*methods, "validate", "run"]
+    assert listed == [*methods, "init", "schema", "validate", "run"]
 
     for method in methods:
         out = work / "out" / method

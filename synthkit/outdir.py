@@ -158,16 +158,24 @@ def remove_leftovers(target: Path) -> list[Path]:
     return removed
 
 
-def make_staging(target: Path) -> Path:
-    """Create the hidden staging folder beside ``target``, with the marker already inside."""
-    staging = target.parent / f".{target.name}.partial-{os.getpid()}"
-    if staging.exists():
-        if not (staging / MARKER).is_file():
+def staging_path(target: Path) -> Path:
+    """The hidden staging folder of this process for ``target``: ``.NAME.partial-PID`` beside it."""
+    return target.parent / f".{target.name}.partial-{os.getpid()}"
+
+
+def clear_staging(staging: Path, target: Path) -> None:
+    """Remove an earlier ``staging`` of this pid (a reused pid); refuse one that is not ours."""
+    if staging.exists() or staging.is_symlink():
+        if staging.is_symlink() or not (staging / MARKER).is_file():
             raise ConfigError(f"--out {target}: {staging} exists and is not a synthkit staging folder")
         shutil.rmtree(staging)
+
+
+def make_staging(staging: Path) -> None:
+    """Create ``staging`` (see :func:`staging_path`) with the marker inside. Call it inside the block
+    that removes ``staging`` on any exception, so that a signal arriving here leaves nothing."""
     staging.mkdir()
     (staging / MARKER).write_text(_marker_text())
-    return staging
 
 
 def move_into_place(staging: Path, target: Path, *, overwrite: bool) -> None:
@@ -195,7 +203,9 @@ __all__ = [
     "check_target",
     "inside",
     "is_synthkit_output",
+    "clear_staging",
     "make_staging",
+    "staging_path",
     "move_into_place",
     "output_name",
     "remove_leftovers",

@@ -181,9 +181,11 @@ def run_config(
         for leftover in outdir.remove_leftovers(target):
             log.info("removed %s, left by a run that is gone", leftover)
         outdir.check_target(out_dir, [], overwrite=overwrite)
-        staging = outdir.make_staging(target)
-        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget)
+        staging = outdir.staging_path(target)
+        outdir.clear_staging(staging, target)
         try:
+            outdir.make_staging(staging)
+            ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget)
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:

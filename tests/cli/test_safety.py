@@ -445,3 +445,21 @@ def test_set_example_in_help_is_a_real_key(runner, method):
     sample = sorted(CONFIGS.glob(f"{method}/*.yaml"))[0]
     assert runner.invoke(cli, ["validate", str(sample), "--set", example]).exit_code == 0
     assert "graphcut.max_cycles" not in result.output
+
+
+# -- 5. one registry ------------------------------------------------------------------------------
+
+
+def test_a_method_registered_once_gets_its_subcommand(runner, echo_method):
+    result = runner.invoke(cli, ["--help"])
+    assert result.exit_code == 0, result.stderr
+    assert "  echo " in result.output
+    result = runner.invoke(cli, ["echo", "--help"])
+    assert result.exit_code == 0 and "A tiny method used only by the framework tests" in result.output
+
+
+def test_symtex_stage_modules_do_not_import_the_pipeline():
+    code = ("import sys, synthkit.methods.symtex.deform, synthkit.methods.symtex.common; "
+            "print('synthkit.methods.symtex.pipeline' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

@@ -999,3 +999,36 @@ def test_network_with_facade_boundary_is_a_clear_error(fine_building, tmp_path):
     result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 3, result.stderr
     assert "cannot fill the construction space" in result.stderr and "cell (i=" in result.stderr
+
+
+def test_repeatable_labels_and_growth_hint_exact():
+    # rows along X: [0 1 1 2] repeats label 1; [3 4 5 6] repeats nothing
+    grid = np.array([[0, 3], [1, 4], [1, 5], [2, 6]]).reshape(4, 2, 1)
+    cons = analysis.adjacency_constraints(grid, 7, boundary=True)
+    assert analysis.repeatable_labels(cons.allowed[0], 7).tolist() == [False, True, False, False, False, False, False]
+    hint = analysis.growth_hint(grid, cons, 0, "lattice.unit[0], along X")
+    assert hint.startswith("1 of the example's 2 rows along X ((Y=1, Z=0)) hold no piece that may repeat along X, "
+                           "so the example cannot grow past its 4 units there: choose lattice.unit[0] (along X) so")
+    assert analysis.growth_hint(grid[:, :1], analysis.adjacency_constraints(grid[:, :1], 7), 0, "u") is None
+
+
+def test_kenney_building_along_a_longer_curve_names_the_conflict(tmp_path):
+    glb = KENNEY / "building-small-a.glb"
+    if not glb.is_file():
+        pytest.skip(f"real data absent: {glb}")
+    cfg = write_config(tmp_path, "kenney_long", f"""method: petri-synth
+example: {glb}
+lattice:
+  unit: [0.25, 0.475, 0.25]
+construction:
+  plane: xz
+  points: [[0, 0], [3, 0], [5, 2]]
+""")
+    result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 3
+    line = result.stderr.strip()
+    assert "\n" not in line
+    assert ("before any random choice: none of its labels [3, 8, 13, 18] may have label(s) [13] of cell (2, 0, 1) "
+            "at -a (along the curve)") in line
+    assert "3 of the example's 8 rows along X ((Y=1, Z=0), (Y=1, Z=1), (Y=1, Z=2)) hold no piece" in line
+    assert "choose lattice.unit[0] (along X) so that pieces repeat within every row" in line

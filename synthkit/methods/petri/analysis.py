@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
@@ -317,6 +319,48 @@ def adjacency_constraints(label_grid: np.ndarray, n_labels: int, *, boundary: bo
     if boundary:
         allowed[:, n_labels, n_labels] = False
     return Constraints(allowed=allowed, n_labels=n_labels, boundary=boundary)
+
+
+def repeatable_labels(allowed_axis: np.ndarray, n_labels: int) -> np.ndarray:
+    """``(L,) bool``: labels that may occur any number of times in a row along one axis, i.e. lie on
+    a cycle of ``allowed_axis (L + 1, L + 1)`` (the outside, index L, excluded)."""
+    A = np.asarray(allowed_axis, bool)[:n_labels, :n_labels]
+    if n_labels == 0:
+        return np.zeros(0, bool)
+    count, comp = connected_components(csr_matrix(A), directed=True, connection="strong")
+    sizes = np.bincount(comp, minlength=count)
+    return (sizes[comp] > 1) | np.diag(A)
+
+
+def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: str) -> str | None:
+    """Why the example cannot grow along world ``axis`` (the curve's), or None when it can: the rows
+    of ``label_grid (nx, ny, nz)`` along ``axis`` holding no label that may repeat along it, and the
+    lattice change that would help.
+
+    Found on Kenney's building-small-a (1 x 1 footprint, two floors and a roof): at unit 0.5 every
+    one of its 2 x 2 x 2 pieces is a distinct corner, and at unit 0.25 the ground floor repeats
+    (label 1 follows itself along X) but the roof row is four different pieces. With the outside
+    as a label (``labels.boundary: true``, eq. 4 with Merrell's boundary), no construction longer
+    than the example along X has a solution, before any random choice: a property of the example
+    and the lattice, not of Algorithm 2. The error names the cell, the conflicting labels and side,
+    and these rows."""
+    repeat = repeatable_labels(cons.allowed[axis], cons.n_labels)
+    rows = np.moveaxis(label_grid, axis, -1)
+    stuck = [idx for idx in np.ndindex(rows.shape[:-1]) if not repeat[rows[idx]].any()]
+    if not stuck:
+        return None
+    others = [a for a in range(3) if a != axis]
+    names = ", ".join(
+        "(" + ", ".join(f"{'XYZ'[a]}={i}" for a, i in zip(others, idx, strict=True)) + ")" for idx in stuck[:4]
+    )
+    more = f" and {len(stuck) - 4} more" if len(stuck) > 4 else ""
+    unit = unit_key.replace(", along", " (along") + ")" if ", along" in unit_key else unit_key
+    return (
+        f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {'XYZ'[axis]} ({names}{more}) hold "
+        f"no piece that may repeat along {'XYZ'[axis]}, so the example cannot grow past its "
+        f"{rows.shape[-1]} units there: choose {unit} so that pieces repeat within every row (a window "
+        f"or bay width), or raise labels.tolerance, or set labels.boundary: false"
+    )
 
 
 def normal_histogram(V, F, axes: tuple[int, int], *, bins: int = 12) -> np.ndarray:

@@ -66,6 +66,10 @@ class Token:
     H: np.ndarray
 
 
+_AXIS_NAMES = ("a (along the curve)", "b (across it)", "c (the sweep)")
+"""The construction space's axes in messages, by index."""
+
+
 class Contradiction(Exception):
     """An empty candidate set at ``cell`` (flat index), after ``choices`` random forced selections."""
 
@@ -116,6 +120,8 @@ class ColouredPetriNet:
         self.allowed = np.asarray(allowed, bool)
         self.corners = None if corners is None else np.asarray(corners, np.float64)
         self.describe = None
+        self.unfillable_hint: str | None = None
+        """What to change when the space cannot be filled before any random choice (set by the caller)."""
         if graph is not None:
             nbr, back, coords, self.describe = graph
             nbr = np.asarray(nbr, np.int64)
@@ -175,6 +181,35 @@ class ColouredPetriNet:
         self.initial = init
         self._nbr = nbr_list
         self.reset()
+
+    def conflict(self, cell: int) -> tuple[int, int, list[int], list[int]] | None:
+        """Why ``cell``'s candidate set ran empty: ``(d, neighbour, neighbour_labels, own_labels)`` for
+        the first direction ``d`` (2 axis: the neighbour at +axis, 2 axis + 1: at -axis) whose
+        support, with the directions before it, leaves none of ``own_labels``; None when the outside
+        alone leaves none. Read right after a :class:`Contradiction`, before :meth:`reset`."""
+        m = self.cand[cell]
+        own = _bits(m)
+        tc = self._tab[cell]
+        for d, n in enumerate(self._nbr[cell]):
+            if n < 0:
+                continue
+            s = 0
+            for b in _bits(self.cand[n]):
+                s |= self._support[tc[d]][b]
+            if m & s == 0:
+                return d, n, _bits(self.cand[n]), own
+            m &= s
+        return None
+
+    def _describe_conflict(self, cell: int) -> str:
+        """``conflict(cell)`` in words, for the error line."""
+        found = self.conflict(cell)
+        if found is None:
+            return "no label may touch the outside on all of its open sides"
+        d, n, theirs, own = found
+        where = self.describe(n) if self.describe is not None else tuple(int(v) for v in self.coords[n])
+        side = f"{'+-'[d & 1]}{_AXIS_NAMES[d >> 1]}"
+        return f"none of its labels {own} may have label(s) {theirs} of cell {where} at {side}"
 
     @staticmethod
     def _mask(column) -> int:
@@ -378,8 +413,9 @@ class ColouredPetriNet:
                 if exc.choices <= 0:
                     raise InputError(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
-                        f"contradiction (empty candidate set) at cell {cell} before any random choice, so no "
-                        f"restart can help (check the sizes S_Y, S_Z and labels.boundary)"
+                        f"contradiction (empty candidate set) at cell {cell} before any random choice: "
+                        f"{self._describe_conflict(exc.cell)}, so no restart can help "
+                        f"({self.unfillable_hint or 'check the sizes S_Y, S_Z and labels.boundary'})"
                     ) from None
                 if restarts >= max_restarts:
                     raise InputError(

@@ -104,8 +104,9 @@ def unit_key(cfg: PetriConfig, axis: int) -> str:
     return f"lattice.annotation.depth_unit, along {name}"
 
 
-def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: int):
-    """Target net + Algorithm 2 + deformation. Returns (net, assembler, restarts)."""
+def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: int, hint: str | None = None):
+    """Target net + Algorithm 2 + deformation. Returns (net, assembler, restarts). ``hint`` is what to
+    change when the space cannot be filled at all (see :func:`analysis.growth_hint`)."""
     axes = space.axes
     allowed_t = cons.allowed[list(axes)]
     corners = space.hex_corners()
@@ -117,6 +118,7 @@ def synthesize(space, cons, library: PieceLibrary, grid, rng, *, max_restarts: i
         periodic=(space.closed, False, False),
         corners=corners,
     )
+    net.unfillable_hint = hint
     return infer_and_deform(net, library, corners, grid, rng, max_restarts=max_restarts)
 
 
@@ -328,8 +330,9 @@ def run(cfg: PetriConfig, ctx) -> None:
     axes = space.axes
     library = PieceLibrary(pieces, reps, axes)
     with ctx.stage("inference"):
+        hint = analysis.growth_hint(grid, cons, axes[0], unit_key(cfg, axes[0]))
         net, assembler, restarts = synthesize(
-            space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
+            space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts, hint=hint
         )
     labels_out = net.label_grid()
 

@@ -349,6 +349,10 @@ SAMPLE_BYTES = 200
 """Bytes per Poisson-disk sample: position, normal, pool share, kd-tree (estimate)."""
 PAIR_BYTES = 64
 """Bytes per (feature, support sample) pair gathered by the descriptor (estimate)."""
+BIN_BYTES = 40
+"""Bytes per bin of the dense offset histogram searched for peaks: counts, window sums, scores."""
+OFFSET_SPAN = 4.0
+"""Largest extent of the offsets along an axis in normalised units (the model spans [-1, 1])."""
 
 
 def _disk_count(area: float, radius: float) -> float:
@@ -370,6 +374,11 @@ def check_analysis_budget(budget, a, area: float, n_vertices: int) -> None:
     support = min(dense, _disk_count(np.pi * a.descriptor_radius**2, a.dense_radius))
     budget.require("analysis.dense_radius", a.dense_radius, features * support, "descriptor neighbour pairs",
                    bytes_each=PAIR_BYTES)
+    try:
+        side = OFFSET_SPAN / a.bin_size + 2 * (a.nms_window / a.bin_size) + 1
+    except (OverflowError, ZeroDivisionError):
+        side = float("inf")
+    budget.require("analysis.bin_size", a.bin_size, side**3, "histogram bins", bytes_each=BIN_BYTES)
 
 
 def run(cfg, ctx) -> None:

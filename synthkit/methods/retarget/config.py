@@ -34,9 +34,15 @@ class AnalysisSection(StrictModel):
     min_grip: float = Field(
         0.005, ge=0, le=1, description="Share of the surface that must pin a principal offset (rejects sliding)."
     )
-    min_angle_deg: float = Field(60.0, gt=0, le=90, description="Minimum angle between principal offsets (theta).")
+    min_angle_deg: float = Field(
+        60.0, ge=1, le=90, description="Minimum angle between principal offsets (theta); below 1 degree two "
+        "offsets span no lattice."
+    )
     max_principal: int = Field(3, ge=0, le=3, description="At most this many principal offsets.")
-    dummy_length: float = Field(0.2, gt=0, le=2.0, description="Length of the orthogonal dummy directions.")
+    dummy_length: float = Field(
+        0.2, ge=0.01, le=2.0, description="Length of the orthogonal dummy directions (at least 0.01, a fifth of "
+        "the default bin, so that the canonical basis stays invertible)."
+    )
 
 
 class TargetSection(StrictModel):

@@ -173,6 +173,7 @@ def test_normal_histogram_and_D():
     assert h.tolist() == [2, 0, 0, 2, 0, 0, 2, 0, 0, 2, 0, 0]  # +X, +Z, -X, -Z; the Y faces have no direction
     assert analysis.histogram_discrimination(h, h) == 0.0
     assert np.isclose(analysis.histogram_discrimination([1, 0, 0], [0, 1, 0]), 2.0)
+    assert np.isnan(analysis.histogram_discrimination([0, 0, 0], [0, 1, 0]))  # undefined, reported null
 
 
 # --------------------------------------------------------------------------- construction space

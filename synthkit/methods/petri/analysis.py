@@ -359,7 +359,7 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
         f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {'XYZ'[axis]} ({names}{more}) hold "
         f"no piece that may repeat along {'XYZ'[axis]}, so the example cannot grow past its "
         f"{rows.shape[-1]} units there: choose {unit} so that pieces repeat within every row (a window "
-        f"or bay width), or raise labels.tolerance, or set labels.boundary: false"
+        f"or bay width), or raise labels.tolerance" + (", or set labels.boundary: false" if cons.boundary else "")
     )
 
 
@@ -385,9 +385,12 @@ def normal_histogram(V, F, axes: tuple[int, int], *, bins: int = 12) -> np.ndarr
 
 
 def histogram_discrimination(h1, h2) -> float:
-    """D(H1, H2) of eq. (5): squared differences of the two normalised histograms, summed."""
+    """D(H1, H2) of eq. (5): squared differences of the two normalised histograms, summed.
+
+    NaN (reported as null) when a histogram is empty: a mesh whose faces all face along the sweep
+    axis (floor slabs only) has no in-plane normal direction, and D is undefined for it."""
     h1 = np.asarray(h1, np.float64)
     h2 = np.asarray(h2, np.float64)
     if h1.sum() <= 0 or h2.sum() <= 0:
-        raise ValueError("a histogram is empty")
+        return float("nan")
     return float(np.sum((h1 / h1.sum() - h2 / h2.sum()) ** 2))

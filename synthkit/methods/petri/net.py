@@ -70,6 +70,11 @@ _AXIS_NAMES = ("a (along the curve)", "b (across it)", "c (the sweep)")
 """The construction space's axes in messages, by index."""
 
 
+def _shown(labels: list[int], most: int = 8) -> str:
+    """``labels`` for a message: the list, or its count when longer than ``most``."""
+    return str(labels) if len(labels) <= most else f"({len(labels)} labels)"
+
+
 class Contradiction(Exception):
     """An empty candidate set at ``cell`` (flat index), after ``choices`` random forced selections."""
 
@@ -209,7 +214,7 @@ class ColouredPetriNet:
         d, n, theirs, own = found
         where = self.describe(n) if self.describe is not None else tuple(int(v) for v in self.coords[n])
         side = f"{'+-'[d & 1]}{_AXIS_NAMES[d >> 1]}"
-        return f"none of its labels {own} may have label(s) {theirs} of cell {where} at {side}"
+        return f"none of its labels {_shown(own)} may have label(s) {_shown(theirs)} of cell {where} at {side}"
 
     @staticmethod
     def _mask(column) -> int:

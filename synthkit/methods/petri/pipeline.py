@@ -9,6 +9,7 @@ import trimesh
 
 from synthkit import preview
 from synthkit.core.mesh import merge_vertices
+from synthkit.errors import InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.petri import analysis, construction, network
 from synthkit.methods.petri.assembly import (
@@ -151,6 +152,15 @@ def result_mesh(assembler: Assembler, library: PieceLibrary, net: ColouredPetriN
     if weld:
         V, F, face_label = weld_seams(V, F, face_label, seams)
     return V, F, face_label, gap, unmatched
+
+
+def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
+    """Refuse (exit 3) a result without faces: every cell took an empty piece of the example."""
+    if len(F) == 0:
+        raise InputError(
+            f"{cfg.example}: petri-synth: every cell took an empty piece of the example, so the result has "
+            "no faces (choose a lattice whose pieces hold the model's surface)"
+        )
 
 
 def weld_seams(V, F, face_label, seams):
@@ -338,6 +348,7 @@ def run(cfg: PetriConfig, ctx) -> None:
 
     with ctx.stage("assembly"):
         RV, RF, face_label, gap, unmatched = result_mesh(assembler, library, net, weld=cfg.output.weld)
+        require_faces(RF, cfg)
         result = trimesh.Trimesh(RV, RF, process=False)
         fmt = cfg.output.mesh_format
         out_mesh = ctx.path("mesh", f"result.{fmt}")
@@ -491,6 +502,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
             RV, RF, face_label = weld_seams(RV, RF, face_label, jm["seams"])
         fmt = cfg.output.mesh_format
         out_mesh = ctx.path("mesh", f"result.{fmt}")
+        require_faces(RF, cfg)
         save_mesh(trimesh.Trimesh(RV, RF, process=False), out_mesh, face_labels=face_label if fmt == "ply" else None)
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 

@@ -1,0 +1,361 @@
+"""``synthkit reshape``: load pieces, build the constraint graph and system, drag the handles, write.
+
+Stages (``report.json`` ``timings``): ``load``, ``assemble`` (portals, chain placement), ``graph``
+(3.1), ``constraints`` (3.2, handles, links), ``factor`` and ``solve`` (3.3-3.4), ``baseline``
+(Laplacian edge-vector deformation with the same handles) and ``outputs``.
+
+Outputs: each piece reshaped in its input's format (OBJ with its MTL and textures copied beside
+it, or GLB) with UVs and materials unchanged; ``before.png``, ``after.png`` (elongated edges blue,
+compressed red, handles green), ``baseline.png`` and ``comparison.png``; metrics in the paper's
+Table 4 columns (``vars``, ``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``,
+``factor_ms``, ``solve_ms``) and the quality figures (see the README).
+
+A motion that would flip an edge is refused: by default an InputError (exit 3) naming the edge
+and the step, nothing written; with ``solver.allow_partial`` the last valid step is written and
+``metrics.status`` is ``"partial"``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from synthkit.errors import ConfigError, InputError
+from synthkit.io.images import save_image
+from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
+from synthkit.methods.reshape import constraints as C
+from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
+from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
+from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
+from synthkit.methods.reshape.outputs import edge_colours, reshape_image
+from synthkit.methods.reshape.portals import align_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.solver import DragResult, ReshapeSolver, drag, floating_anchors
+from synthkit.preview import montage_png
+
+__all__ = ["run", "System", "build_system"]
+
+log = logging.getLogger("synthkit")
+
+_BYTES_PER_NNZ = 400.0
+"""Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
+
+
+@dataclass
+class System:
+    """The weighted rows of one reshape: ``A (m, 3 n)``, ``b (m,)``, each block's row slice, the
+    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups and l_min."""
+
+    A: object
+    b: np.ndarray
+    slices: dict
+    stress_weights: np.ndarray
+    rigid: np.ndarray
+    contacts: np.ndarray
+    groups: list
+    l_min: float
+
+
+def _pieces(cfg) -> list[tuple[str, object, dict]]:
+    if cfg.input is not None:
+        return [(cfg.input.stem, cfg.input, {})]
+    return [(p.name, p.input, p.portals) for p in cfg.pieces]
+
+
+def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
+    """Portal name -> render vertices of one piece (detected end planes and given indices)."""
+    found = detect_portals(mesh.V, tol=tol)
+    for name, idx in extra.items():
+        idx = np.asarray(idx, np.int64)
+        bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
+        if len(bad):
+            raise ConfigError(f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)")
+        found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
+    return found
+
+
+def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict]]:
+    """World offset ``(3,)`` of each piece and the joins made (for the report)."""
+    names = [n for n, _, _ in _pieces(cfg)]
+    offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
+    portals = {
+        n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")
+        for i, ((n, _, extra), m) in enumerate(zip(_pieces(cfg), meshes, strict=True))
+    }
+    joins = []
+    for i, j in enumerate(cfg.chain):
+        key = f"chain[{i}]"
+        for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
+            if piece not in portals:
+                raise ConfigError(f"{key}.{side}: no piece named {piece!r} (pieces: {', '.join(names)})")
+            if portal not in portals[piece]:
+                raise ConfigError(
+                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} (portals: {', '.join(portals[piece])})"
+                )
+        if j.a not in offsets:
+            raise ConfigError(f"{key}.a: piece {j.a!r} is not placed yet (join pieces in chain order)")
+        if j.b in offsets:
+            raise ConfigError(f"{key}.b: piece {j.b!r} is placed already")
+        ma, mb = meshes[names.index(j.a)], meshes[names.index(j.b)]
+        Pa = portal_positions(ma.V, portals[j.a][j.a_portal], tol=tol) + offsets[j.a]
+        Pb = portal_positions(mb.V, portals[j.b][j.b_portal], tol=tol)
+        try:
+            t, gap = align_portals(Pa, Pb, tol=100 * tol)
+        except ValueError as exc:
+            raise ConfigError(f"{key}: {j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
+        offsets[j.b] = t
+        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "gap": gap})
+    missing = [n for n in names if n not in offsets]
+    if missing:
+        raise ConfigError(f"chain: pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
+    return [offsets[n] for n in names], joins
+
+
+def _assemble(names, meshes, offsets):
+    """Concatenated ``V (#V, 3)`` (world), ``F (#F, 3)``, ``face_material (#F,)`` and piece ranges."""
+    Vs, Fs, fms, ranges, base, mbase = [], [], [], [], 0, 0
+    for name, m, off in zip(names, meshes, offsets, strict=True):
+        Vs.append(m.V + off)
+        Fs.append(m.F + base)
+        fms.append(m.face_material + mbase)
+        ranges.append(PieceRange(name, base, base + len(m.V), m.position_index, len(m.positions)))
+        base += len(m.V)
+        mbase += len(m.materials)
+    return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
+
+
+def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float) -> System:
+    """All weighted rows of section 3.2 for ``graph`` (lengths relative to ``size`` resolved).
+
+    The paper's weights weight squared residuals (weighted least squares, ``A^T W A`` as in
+    :class:`synthkit.core.lsq.LeastSquares`), so each row is scaled by the square root of its weight:
+    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``.
+    """
+    X0, edges = graph.X0, graph.edges
+    _, length = C.edge_frames(X0, edges)
+    st = cfg.stiffness
+    l_min = st.l_min if st.l_min is not None else float(np.quantile(length, st.l_min_quantile))
+    w = np.sqrt(C.stiffness(length, l_min=l_min, w_small=st.w_small, w_long=st.w_long))
+    W = float(np.sqrt(cfg.strict.weight))
+    w_c = float(np.sqrt(cfg.contacts.w_c))
+    blocks = {
+        "direction": C.direction_rows(X0, edges, weight=W, form=cfg.strict.direction_form),
+        "stress": C.stress_rows(X0, edges, w),
+    }
+    contacts = np.zeros((0, 2), np.int64)
+    if cfg.contacts.enabled:
+        contacts = C.find_contacts(X0, graph.Fn, graph.component, tol=cfg.contacts.tol * size)
+        blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
+            X0, graph.Fn, contacts, strict_weight=W, w_c=w_c
+        )
+    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(
+        X0, graph.bridges, graph.bridge_normals, strict_weight=W, w_c=w_c
+    )
+    groups = []
+    if cfg.groups.enabled:
+        g = cfg.groups
+        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance * size)
+        blocks["groups"] = C.group_rows(X0, edges, groups, w_g=float(np.sqrt(g.w_g)))
+    blocks["links"] = C.link_rows(X0, links, strict_weight=W)
+    A, b, slices = C.stack_rows(blocks, graph.n_nodes)
+    return System(A, b, slices, w, length < l_min, contacts, groups, l_min)
+
+
+def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
+    """'vertex 12 of piece' for a node (its first render vertex)."""
+    r = int(np.flatnonzero(graph.node_of_vertex == node)[0])
+    p = next(p for p in ranges if p.start <= r < p.stop)
+    return f"vertex {int(p.position_index[r - p.start])} of {p.name}"
+
+
+def _selections(cfg, graph, V, ranges):
+    """Handles ``(k,)`` with targets ``(k, 3)``, fixed ``(f,)`` and link pairs, as ConfigErrors."""
+    try:
+        handles, targets = resolve_handles(cfg.handles, ranges, V, graph.node_of_vertex, graph.X0)
+        fixed = resolve_fixed(cfg.fixed, handles, ranges, V, graph.node_of_vertex)
+        links = resolve_links(cfg.links, ranges, V, graph.node_of_vertex)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return handles, targets, fixed, links
+
+
+def _known(graph, system_pairs, handles, fixed) -> tuple[np.ndarray, np.ndarray]:
+    """Known nodes (handles, fixed, then one anchor per floating cluster) and the anchors."""
+    used = np.zeros(graph.n_nodes, bool)
+    used[graph.Fn.reshape(-1)] = True
+    given = np.concatenate([handles, fixed])
+    anchors = floating_anchors(graph.n_nodes, system_pairs, given, used)
+    unused = np.flatnonzero(~used)
+    return np.concatenate([given, anchors, unused]), anchors
+
+
+def _quality(graph, system, X, known, targets_all, size) -> dict:
+    """Angle, rigid-length, handle and contact figures of node positions ``X (n, 3)``."""
+    X0, edges = graph.X0, graph.edges
+    ang = angle_errors_deg(X0, X, edges)
+    _, rest = C.edge_frames(X0, edges)
+    new = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    rigid = system.rigid
+    contact = 0.0
+    if len(system.contacts):
+        i, t = system.contacts[:, 0], system.contacts[:, 1]
+        T = graph.Fn[t]
+        n = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        contact = float(np.abs(np.einsum("ij,ij->i", X[i] - X[T[:, 0]], n)).max() / size)
+    return {
+        "max_angle_error_deg": float(ang.max()) if len(ang) else 0.0,
+        "mean_angle_error_deg": float(ang.mean()) if len(ang) else 0.0,
+        "rigid_length_error": float(np.abs(new[rigid] / rest[rigid] - 1).max()) if rigid.any() else 0.0,
+        "handle_residual": float(np.linalg.norm(X[known] - targets_all, axis=1).max() / size),
+        "contact_residual": contact,
+        "max_stretch": float((new / rest).max()),
+        "min_stretch": float((new / rest).min()),
+    }
+
+
+def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float) -> dict:
+    """Largest residual of each strict block, unweighted and relative to the model size."""
+    r = system.A @ X.ravel() - system.b
+    out = {}
+    for name in ("direction", "coplanarity", "hole_plane", "links"):
+        sl = system.slices.get(name)
+        if sl is not None and sl.stop > sl.start:
+            out[name] = float(np.abs(r[sl]).max() / np.sqrt(weight) / size)
+    return out
+
+
+def _baseline(graph, known, X_known, backend) -> tuple[np.ndarray, float]:
+    """Laplacian baseline positions and its seconds; floating mesh components get their own anchor."""
+    import time
+
+    start = time.perf_counter()
+    edges = mesh_edges(graph.Fn)
+    used = np.zeros(graph.n_nodes, bool)
+    used[graph.Fn.reshape(-1)] = True
+    extra = floating_anchors(graph.n_nodes, edges, known, used)
+    A, b = laplacian_rows(graph.X0, edges)
+    allk = np.concatenate([known, extra])
+    Xk = np.vstack([X_known, graph.X0[extra]])
+    X = ReshapeSolver(A, allk, backend=backend).solve(b, Xk)
+    return X, time.perf_counter() - start
+
+
+def _write_previews(ctx, cfg, V, F, graph, X, Xb, handles):
+    """before.png, after.png, baseline.png and comparison.png."""
+    def image(Xn, key, name):
+        Vn = Xn[graph.node_of_vertex]
+        seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
+        rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
+        ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
+        img = reshape_image(Vn, F, seg, edge_colours(ratio), Xn[handles], view=cfg.view, size=cfg.preview_size)
+        save_image(ctx.path(key, name), img)
+        return img
+
+    imgs = [image(graph.X0, "before", "before.png"), image(X, "after", "after.png")]
+    titles = ["before", "after (reshape)"]
+    if Xb is not None:
+        imgs.append(image(Xb, "baseline_preview", "baseline.png"))
+        titles.append("Laplacian baseline")
+    montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
+
+
+def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X):
+    """Each piece in its input's format, with its companion files."""
+    written = set()
+    for name, m, off, r in zip(names, meshes, offsets, ranges, strict=True):
+        P = m.positions.copy()
+        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
+        suffix = m.source.suffix.lower()
+        target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
+        for extra in companion_files(m):
+            if extra not in written:
+                ctx.path(f"file_{extra}", extra)
+                written.add(extra)
+        save_textured(m, P, target)
+
+
+def _refuse(cfg, result: DragResult, graph, ranges) -> None:
+    a, b = (_vertex_name(n, graph, ranges) for n in result.edge)
+    msg = (
+        f"handles: the edge between {a} and {b} would flip at step {result.step} of {cfg.solver.steps}; "
+        f"motion refused, last valid step {result.steps_done} (solver.allow_partial: true writes it)"
+    )
+    raise InputError(msg)
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    specs = _pieces(cfg)
+    names = [n for n, _, _ in specs]
+    with ctx.stage("load"):
+        meshes = [load_textured(path) for _, path, _ in specs]
+    with ctx.stage("assemble"):
+        lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
+        hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
+        piece_size = float(np.linalg.norm(hi - lo)) or 1.0
+        offsets, joins = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
+        V, F, fm, ranges = _assemble(names, meshes, offsets)
+        size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+    with ctx.stage("graph"):
+        try:
+            graph = build_graph(V, F, fm, weld_tol=cfg.graph.weld_tol * size, flat_angle_deg=cfg.graph.flat_angle_deg)
+        except ValueError as exc:
+            raise InputError(f"{specs[0][1]}: {exc}") from None
+        if not len(graph.edges):
+            raise InputError(f"{specs[0][1]}: the constraint graph has no edge")
+    with ctx.stage("constraints"):
+        handles, targets, fixed, links = _selections(cfg, graph, V, ranges)
+        ctx.budget.require("input", str(specs[0][1]), 60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
+                           "matrix entries", bytes_each=_BYTES_PER_NNZ)
+        system = build_system(cfg, graph, links, size=size)
+        pairs = np.vstack([graph.edges, links, graph.bridges,
+                           np.column_stack([system.contacts[:, 0], graph.Fn[system.contacts[:, 1], 0]])])
+        known, anchors = _known(graph, pairs, handles, fixed)
+        X_known = graph.X0[known].copy()
+        X_known[: len(handles)] = targets
+    with ctx.stage("factor"):
+        try:
+            solver = ReshapeSolver(system.A, known, backend=cfg.solver.backend)
+        except ValueError as exc:
+            raise InputError(f"{specs[0][1]}: constraint system cannot be solved: {exc}") from None
+    with ctx.stage("solve"):
+        sv = cfg.solver
+        result = drag(
+            solver, system.b, X0=graph.X0, targets=X_known, steps=sv.steps, edges=graph.edges,
+            stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
+            short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
+        )
+    if result.status == "partial" and not sv.allow_partial:
+        _refuse(cfg, result, graph, ranges)
+    X = result.X
+    done_targets = graph.X0[known] + (result.steps_done / sv.steps) * (X_known - graph.X0[known])
+    m = ctx.metrics
+    m.update(
+        status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
+        nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
+        factor_ms=solver.factor_ms, solve_ms=float(np.median(solver.solve_ms)), backend=solver.backend,
+        steps_done=result.steps_done, steps=sv.steps, length_raises=result.length_raises,
+        edge_groups=len(system.groups), grouped_edges=int(sum(len(g) for g in system.groups)),
+        contacts=int(len(system.contacts)), links=int(len(links)), handles=int(len(handles)),
+        fixed=int(len(fixed)), anchored_components=int(len(anchors)), l_min=system.l_min,
+        rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=joins, factorizations=1,
+        strict_weight=cfg.strict.weight, strict_residuals=_strict_residuals(system, X, cfg.strict.weight, size),
+    )
+    m.update(_quality(graph, system, X, known, done_targets, size))
+    if result.status == "partial":
+        m["refused_edge"] = [_vertex_name(n, graph, ranges) for n in result.edge]
+        m["refused_step"] = result.step
+    Xb = None
+    if cfg.baseline:
+        with ctx.stage("baseline"):
+            Xb, _ = _baseline(graph, known, done_targets, cfg.solver.backend)
+        ang = angle_errors_deg(graph.X0, Xb, graph.edges)
+        m["baseline"] = {"max_angle_error_deg": float(ang.max()), "mean_angle_error_deg": float(ang.mean())}
+        m["baseline_angle_ratio"] = float(ang.max() / max(m["max_angle_error_deg"], 1e-12))
+    with ctx.stage("outputs"):
+        _write_meshes(ctx, names, meshes, offsets, ranges, graph, X)
+        _write_previews(ctx, cfg, V, F, graph, X, Xb, handles)
+    log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
+             solver.factor_ms)

@@ -1,0 +1,157 @@
+"""Least-squares reshape solver with handles eliminated (paper sections 3.3 and 3.4).
+
+``A (m, 3 n)`` and ``b (m,)`` hold every weighted constraint row over the node positions
+``x (3 n,)``. Handle and fixed nodes are *known*: their columns move to the right-hand side,
+``A_u x_u = b - A_k x_k``, so the normal matrix ``A_u^T A_u`` depends only on which nodes are known.
+:class:`ReshapeSolver` factors it once (sparse Cholesky through :class:`synthkit.core.lsq.LeastSquares`)
+and each step costs one pair of triangular solves.
+
+:func:`drag` moves the handles to their targets in ``steps`` equal increments. After each step it
+checks eq. 4 on every graph edge: an edge whose projected length ``u_ki . (x_i - x_k)`` fell below
+``short_ratio`` of its rest length gets its stress target ``l_ki`` multiplied by ``raise_factor``
+(only ``b`` changes) and the step is solved again; an edge whose projected length is at most
+``flip_ratio`` of its rest length has collapsed or flipped, and the motion is refused: the result
+is the last valid step.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from synthkit.core.lsq import LeastSquares
+
+__all__ = ["ReshapeSolver", "DragResult", "drag", "known_columns", "floating_anchors"]
+
+
+def known_columns(known: np.ndarray) -> np.ndarray:
+    """Columns ``(3 k,)`` of the known nodes ``known (k,)``."""
+    return (3 * np.asarray(known, np.int64)[:, None] + np.arange(3)).ravel()
+
+
+def floating_anchors(n: int, pairs, known, used) -> np.ndarray:
+    """The lowest node ``(c,)`` of every cluster of ``used (n,) bool`` nodes, linked by ``pairs (k, 2)``,
+    that holds no ``known`` node. Without a known node such a cluster can translate freely and the
+    normal matrix is singular; fixing one node keeps it where it is."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(G, directed=False)
+    held = np.zeros(label.max() + 1, bool)
+    held[label[np.asarray(known, np.int64)]] = True
+    nodes = np.flatnonzero(np.asarray(used, bool) & ~held[label])
+    _, first = np.unique(label[nodes], return_index=True)
+    return nodes[first]
+
+
+class ReshapeSolver:
+    """Factor the reshape system once for a set of known (handle and fixed) nodes; solve per step.
+
+    Parameters
+    ----------
+    A : (m, 3 n) sparse weighted constraint matrix
+    known : (k,) int64 nodes whose positions are given
+    backend : LeastSquares backend ("auto", "cholespy", "splu")
+
+    Attributes: ``vars`` (unknowns), ``nnz_A``, ``nnz_AtA``, ``factor_ms``, ``solve_ms`` (list).
+    Raises ValueError when the system is rank deficient (an unconstrained node or component).
+    """
+
+    def __init__(self, A, known, *, backend: str = "auto"):
+        A = sp.csc_matrix(A)
+        n3 = A.shape[1]
+        self.known = np.asarray(known, np.int64)
+        kc = known_columns(self.known)
+        free = np.ones(n3, bool)
+        free[kc] = False
+        self.free_cols = np.flatnonzero(free)
+        self.known_cols = kc
+        A_u = A[:, self.free_cols].tocsr()
+        self.A_k = A[:, kc].tocsr()
+        self.vars = int(len(self.free_cols))
+        self.nnz_A = int(A_u.nnz)
+        self.nnz_AtA = int((A_u.T @ A_u).nnz)
+        start = time.perf_counter()
+        self._ls = LeastSquares(A_u, backend=backend)
+        self.factor_ms = 1e3 * (time.perf_counter() - start)
+        self.backend = self._ls.backend
+        self.n_nodes = n3 // 3
+        self.solve_ms: list[float] = []
+
+    def solve(self, b, X_known) -> np.ndarray:
+        """Node positions ``X (n, 3)`` for right-hand side ``b (m,)`` and known positions ``X_known (k, 3)``."""
+        start = time.perf_counter()
+        rhs = np.asarray(b, np.float64) - self.A_k @ np.asarray(X_known, np.float64).ravel()
+        x = np.empty(3 * self.n_nodes)
+        x[self.free_cols] = self._ls.solve(rhs)
+        x[self.known_cols] = np.asarray(X_known, np.float64).ravel()
+        self.solve_ms.append(1e3 * (time.perf_counter() - start))
+        return x.reshape(-1, 3)
+
+
+@dataclass
+class DragResult:
+    """Outcome of :func:`drag`: ``X (n, 3)`` at the last valid step, ``steps_done``, ``status``
+    ("ok" or "partial"), the refused ``edge`` (node pair) and ``step`` when partial, the number of
+    ``length_raises`` and the stress targets ``lengths (E,)`` in use at the end."""
+
+    X: np.ndarray
+    steps_done: int
+    status: str
+    lengths: np.ndarray
+    length_raises: int = 0
+    edge: tuple[int, int] | None = None
+    step: int | None = None
+
+
+def _projected(X, edges, u) -> np.ndarray:
+    return np.einsum("ij,ij->i", X[edges[:, 1]] - X[edges[:, 0]], u)
+
+
+def drag(
+    solver: ReshapeSolver,
+    b,
+    *,
+    X0,
+    targets,
+    steps: int,
+    edges,
+    stress_slice: slice,
+    stress_weights,
+    short_ratio: float,
+    raise_factor: float,
+    flip_ratio: float,
+) -> DragResult:
+    """Move the known nodes from ``X0[solver.known]`` to ``targets (k, 3)`` in ``steps`` increments.
+
+    ``edges (E, 2)`` are the graph edges whose stress rows occupy ``b[stress_slice]`` with weights
+    ``stress_weights (E,)``. Returns the :class:`DragResult` of the last valid step.
+    """
+    X0 = np.asarray(X0, np.float64)
+    b = np.array(b, np.float64)
+    start = X0[solver.known]
+    u = X0[edges[:, 1]] - X0[edges[:, 0]]
+    rest = np.linalg.norm(u, axis=1)
+    u /= np.maximum(rest, 1e-300)[:, None]
+    lengths = rest.copy()
+    X_prev, raises = X0, 0
+    for s in range(1, steps + 1):
+        Xk = start + (s / steps) * (np.asarray(targets, np.float64) - start)
+        X = solver.solve(b, Xk)
+        short = _projected(X, edges, u) < short_ratio * rest
+        if short.any():
+            lengths[short] *= raise_factor
+            raises += int(short.sum())
+            b[stress_slice] = stress_weights * lengths
+            X = solver.solve(b, Xk)
+        proj = _projected(X, edges, u)
+        flipped = np.flatnonzero(proj <= flip_ratio * rest)
+        if len(flipped):
+            worst = flipped[np.argmin(proj[flipped] / rest[flipped])]
+            edge = (int(edges[worst, 0]), int(edges[worst, 1]))
+            return DragResult(X_prev, s - 1, "partial", lengths, raises, edge, s)
+        X_prev = X
+    return DragResult(X_prev, steps, "ok", lengths, raises)

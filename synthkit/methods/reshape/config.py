@@ -132,7 +132,9 @@ class GraphSection(StrictModel):
     flat_angle_deg: float = Field(
         0.5, ge=0, le=10, description="Triangles whose normals differ by at most this are coplanar (flat edge)."
     )
-    portal_tol: float = Field(1e-6, gt=0, le=1e-2, description="Distance of a portal vertex to its end plane (relative).")
+    portal_tol: float = Field(
+        1e-6, gt=0, le=1e-2, description="Distance of a portal vertex to its end plane (relative)."
+    )
 
 
 class StiffnessSection(StrictModel):
@@ -150,8 +152,8 @@ class StrictSection(StrictModel):
     """Strict constraints enter the least squares with a large weight [Loa85]."""
 
     weight: float = Field(
-        100.0, gt=0, le=1e6,
-        description="Weight of strict rows (eq. 1, 5, links); 100 leaves them under 1e-9 of the model size on the samples.",
+        1e4, gt=0, le=1e8,
+        description="Weight of strict rows (eq. 1, 5, links) on squared residuals; residuals fall like 1 / weight.",
     )
     direction_form: Literal["vertex", "edge"] = Field(
         "vertex", description="Eq. 1 per vertex (paper) or one 3-row constraint per edge."

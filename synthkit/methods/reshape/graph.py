@@ -129,7 +129,9 @@ def build_graph(V, F, face_material, *, weld_tol: float, flat_angle_deg: float =
     if not (np.linalg.norm(normals, axis=1) > 0).any():
         raise ValueError("every triangle has zero area")
     n_surf, face_surface = surfaces(F, np.asarray(face_material, np.int64))
-    pairs, kind, pair_surface, pair_face, nonmanifold = classify_edges(V, F, face_surface, flat_angle_deg=flat_angle_deg)
+    pairs, kind, pair_surface, pair_face, nonmanifold = classify_edges(
+        V, F, face_surface, flat_angle_deg=flat_angle_deg
+    )
     used = np.unique(F)
     X0, _, node_of_vertex = weld(V, F, weld_tol, return_index=True)
     Fn = node_of_vertex[F]

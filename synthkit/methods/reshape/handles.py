@@ -116,7 +116,9 @@ def resolve_fixed(fixed, handle_nodes, pieces, V, node_of_vertex) -> np.ndarray:
         sel = select_nodes(f, pieces, V, node_of_vertex, key=key)
         both = np.intersect1d(sel, handle_nodes)
         if len(both):
-            raise ValueError(f"{key}: {len(both)} vertices are also handles (node {int(both[0])}); a vertex is one or the other")
+            raise ValueError(
+                f"{key}: {len(both)} vertices are also handles (node {int(both[0])}); a vertex is one or the other"
+            )
         out.append(sel)
     return np.unique(np.concatenate(out)) if out else np.zeros(0, np.int64)
 

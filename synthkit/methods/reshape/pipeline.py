@@ -70,7 +70,9 @@ def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[s
         idx = np.asarray(idx, np.int64)
         bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
         if len(bad):
-            raise ConfigError(f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)")
+            raise ConfigError(
+                f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)"
+            )
         found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
     return found
 
@@ -91,7 +93,8 @@ def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray
                 raise ConfigError(f"{key}.{side}: no piece named {piece!r} (pieces: {', '.join(names)})")
             if portal not in portals[piece]:
                 raise ConfigError(
-                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} (portals: {', '.join(portals[piece])})"
+                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} "
+                    f"(portals: {', '.join(portals[piece])})"
                 )
         if j.a not in offsets:
             raise ConfigError(f"{key}.a: piece {j.a!r} is not placed yet (join pieces in chain order)")

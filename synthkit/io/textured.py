@@ -223,14 +223,14 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str) -
 
 
 def _write_obj(source: Path, positions: np.ndarray, target: Path) -> None:
-    """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]``."""
+    """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]`` (17 digits: exact)."""
     out, i = [], 0
     for line in source.read_text(encoding="utf-8", errors="replace").splitlines():
         parts = line.split()
         if parts and parts[0] == "v":
             x, y, z = positions[i]
             extra = " ".join(parts[4:])
-            out.append(f"v {x:.9g} {y:.9g} {z:.9g}" + (f" {extra}" if extra else ""))
+            out.append(f"v {x:.17g} {y:.17g} {z:.17g}" + (f" {extra}" if extra else ""))
             i += 1
         else:
             out.append(line)

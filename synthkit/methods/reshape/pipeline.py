@@ -77,15 +77,16 @@ def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[s
     return found
 
 
-def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict]]:
-    """World offset ``(3,)`` of each piece and the joins made (for the report)."""
+def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict], list[tuple]]:
+    """World offset ``(3,)`` of each piece, the joins made (for the report) and, per join, the
+    joined render vertices ``(piece a, indices, piece b, indices)``."""
     names = [n for n, _, _ in _pieces(cfg)]
     offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
     portals = {
         n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")
         for i, ((n, _, extra), m) in enumerate(zip(_pieces(cfg), meshes, strict=True))
     }
-    joins = []
+    joins, joined = [], []
     for i, j in enumerate(cfg.chain):
         key = f"chain[{i}]"
         for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
@@ -108,11 +109,22 @@ def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray
         except ValueError as exc:
             raise ConfigError(f"{key}: {j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
         offsets[j.b] = t
-        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "gap": gap})
+        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "placed_gap": gap})
+        joined.append((names.index(j.a), portals[j.a][j.a_portal], names.index(j.b), portals[j.b][j.b_portal]))
     missing = [n for n in names if n not in offsets]
     if missing:
         raise ConfigError(f"chain: pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
-    return [offsets[n] for n in names], joins
+    return [offsets[n] for n in names], joins, joined
+
+
+def _portal_gaps(joined, ranges, Vout) -> list[float]:
+    """Largest distance from a joined portal vertex of piece a to the nearest of piece b, per join,
+    in the reshaped world positions ``Vout (#V, 3)``."""
+    gaps = []
+    for ia, va, ib, vb in joined:
+        Pa, Pb = Vout[ranges[ia].start + va], Vout[ranges[ib].start + vb]
+        gaps.append(float(np.linalg.norm(Pa[:, None] - Pb[None], axis=2).min(axis=1).max()))
+    return gaps
 
 
 def _assemble(names, meshes, offsets):
@@ -298,7 +310,7 @@ def run(cfg, ctx) -> None:
         lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
         hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
-        offsets, joins = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
+        offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
         V, F, fm, ranges = _assemble(names, meshes, offsets)
         size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
     with ctx.stage("graph"):
@@ -347,6 +359,8 @@ def run(cfg, ctx) -> None:
         strict_weight=cfg.strict.weight, strict_residuals=_strict_residuals(system, X, cfg.strict.weight, size),
     )
     m.update(_quality(graph, system, X, known, done_targets, size))
+    for join, gap in zip(joins, _portal_gaps(joined, ranges, X[graph.node_of_vertex]), strict=True):
+        join["gap"] = gap / size
     if result.status == "partial":
         m["refused_edge"] = [_vertex_name(n, graph, ranges) for n in result.edge]
         m["refused_step"] = result.step

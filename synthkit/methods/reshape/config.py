@@ -178,7 +178,9 @@ class GroupSection(StrictModel):
     )
     angle_deg: float = Field(2.0, ge=0, le=45, description="Largest angle between grouped edges.")
     length_tol: float = Field(0.05, ge=0, le=1, description="Largest length difference, share of the longer edge.")
-    distance: float = Field(0.25, gt=0, le=2, description="Largest distance between grouped edge midpoints (relative).")
+    distance: float = Field(
+        2.0, gt=0, le=100, description="Largest distance between grouped edge midpoints, in edge lengths."
+    )
 
 
 class SolverSection(StrictModel):

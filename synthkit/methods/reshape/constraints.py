@@ -206,23 +206,25 @@ def bridge_rows(X0, pairs, normals, *, strict_weight: float, w_c: float) -> tupl
 
 
 def edge_groups(X0, edges, *, angle_deg: float, length_tol: float, distance: float) -> list[np.ndarray]:
-    """Clusters of similar edges: pairs whose midpoints are within ``distance``, whose directions
-    differ by at most ``angle_deg`` (either orientation) and whose lengths differ by at most
-    ``length_tol`` of the longer, joined transitively. Returns groups of >= 2 edge indices, each
-    sorted (its first edge is the reference)."""
+    """Clusters of similar edges: pairs whose midpoints are within ``distance`` times the edge's
+    length, whose directions differ by at most ``angle_deg`` (either orientation) and whose
+    lengths differ by at most ``length_tol`` of the longer, joined transitively. Returns groups of
+    >= 2 edge indices, each sorted (its first edge is the reference)."""
     if len(edges) < 2:
         return []
     u, length = edge_frames(X0, edges)
     mid = 0.5 * (X0[edges[:, 0]] + X0[edges[:, 1]])
-    pairs = cKDTree(mid).query_pairs(distance, output_type="ndarray")
-    if not len(pairs):
-        return []
-    a, b = pairs[:, 0], pairs[:, 1]
+    near = cKDTree(mid).query_ball_point(mid, distance * length, return_sorted=False)
+    counts = np.fromiter((len(c) for c in near), np.int64, len(near))
+    a = np.repeat(np.arange(len(edges)), counts)
+    b = np.concatenate([np.asarray(c, np.int64) for c in near])
+    keep = a < b
+    a, b = a[keep], b[keep]
     same_dir = np.abs(np.einsum("ij,ij->i", u[a], u[b])) >= np.cos(np.radians(angle_deg))
     same_len = np.abs(length[a] - length[b]) <= length_tol * np.maximum(length[a], length[b])
-    pairs = pairs[same_dir & same_len]
+    ok = same_dir & same_len
     n = len(edges)
-    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    G = sp.coo_matrix((np.ones(int(ok.sum())), (a[ok], b[ok])), shape=(n, n))
     _, label = connected_components(G, directed=False)
     size = np.bincount(label)
     order = np.argsort(label, kind="stable")

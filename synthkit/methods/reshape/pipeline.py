@@ -170,7 +170,7 @@ def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float)
     groups = []
     if cfg.groups.enabled:
         g = cfg.groups
-        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance * size)
+        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance)
         blocks["groups"] = C.group_rows(X0, edges, groups, w_g=float(np.sqrt(g.w_g)))
     blocks["links"] = C.link_rows(X0, links, strict_weight=W)
     A, b, slices = C.stack_rows(blocks, graph.n_nodes)
@@ -350,7 +350,8 @@ def run(cfg, ctx) -> None:
     m.update(
         status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
         nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        factor_ms=solver.factor_ms, solve_ms=float(np.median(solver.solve_ms)), backend=solver.backend,
+        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms, solve_ms=float(np.median(solver.solve_ms)),
+        backend=solver.backend,
         steps_done=result.steps_done, steps=sv.steps, length_raises=result.length_raises,
         edge_groups=len(system.groups), grouped_edges=int(sum(len(g) for g in system.groups)),
         contacts=int(len(system.contacts)), links=int(len(links)), handles=int(len(handles)),

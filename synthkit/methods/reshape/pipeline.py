@@ -241,23 +241,18 @@ def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float)
     return out
 
 
-def _baseline(graph, known, X_known, backend) -> tuple[np.ndarray, float]:
-    """Laplacian baseline positions and its seconds; floating mesh components get their own anchor."""
-    import time
-
-    start = time.perf_counter()
+def _baseline(graph, known, X_known, backend) -> np.ndarray:
+    """Laplacian baseline positions ``(n, 3)``; floating mesh components get their own anchor."""
     edges = mesh_edges(graph.Fn)
     used = np.zeros(graph.n_nodes, bool)
     used[graph.Fn.reshape(-1)] = True
     extra = floating_anchors(graph.n_nodes, edges, known, used)
     A, b = laplacian_rows(graph.X0, edges)
-    allk = np.concatenate([known, extra])
     Xk = np.vstack([X_known, graph.X0[extra]])
-    X = ReshapeSolver(A, allk, backend=backend).solve(b, Xk)
-    return X, time.perf_counter() - start
+    return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
 
 
-def _write_previews(ctx, cfg, V, F, graph, X, Xb, handles):
+def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
     """before.png, after.png, baseline.png and comparison.png."""
     def image(Xn, key, name):
         Vn = Xn[graph.node_of_vertex]
@@ -300,8 +295,25 @@ def _refuse(cfg, result: DragResult, graph, ranges) -> None:
     raise InputError(msg)
 
 
-def run(cfg, ctx) -> None:
-    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+@dataclass
+class Scene:
+    """The assembled pieces: names, meshes, world offsets ``(3,)``, joins (report) and joined portal
+    vertices, render vertices ``V (#V, 3)``, ``F (#F, 3)``, materials, piece ranges, model size."""
+
+    names: list
+    meshes: list
+    offsets: list
+    joins: list
+    joined: list
+    V: np.ndarray
+    F: np.ndarray
+    face_material: np.ndarray
+    ranges: list
+    size: float
+    source: object
+
+
+def _load(cfg, ctx) -> Scene:
     specs = _pieces(cfg)
     names = [n for n, _, _ in specs]
     with ctx.stage("load"):
@@ -312,19 +324,55 @@ def run(cfg, ctx) -> None:
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
         offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
         V, F, fm, ranges = _assemble(names, meshes, offsets)
-        size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, specs[0][1])
+
+
+def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
     with ctx.stage("graph"):
         try:
-            graph = build_graph(V, F, fm, weld_tol=cfg.graph.weld_tol * size, flat_angle_deg=cfg.graph.flat_angle_deg)
+            graph = build_graph(
+                sc.V, sc.F, sc.face_material, weld_tol=cfg.graph.weld_tol * sc.size,
+                flat_angle_deg=cfg.graph.flat_angle_deg,
+            )
         except ValueError as exc:
-            raise InputError(f"{specs[0][1]}: {exc}") from None
-        if not len(graph.edges):
-            raise InputError(f"{specs[0][1]}: the constraint graph has no edge")
+            raise InputError(f"{sc.source}: {exc}") from None
+    if not len(graph.edges):
+        raise InputError(f"{sc.source}: the constraint graph has no edge")
+    return graph
+
+
+def _metrics(cfg, sc, graph, system, solver, result, extra) -> dict:
+    """The report's metrics: Table 4 columns, counts, the drag's outcome."""
+    m = dict(
+        status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
+        nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
+        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms, solve_ms=float(np.median(solver.solve_ms)),
+        backend=solver.backend, steps_done=result.steps_done, steps=cfg.solver.steps,
+        length_raises=result.length_raises, edge_groups=len(system.groups),
+        grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
+        l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
+        factorizations=1, strict_weight=cfg.strict.weight,
+        strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
+        **extra,
+    )
+    for join, gap in zip(sc.joins, _portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
+        join["gap"] = gap / sc.size
+    if result.status == "partial":
+        m["refused_edge"] = [_vertex_name(n, graph, sc.ranges) for n in result.edge]
+        m["refused_step"] = result.step
+    return m
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    sc = _load(cfg, ctx)
+    graph = _graph(cfg, ctx, sc)
     with ctx.stage("constraints"):
-        handles, targets, fixed, links = _selections(cfg, graph, V, ranges)
-        ctx.budget.require("input", str(specs[0][1]), 60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
+        handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges)
+        ctx.budget.require("input", str(sc.source), 60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
                            "matrix entries", bytes_each=_BYTES_PER_NNZ)
-        system = build_system(cfg, graph, links, size=size)
+        system = build_system(cfg, graph, links, size=sc.size)
         pairs = np.vstack([graph.edges, links, graph.bridges,
                            np.column_stack([system.contacts[:, 0], graph.Fn[system.contacts[:, 1], 0]])])
         known, anchors = _known(graph, pairs, handles, fixed)
@@ -334,46 +382,32 @@ def run(cfg, ctx) -> None:
         try:
             solver = ReshapeSolver(system.A, known, backend=cfg.solver.backend)
         except ValueError as exc:
-            raise InputError(f"{specs[0][1]}: constraint system cannot be solved: {exc}") from None
+            raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
+    sv = cfg.solver
     with ctx.stage("solve"):
-        sv = cfg.solver
         result = drag(
             solver, system.b, X0=graph.X0, targets=X_known, steps=sv.steps, edges=graph.edges,
             stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
             short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
         )
     if result.status == "partial" and not sv.allow_partial:
-        _refuse(cfg, result, graph, ranges)
-    X = result.X
-    done_targets = graph.X0[known] + (result.steps_done / sv.steps) * (X_known - graph.X0[known])
-    m = ctx.metrics
-    m.update(
-        status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
-        nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms, solve_ms=float(np.median(solver.solve_ms)),
-        backend=solver.backend,
-        steps_done=result.steps_done, steps=sv.steps, length_raises=result.length_raises,
-        edge_groups=len(system.groups), grouped_edges=int(sum(len(g) for g in system.groups)),
-        contacts=int(len(system.contacts)), links=int(len(links)), handles=int(len(handles)),
-        fixed=int(len(fixed)), anchored_components=int(len(anchors)), l_min=system.l_min,
-        rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=joins, factorizations=1,
-        strict_weight=cfg.strict.weight, strict_residuals=_strict_residuals(system, X, cfg.strict.weight, size),
-    )
-    m.update(_quality(graph, system, X, known, done_targets, size))
-    for join, gap in zip(joins, _portal_gaps(joined, ranges, X[graph.node_of_vertex]), strict=True):
-        join["gap"] = gap / size
-    if result.status == "partial":
-        m["refused_edge"] = [_vertex_name(n, graph, ranges) for n in result.edge]
-        m["refused_step"] = result.step
+        _refuse(cfg, result, graph, sc.ranges)
+    reached = graph.X0[known] + (result.steps_done / sv.steps) * (X_known - graph.X0[known])
+    counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
+                  anchored_components=int(len(anchors)))
+    ctx.metrics.update(_metrics(cfg, sc, graph, system, solver, result, counts))
+    ctx.metrics.update(_quality(graph, system, result.X, known, reached, sc.size))
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):
-            Xb, _ = _baseline(graph, known, done_targets, cfg.solver.backend)
-        ang = angle_errors_deg(graph.X0, Xb, graph.edges)
-        m["baseline"] = {"max_angle_error_deg": float(ang.max()), "mean_angle_error_deg": float(ang.mean())}
-        m["baseline_angle_ratio"] = float(ang.max() / max(m["max_angle_error_deg"], 1e-12))
+            Xb = _baseline(graph, known, reached, sv.backend)
+        base = _quality(graph, system, Xb, known, reached, sc.size)
+        ctx.metrics["baseline"] = base
+        ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
+            ctx.metrics["max_angle_error_deg"], 1e-12
+        )
     with ctx.stage("outputs"):
-        _write_meshes(ctx, names, meshes, offsets, ranges, graph, X)
-        _write_previews(ctx, cfg, V, F, graph, X, Xb, handles)
+        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X)
+        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              solver.factor_ms)

@@ -339,6 +339,9 @@ def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
             raise InputError(f"{sc.source}: {exc}") from None
     if not len(graph.edges):
         raise InputError(f"{sc.source}: the constraint graph has no edge")
+    if graph.counts["ill_formed_contour_vertices"]:
+        log.warning("%s: %d contour vertices are not on exactly two contour edges (contours not well formed)",
+                    sc.source, graph.counts["ill_formed_contour_vertices"])
     return graph
 
 
@@ -370,7 +373,8 @@ def run(cfg, ctx) -> None:
     graph = _graph(cfg, ctx, sc)
     with ctx.stage("constraints"):
         handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges)
-        ctx.budget.require("input", str(sc.source), 60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
+        ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
+                           60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
                            "matrix entries", bytes_each=_BYTES_PER_NNZ)
         system = build_system(cfg, graph, links, size=sc.size)
         pairs = np.vstack([graph.edges, links, graph.bridges,

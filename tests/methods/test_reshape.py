@@ -463,6 +463,26 @@ def test_mesh_without_faces_exit_3(runner, tmp_path):
     assert code == 3 and "empty.obj: mesh has no faces" in line
 
 
+def test_zero_area_mesh_exit_3(runner, tmp_path):
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    code, line = _invoke(runner, tmp_path, {**wall_config(), "input": str(tmp_path / "flat.obj")})
+    assert code == 3 and "flat.obj: every triangle has zero area" in line
+
+
+def test_memory_budget_refuses_before_building(tmp_path):
+    from synthkit.errors import ConfigError
+    from synthkit.limits import Budget
+    from synthkit.methods.reshape import pipeline
+    from synthkit.methods.reshape.config import ReshapeConfig
+    from synthkit.runner import RunContext
+
+    cfg = ReshapeConfig.model_validate({"method": "reshape", **wall_config()})
+    ctx = RunContext(tmp_path, seed=0, show_progress=False, budget=Budget(10_000))
+    with pytest.raises(ConfigError, match=r"^input: .*reshape-wall.obj needs about .* matrix entries"):
+        pipeline.run(cfg, ctx)
+    assert not ctx.outputs
+
+
 def test_missing_handles_key_exit_2(runner, tmp_path):
     cfg = wall_config()
     del cfg["handles"]

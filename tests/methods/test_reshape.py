@@ -14,7 +14,7 @@ from synthkit.cli.main import cli
 from synthkit.io.textured import load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape.graph import ANGLE, CONTOUR, build_graph
-from synthkit.methods.reshape.portals import align_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.solver import ReshapeSolver, floating_anchors
 from synthkit.runner import run_config
 
@@ -157,6 +157,17 @@ def test_portals_detect_align_and_refuse():
         align_portals(Pa, Pb[:-1], tol=1e-9)
     with pytest.raises(ValueError, match="do not match"):
         align_portals(Pa, Pb * [1, 2, 1], tol=1e-9)
+
+
+def test_boundary_loops_of_an_open_road_piece_are_portals():
+    mesh = load_textured(SAMPLES / "reshape-road-a.obj")
+    caps = np.all(np.isin(mesh.V[mesh.F][:, :, 0], [0.0, 2.0]), axis=1) & (np.ptp(mesh.V[mesh.F][:, :, 0], axis=1) == 0)
+    loops = boundary_portals(mesh.V, mesh.F[~caps], tol=1e-9)
+    assert sorted(loops) == ["loop0", "loop1"]
+    ends = sorted(float(mesh.V[idx, 0].mean()) for idx in loops.values())
+    assert ends == [0.0, 2.0]
+    assert all(len(portal_positions(mesh.V, idx, tol=1e-9)) == 8 for idx in loops.values())
+    assert boundary_portals(mesh.V, mesh.F, tol=1e-9) == {}  # closed piece: no open end
 
 
 def test_floating_anchors_one_per_unheld_cluster():

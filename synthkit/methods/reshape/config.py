@@ -112,7 +112,8 @@ class PieceSpec(StrictModel):
     input: InputFile = Field(description="Textured mesh (OBJ+MTL or GLB).")
     portals: dict[str, list[int]] = Field(
         default_factory=dict,
-        description="Extra portals by file vertex index; end planes 'x-', 'x+', 'y-', ... are detected.",
+        description="Extra portals by file vertex index; end planes 'x-', 'x+', ... and boundary loops "
+        "'loop0', 'loop1', ... are detected.",
     )
 
 
@@ -120,7 +121,7 @@ class Join(StrictModel):
     """Piece ``b``'s portal ``b_portal`` is joined to piece ``a``'s portal ``a_portal`` (b is moved)."""
 
     a: str = Field(description="Piece already placed.")
-    a_portal: str = Field(description="Portal of a ('x+' ... or a name from its portals).")
+    a_portal: str = Field(description="Portal of a ('x+', 'loop0' ... or a name from its portals).")
     b: str = Field(description="Piece placed by this join.")
     b_portal: str = Field(description="Portal of b.")
 

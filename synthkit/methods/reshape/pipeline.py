@@ -30,7 +30,7 @@ from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, 
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.outputs import edge_colours, reshape_image
-from synthkit.methods.reshape.portals import align_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.solver import DragResult, ReshapeSolver, drag, floating_anchors
 from synthkit.preview import montage_png
 
@@ -64,8 +64,9 @@ def _pieces(cfg) -> list[tuple[str, object, dict]]:
 
 
 def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
-    """Portal name -> render vertices of one piece (detected end planes and given indices)."""
-    found = detect_portals(mesh.V, tol=tol)
+    """Portal name -> render vertices of one piece (detected end planes and boundary loops, given
+    indices)."""
+    found = {**detect_portals(mesh.V, tol=tol), **boundary_portals(mesh.V, mesh.F, tol=tol)}
     for name, idx in extra.items():
         idx = np.asarray(idx, np.int64)
         bad = idx[(idx < 0) | (idx >= len(mesh.positions))]

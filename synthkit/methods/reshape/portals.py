@@ -1,7 +1,9 @@
 """Portals of pieces and their assembly into a chain (paper section 5), over ``V (#V, 3)`` arrays.
 
 A portal is a set of vertices at a piece's end: the vertices on one face of its bounding box
-(``x-``, ``x+``, ``y-``, ``y+``, ``z-``, ``z+``, detected) or vertices given by index. Its size is
+(``x-``, ``x+``, ``y-``, ``y+``, ``z-``, ``z+``, detected), the vertices of one boundary loop of the
+welded mesh (an open end: ``loop0``, ``loop1``, ... ordered by their lowest vertex; detected) or
+vertices given by index. Its size is
 the number of distinct positions. Two portals are compatible when their sizes agree and, once
 piece b is translated so that the portal centroids coincide, every position of one has a partner
 in the other within the tolerance. Joined portal vertices then weld into shared graph nodes, so
@@ -11,9 +13,13 @@ the pieces coincide there exactly and a deformation propagates along the chain.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-__all__ = ["PLANE_PORTALS", "detect_portals", "portal_positions", "align_portals"]
+from synthkit.core.mesh import weld
+
+__all__ = ["PLANE_PORTALS", "detect_portals", "boundary_portals", "portal_positions", "align_portals"]
 
 PLANE_PORTALS = ("x-", "x+", "y-", "y+", "z-", "z+")
 
@@ -28,6 +34,23 @@ def detect_portals(V, *, tol: float) -> dict[str, np.ndarray]:
         found[f"{'xyz'[axis]}-"] = np.flatnonzero(np.abs(V[:, axis] - lo[axis]) <= tol)
         found[f"{'xyz'[axis]}+"] = np.flatnonzero(np.abs(V[:, axis] - hi[axis]) <= tol)
     return found
+
+
+def boundary_portals(V, F, *, tol: float) -> dict[str, np.ndarray]:
+    """Boundary loops of ``V (#V, 3)``, ``F (#F, 3)`` once co-located vertices are welded (within
+    ``tol``): ``"loop<k>"`` -> render-vertex indices ``(k,)``. A boundary edge is used by one triangle."""
+    _, F2, old_to_new = weld(V, F, tol, return_index=True)
+    e = np.sort(F2[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    b = uniq[count == 1]
+    n = int(old_to_new.max()) + 1
+    G = sp.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n))
+    _, label = connected_components(G, directed=False)
+    on_loop = np.zeros(n, bool)
+    on_loop[b.reshape(-1)] = True
+    loops = sorted({int(label[v]) for v in np.flatnonzero(on_loop)}, key=lambda c: np.flatnonzero(label == c)[0])
+    in_loop = label[old_to_new]
+    return {f"loop{k}": np.flatnonzero(on_loop[old_to_new] & (in_loop == c)) for k, c in enumerate(loops)}
 
 
 def portal_positions(V, idx, *, tol: float) -> np.ndarray:

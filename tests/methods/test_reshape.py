@@ -213,6 +213,27 @@ def test_selections_and_handle_targets():
         pick(half_space={"axis": "x", "above": 5.0})
 
 
+def test_factor_cache_and_drag_with_a_frozen_node():
+    from synthkit.methods.reshape.solver import FactorCache, drag
+
+    X0 = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
+    edges = np.array([[0, 1], [1, 2], [2, 3]])
+    A, b, where = C.stack_rows(
+        {"d": C.direction_rows(X0, edges, weight=10.0), "s": C.stress_rows(X0, edges, np.ones(3))}, 4
+    )
+    cache = FactorCache(A)
+    full, limited = cache.get([0, 3]), cache.get([0, 2, 3])
+    assert cache.get([3, 0]) is full and cache.hits == 1 and len(cache) == 2
+    T = X0.copy()
+    T[3, 0] = 6.0
+    kw = dict(X0=X0, T=T, steps=3, edges=edges, stress_slice=where["s"], stress_weights=np.ones(3),
+              short_ratio=0.2, raise_factor=1.5, flip_ratio=1e-3)
+    dragging = drag(lambda s: limited, b, **kw)
+    np.testing.assert_allclose(dragging.X[:, 0], [0, 1, 2, 6], atol=1e-9)  # node 2 frozen: 2-3 takes it all
+    released = drag(lambda s: full if s == 3 else limited, b, **kw)
+    np.testing.assert_allclose(released.X[:, 0], [0, 2, 4, 6], atol=1e-9)  # release spreads the stretch
+
+
 def test_textured_obj_round_trip_keeps_uvs_and_materials(tmp_path):
     mesh = load_textured(SAMPLES / "reshape-stairs.obj")
     P = mesh.positions * 2.0
@@ -394,6 +415,29 @@ def test_chain_of_two_road_pieces_stays_joined(tmp_path):
     assert gap < 1e-9 * np.linalg.norm(np.ptp(np.vstack([A, B]), axis=0))
     assert A[:, 0].max() > 2.0 + 1e-3  # the deformation propagated into piece a
     assert m["max_angle_error_deg"] < 0.5
+
+
+def three_roads(**solver) -> dict:
+    road = str(SAMPLES / "reshape-road-a.obj")
+    return {
+        "pieces": [{"name": n, "input": road} for n in ("r1", "r2", "r3")],
+        "chain": [{"a": "r1", "a_portal": "x+", "b": "r2", "b_portal": "x-"},
+                  {"a": "r2", "a_portal": "x+", "b": "r3", "b_portal": "x-"}],
+        "handles": [{"piece": "r3", **above("x", 5.99), "displacement": [1.5, 0, 0]}],
+        "fixed": [{"piece": "r1", **below("x", 0.01)}],
+        "solver": {"steps": 4, **solver},
+    }
+
+
+def test_limited_propagation_factors_twice_and_releases_to_the_full_solve(tmp_path):
+    full, out_full = reshape(tmp_path, "full", **three_roads())
+    lim, out_lim = reshape(tmp_path, "limited", **three_roads(propagation=0))
+    assert full["metrics"]["factorizations"] == 1 and full["metrics"]["factor_cache_hits"] == 0
+    assert lim["metrics"]["factorizations"] == 2 and lim["metrics"]["frozen_nodes"] > 0
+    for name in ("r1", "r2", "r3"):  # the release step solves the whole chain: same result
+        np.testing.assert_allclose(load_textured(out_lim / f"{name}.obj").V, load_textured(out_full / f"{name}.obj").V,
+                                   atol=1e-9)
+    assert load_textured(out_full / "r1.obj").V[:, 0].max() > 2.0 + 1e-3  # the first piece stretched too
 
 
 @pytest.mark.skipif(not KENNEY.is_dir(), reason="../shared/data/meshes/kenney-city not present")

@@ -196,6 +196,11 @@ class SolverSection(StrictModel):
     flip_ratio: float = Field(
         1e-3, ge=0, lt=1, description="An edge at or below this share of its rest length has collapsed (eq. 4)."
     )
+    propagation: int | None = Field(
+        None, ge=0,
+        description="While dragging a chain, only pieces at most this many joins from a handle's piece move; "
+        "the last step (release) solves the whole chain (section 5). None: the whole chain at every step.",
+    )
     allow_partial: bool = Field(
         False, description="On a refused motion write the last valid step (metrics.status: partial) instead of exit 3."
     )

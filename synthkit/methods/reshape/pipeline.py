@@ -31,7 +31,7 @@ from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.outputs import edge_colours, reshape_image
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
-from synthkit.methods.reshape.solver import DragResult, ReshapeSolver, drag, floating_anchors
+from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
 from synthkit.preview import montage_png
 
 __all__ = ["run", "System", "build_system"]
@@ -206,6 +206,27 @@ def _known(graph, system_pairs, handles, fixed) -> tuple[np.ndarray, np.ndarray]
     return np.concatenate([given, anchors, unused]), anchors
 
 
+def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
+    """Nodes of the pieces farther than ``solver.propagation`` joins from every piece holding a
+    handle (empty without a limit): they keep their place while dragging (section 5)."""
+    limit = cfg.solver.propagation
+    if limit is None or len(sc.names) == 1:
+        return np.zeros(0, np.int64)
+    piece_nodes = [graph.node_of_vertex[r.start:r.stop] for r in sc.ranges]
+    dist = {n: 0 for n, nodes in zip(sc.names, piece_nodes, strict=True) if np.isin(nodes, handles).any()}
+    frontier = list(dist)
+    while frontier:
+        nxt = []
+        for j in cfg.chain:
+            for a, b in ((j.a, j.b), (j.b, j.a)):
+                if a in frontier and b not in dist:
+                    dist[b] = dist[a] + 1
+                    nxt.append(b)
+        frontier = nxt
+    far = [nodes for n, nodes in zip(sc.names, piece_nodes, strict=True) if dist.get(n, limit + 1) > limit]
+    return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
+
+
 def _quality(graph, system, X, known, targets_all, size) -> dict:
     """Angle, rigid-length, handle and contact figures of node positions ``X (n, 3)``."""
     X0, edges = graph.X0, graph.edges
@@ -351,12 +372,13 @@ def _metrics(cfg, sc, graph, system, solver, result, extra) -> dict:
     m = dict(
         status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
         nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms, solve_ms=float(np.median(solver.solve_ms)),
+        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms,
+        solve_ms=float(np.median(solver.solve_ms)) if solver.solve_ms else None,
         backend=solver.backend, steps_done=result.steps_done, steps=cfg.solver.steps,
         length_raises=result.length_raises, edge_groups=len(system.groups),
         grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
         l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
-        factorizations=1, strict_weight=cfg.strict.weight,
+        strict_weight=cfg.strict.weight,
         strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
         **extra,
     )
@@ -381,26 +403,30 @@ def run(cfg, ctx) -> None:
         pairs = np.vstack([graph.edges, links, graph.bridges,
                            np.column_stack([system.contacts[:, 0], graph.Fn[system.contacts[:, 1], 0]])])
         known, anchors = _known(graph, pairs, handles, fixed)
-        X_known = graph.X0[known].copy()
-        X_known[: len(handles)] = targets
+    T = graph.X0.copy()
+    T[handles] = targets
+    frozen = _frozen_nodes(cfg, sc, graph, handles)
+    sv = cfg.solver
     with ctx.stage("factor"):
+        cache = FactorCache(system.A, backend=sv.backend)
         try:
-            solver = ReshapeSolver(system.A, known, backend=cfg.solver.backend)
+            full = cache.get(known)
+            limited = cache.get(np.union1d(known, frozen)) if len(frozen) else full
         except ValueError as exc:
             raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
-    sv = cfg.solver
     with ctx.stage("solve"):
         result = drag(
-            solver, system.b, X0=graph.X0, targets=X_known, steps=sv.steps, edges=graph.edges,
-            stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
+            lambda step: full if step == sv.steps else limited, system.b, X0=graph.X0, T=T, steps=sv.steps,
+            edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
             short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
         )
     if result.status == "partial" and not sv.allow_partial:
         _refuse(cfg, result, graph, sc.ranges)
-    reached = graph.X0[known] + (result.steps_done / sv.steps) * (X_known - graph.X0[known])
+    reached = graph.X0[known] + (result.steps_done / sv.steps) * (T[known] - graph.X0[known])
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
-                  anchored_components=int(len(anchors)))
-    ctx.metrics.update(_metrics(cfg, sc, graph, system, solver, result, counts))
+                  anchored_components=int(len(anchors)), frozen_nodes=int(len(frozen)),
+                  factorizations=len(cache), factor_cache_hits=cache.hits)
+    ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, counts))
     ctx.metrics.update(_quality(graph, system, result.X, known, reached, sc.size))
     Xb = None
     if cfg.baseline:
@@ -415,4 +441,4 @@ def run(cfg, ctx) -> None:
         _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X)
         _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
-             solver.factor_ms)
+             full.factor_ms)

@@ -12,6 +12,8 @@ factorization is therefore checked by its backward error (``||N x - r|| <= 1e-9 
 test right-hand side), which a stable Cholesky meets on such matrices; the forward check of
 :class:`synthkit.core.lsq.LeastSquares` (1e-6 on ``x``) would refuse them.
 
+:class:`FactorCache` keeps one factorization per set of known nodes, so a chain dragged with a
+limited propagation length and then released (section 5) factors twice and reuses both.
 :func:`drag` moves the handles to their targets in ``steps`` equal increments. After each step it
 checks eq. 4 on every graph edge: an edge whose projected length ``u_ki . (x_i - x_k)`` fell below
 ``short_ratio`` of its rest length gets its stress target ``l_ki`` multiplied by ``raise_factor``
@@ -32,7 +34,7 @@ from scipy.sparse.linalg import splu
 
 from synthkit.core.lsq import have_cholespy
 
-__all__ = ["ReshapeSolver", "DragResult", "drag", "known_columns", "floating_anchors"]
+__all__ = ["ReshapeSolver", "FactorCache", "DragResult", "drag", "known_columns", "floating_anchors"]
 
 
 def known_columns(known: np.ndarray) -> np.ndarray:
@@ -97,6 +99,8 @@ class ReshapeSolver:
         self.solve_ms: list[float] = []
 
     def _factor(self, N) -> None:
+        if N.shape[0] == 0:
+            return
         if self.backend == "cholespy":
             import cholespy
 
@@ -105,7 +109,7 @@ class ReshapeSolver:
                     N.shape[0], N.indptr.astype(np.int32), N.indices.astype(np.int32),
                     np.ascontiguousarray(N.data), cholespy.MatrixType.CSR,
                 )
-            except ValueError as exc:
+            except (ValueError, RuntimeError) as exc:
                 raise ValueError(f"normal matrix is singular: {exc}") from None
         else:
             try:
@@ -115,6 +119,8 @@ class ReshapeSolver:
                 raise ValueError(f"normal matrix is singular: {exc}") from None
 
     def _solve_normal(self, rhs: np.ndarray) -> np.ndarray:
+        if len(rhs) == 0:
+            return rhs
         if self.backend == "cholespy":
             x = np.zeros_like(rhs)
             self._chol.solve(np.ascontiguousarray(rhs), x)
@@ -124,6 +130,8 @@ class ReshapeSolver:
     def _check(self, N) -> None:
         """Backward-error check of the factorization on a test right-hand side."""
         r = N @ np.linspace(1.0, 2.0, N.shape[0])
+        if not len(r):
+            return
         x = self._solve_normal(r)
         if not np.all(np.isfinite(x)) or np.linalg.norm(N @ x - r) > 1e-9 * np.linalg.norm(r):
             raise ValueError("normal matrix is numerically singular (a node or component is unconstrained)")
@@ -159,11 +167,11 @@ def _projected(X, edges, u) -> np.ndarray:
 
 
 def drag(
-    solver: ReshapeSolver,
+    solver_at,
     b,
     *,
     X0,
-    targets,
+    T,
     steps: int,
     edges,
     stress_slice: slice,
@@ -172,21 +180,25 @@ def drag(
     raise_factor: float,
     flip_ratio: float,
 ) -> DragResult:
-    """Move the known nodes from ``X0[solver.known]`` to ``targets (k, 3)`` in ``steps`` increments.
+    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
 
-    ``edges (E, 2)`` are the graph edges whose stress rows occupy ``b[stress_slice]`` with weights
-    ``stress_weights (E,)``. Returns the :class:`DragResult` of the last valid step.
+    ``solver_at(s)`` gives the :class:`ReshapeSolver` of step ``s`` (1..steps; the same solver for
+    every step, or a limited-propagation one while dragging and a full one at release); at step
+    ``s`` its known nodes sit at ``X0 + s / steps (T - X0)``. ``edges (E, 2)`` are the graph edges
+    whose stress rows occupy ``b[stress_slice]`` with weights ``stress_weights (E,)``. Returns the
+    :class:`DragResult` of the last valid step.
     """
     X0 = np.asarray(X0, np.float64)
+    T = np.asarray(T, np.float64)
     b = np.array(b, np.float64)
-    start = X0[solver.known]
     u = X0[edges[:, 1]] - X0[edges[:, 0]]
     rest = np.linalg.norm(u, axis=1)
     u /= np.maximum(rest, 1e-300)[:, None]
     lengths = rest.copy()
     X_prev, raises = X0, 0
     for s in range(1, steps + 1):
-        Xk = start + (s / steps) * (np.asarray(targets, np.float64) - start)
+        solver = solver_at(s)
+        Xk = X0[solver.known] + (s / steps) * (T[solver.known] - X0[solver.known])
         X = solver.solve(b, Xk)
         short = _projected(X, edges, u) < short_ratio * rest
         if short.any():
@@ -202,3 +214,32 @@ def drag(
             return DragResult(X_prev, s - 1, "partial", lengths, raises, edge, s)
         X_prev = X
     return DragResult(X_prev, steps, "ok", lengths, raises)
+
+
+class FactorCache:
+    """Factorizations of one system ``A`` kept per set of known nodes (factor once per handle set).
+
+    ``get(known)`` returns the cached :class:`ReshapeSolver` for that set, factoring on a miss;
+    ``hits`` counts the reuses and ``len()`` the factorizations made.
+    """
+
+    def __init__(self, A, *, backend: str = "auto"):
+        self.A = A
+        self.backend = backend
+        self._solvers: dict[bytes, ReshapeSolver] = {}
+        self.hits = 0
+
+    def get(self, known) -> ReshapeSolver:
+        known = np.asarray(known, np.int64)
+        key = np.sort(known).tobytes()
+        if key in self._solvers:
+            self.hits += 1
+        else:
+            self._solvers[key] = ReshapeSolver(self.A, known, backend=self.backend)
+        return self._solvers[key]
+
+    def __len__(self) -> int:
+        return len(self._solvers)
+
+    def solvers(self) -> list[ReshapeSolver]:
+        return list(self._solvers.values())

@@ -118,6 +118,25 @@ def contour_loops(pairs: np.ndarray, surface: np.ndarray, n_vertices: int) -> tu
     return n_loops, max(holes, 0), ill
 
 
+def _graph_edges(npairs: np.ndarray, kind: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Graph edges ``(E, 2)`` (i < k, unique) and kinds ``(E,)`` from the surface edges over nodes
+    ``npairs (k, 2)`` with ``kind (k,)``: contour and angle edges, plus the flat edges of a node
+    that no contour or angle edge reaches. Zero-length edges (welded ends) are dropped; an edge
+    that is contour in one surface and angle in another counts as contour."""
+    proper = npairs[:, 0] != npairs[:, 1]
+    keep = (kind >= 0) & proper
+    reached = np.zeros(n, bool)
+    reached[npairs[keep].reshape(-1)] = True
+    lonely = (kind < 0) & proper & ~(reached[npairs[:, 0]] & reached[npairs[:, 1]])
+    sel = keep | lonely
+    e = np.sort(npairs[sel], axis=1)
+    k = np.where(kind < 0, FLAT_KEPT, kind)[sel]
+    order = np.lexsort((k, e[:, 1], e[:, 0]))
+    e, k = e[order], k[order]
+    first = np.r_[True, np.any(e[1:] != e[:-1], axis=1)] if len(e) else np.zeros(0, bool)
+    return e[first], k[first]
+
+
 def build_graph(V, F, face_material, *, weld_tol: float, flat_angle_deg: float = 0.5) -> ConstraintGraph:
     """The constraint graph of render vertices ``V (#V, 3)``, triangles ``F (#F, 3)`` and
     ``face_material (#F,)``. ``weld_tol`` (model units) merges co-located vertices into one node;
@@ -136,23 +155,10 @@ def build_graph(V, F, face_material, *, weld_tol: float, flat_angle_deg: float =
     X0, _, node_of_vertex = weld(V, F, weld_tol, return_index=True)
     Fn = node_of_vertex[F]
     npairs = node_of_vertex[pairs]
-    keep = (kind >= 0) & (npairs[:, 0] != npairs[:, 1])
-    reached = np.zeros(len(X0), bool)
-    reached[npairs[keep].reshape(-1)] = True
-    flat = (kind < 0) & (npairs[:, 0] != npairs[:, 1])
-    lonely = flat & ~(reached[npairs[:, 0]] & reached[npairs[:, 1]])
-    kinds_all = np.where(kind < 0, FLAT_KEPT, kind)
-    sel = keep | lonely
-    e = np.sort(npairs[sel], axis=1)
-    k = kinds_all[sel]
-    order = np.lexsort((k, e[:, 1], e[:, 0]))
-    e, k = e[order], k[order]
-    first = np.r_[True, np.any(e[1:] != e[:-1], axis=1)] if len(e) else np.zeros(0, bool)
-    edges, edge_kind = e[first], k[first]
+    edges, edge_kind = _graph_edges(npairs, kind, len(X0))
     _, component = _components(len(X0), edges)
-    cross = flat & (component[npairs[:, 0]] != component[npairs[:, 1]])
-    bridges = np.sort(npairs[cross], axis=1)
-    bridges, first_b = np.unique(bridges, axis=0, return_index=True)
+    cross = (kind < 0) & (component[npairs[:, 0]] != component[npairs[:, 1]])
+    bridges, first_b = np.unique(np.sort(npairs[cross], axis=1), axis=0, return_index=True)
     bridge_normals = face_normals(V, F)[pair_face[cross][first_b]]
     node_used = np.zeros(len(X0), bool)
     node_used[node_of_vertex[used]] = True

@@ -82,6 +82,8 @@ def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray
     """World offset ``(3,)`` of each piece, the joins made (for the report) and, per join, the
     joined render vertices ``(piece a, indices, piece b, indices)``."""
     names = [n for n, _, _ in _pieces(cfg)]
+    if not cfg.chain and len(names) == 1:
+        return [np.zeros(3)], [], []
     offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
     portals = {
         n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")

@@ -10,6 +10,8 @@ compressed red, handles green), ``baseline.png`` and ``comparison.png``; metrics
 Table 4 columns (``vars``, ``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``,
 ``factor_ms``, ``solve_ms``) and the quality figures (see the README).
 
+The method has no random choice: the seed does not change the result.
+
 A motion that would flip an edge is refused: by default an InputError (exit 3) naming the edge
 and the step, nothing written; with ``solver.allow_partial`` the last valid step is written and
 ``metrics.status`` is ``"partial"``.
@@ -421,6 +423,7 @@ def run(cfg, ctx) -> None:
             lambda step: full if step == sv.steps else limited, system.b, X0=graph.X0, T=T, steps=sv.steps,
             edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
             short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
+            progress=lambda steps: ctx.progress(steps, total=sv.steps, desc="reshape steps"),
         )
     if result.status == "partial" and not sv.allow_partial:
         _refuse(cfg, result, graph, sc.ranges)

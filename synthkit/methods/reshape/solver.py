@@ -179,13 +179,15 @@ def drag(
     short_ratio: float,
     raise_factor: float,
     flip_ratio: float,
+    progress=None,
 ) -> DragResult:
     """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
 
     ``solver_at(s)`` gives the :class:`ReshapeSolver` of step ``s`` (1..steps; the same solver for
     every step, or a limited-propagation one while dragging and a full one at release); at step
     ``s`` its known nodes sit at ``X0 + s / steps (T - X0)``. ``edges (E, 2)`` are the graph edges
-    whose stress rows occupy ``b[stress_slice]`` with weights ``stress_weights (E,)``. Returns the
+    whose stress rows occupy ``b[stress_slice]`` with weights ``stress_weights (E,)``;
+    ``progress``, when given, wraps the iterable of steps (a progress bar). Returns the
     :class:`DragResult` of the last valid step.
     """
     X0 = np.asarray(X0, np.float64)
@@ -196,7 +198,8 @@ def drag(
     u /= np.maximum(rest, 1e-300)[:, None]
     lengths = rest.copy()
     X_prev, raises = X0, 0
-    for s in range(1, steps + 1):
+    step_numbers = range(1, steps + 1)
+    for s in progress(step_numbers) if progress is not None else step_numbers:
         solver = solver_at(s)
         Xk = X0[solver.known] + (s / steps) * (T[solver.known] - X0[solver.known])
         X = solver.solve(b, Xk)

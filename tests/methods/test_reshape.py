@@ -464,21 +464,34 @@ def test_chain_of_kenney_road_tiles(tmp_path):
     assert s1.UV.shape == load_textured(road).UV.shape
 
 
+def house_motion(V, mode: str) -> dict:
+    """Widen a house by 30 % along x (both end walls selected by half-spaces), or raise everything
+    above its middle by 20 % of its height with the foot fixed."""
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    ext = hi - lo
+    if mode == "widen":
+        return {"handles": [above("x", hi[0] - 0.01 * ext[0], displacement=[float(0.3 * ext[0]), 0, 0])],
+                "fixed": [below("x", lo[0] + 0.01 * ext[0])]}
+    return {"handles": [above("y", lo[1] + 0.59 * ext[1], displacement=[0, float(0.2 * ext[1]), 0])],
+            "fixed": [below("y", lo[1] + 0.01 * ext[1])]}
+
+
 @pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
-@pytest.mark.parametrize("name", ["houses/house1_baked.obj", "tudorhouse/tudorhouse.obj"])
-def test_real_houses_raise_roof(tmp_path, name):
+@pytest.mark.parametrize("name, mode", [
+    ("houses/house1_baked.obj", "widen"), ("houses/house2_baked.obj", "widen"),
+    ("houses/house4_baked.obj", "widen"), ("tudorhouse/tudorhouse.obj", "raise"),
+])
+def test_real_houses(tmp_path, name, mode):
     mesh = load_textured(HOUSES / name)
-    lo, hi = mesh.V.min(axis=0), mesh.V.max(axis=0)
-    report, out = reshape(
-        tmp_path, "house", input=str(HOUSES / name),
-        handles=[above("y", hi[1] - 0.02 * (hi[1] - lo[1]), displacement=[0, float(0.2 * (hi[1] - lo[1])), 0])],
-        fixed=[below("y", lo[1] + 0.02 * (hi[1] - lo[1]))], solver={"allow_partial": True},
-    )
+    report, out = reshape(tmp_path, "house", input=str(HOUSES / name), baseline=True,
+                          contacts={"tol": 1e-4}, **house_motion(mesh.V, mode))
     m = report["metrics"]
-    assert m["graph"]["components"] >= 1 and m["nodes"] > 100
-    assert (out / Path(name).name).is_file()
+    assert m["status"] == "ok" and m["nodes"] > 250
+    assert m["max_angle_error_deg"] < 1.0
+    assert m["baseline"]["max_angle_error_deg"] >= 10 * m["max_angle_error_deg"]
     again = load_textured(out / Path(name).name)
     np.testing.assert_array_equal(again.UV, mesh.UV)
+    assert again.materials == mesh.materials
 
 
 # ---------------------------------------------------------------- bad input through the CLI

@@ -4,7 +4,9 @@
 coordinates; ``save_textured`` writes the same file with new vertex positions and nothing else
 changed (OBJ: the ``v`` lines are rewritten in place, every other line is kept, and the MTL and
 the texture images it names are copied beside the output; GLB: the scene is written again with
-each geometry's visuals). ``companion_files`` lists the files an OBJ needs beside it.
+each geometry's visuals and embedded textures, its node transforms applied to the vertices, so
+positions are in world coordinates and stored as float32). ``companion_files`` lists the files an
+OBJ needs beside it.
 
 Render vertices: an OBJ corner is a ``(v, vt)`` pair; each distinct pair is one render vertex, so
 two triangles share a render vertex exactly when they share 3-D and UV coordinates. A GLB's

@@ -429,6 +429,22 @@ def three_roads(**solver) -> dict:
     }
 
 
+def test_chain_joins_portals_that_differ_by_more_than_the_weld_tolerance(tmp_path):
+    mesh = load_textured(SAMPLES / "reshape-road-b.obj")
+    P = mesh.positions.copy()
+    corner = np.all(np.abs(P) < 1e-9, axis=1)  # every copy of the portal corner at the origin
+    P[corner, 2] += 2e-5  # one portal vertex off by 2e-5 (weld tolerance about 4e-6)
+    save_textured(mesh, P, tmp_path / "b.obj")
+    report, out = reshape(tmp_path, "offset", **road_chain_config(
+        str(SAMPLES / "reshape-road-a.obj"), str(tmp_path / "b.obj"),
+        handles=[{"piece": "b", **above("x", 3.49), "displacement": [1.0, 0, 0]}],
+        fixed=[{"piece": "a", **below("x", 0.01)}], graph={"portal_tol": 1e-5},
+    ))
+    m = report["metrics"]
+    assert m["joins"][0]["placed_gap"] > 1e-6 and m["joins"][0]["gap"] < 1e-9
+    assert m["graph"]["components"] == 1
+
+
 def test_limited_propagation_factors_twice_and_releases_to_the_full_solve(tmp_path):
     full, out_full = reshape(tmp_path, "full", **three_roads())
     lim, out_lim = reshape(tmp_path, "limited", **three_roads(propagation=0))

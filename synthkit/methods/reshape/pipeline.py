@@ -23,6 +23,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import save_image
@@ -130,6 +131,16 @@ def _portal_gaps(joined, ranges, Vout) -> list[float]:
         Pa, Pb = Vout[ranges[ia].start + va], Vout[ranges[ib].start + vb]
         gaps.append(float(np.linalg.norm(Pa[:, None] - Pb[None], axis=2).min(axis=1).max()))
     return gaps
+
+
+def _snap_joined(V, ranges, joined) -> None:
+    """Move each joined portal vertex of piece b onto its nearest partner of piece a (in place), so
+    that the graph welds every joined pair into one node even when the placed portals differ by
+    more than the weld tolerance (they may differ up to the portal match tolerance)."""
+    for ia, va, ib, vb in joined:
+        Pa = V[ranges[ia].start + va]
+        _, j = cKDTree(Pa).query(V[ranges[ib].start + vb])
+        V[ranges[ib].start + vb] = Pa[j]
 
 
 def _assemble(names, meshes, offsets):
@@ -350,6 +361,7 @@ def _load(cfg, ctx) -> Scene:
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
         offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
         V, F, fm, ranges = _assemble(names, meshes, offsets)
+        _snap_joined(V, ranges, joined)
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
     return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, specs[0][1])
 

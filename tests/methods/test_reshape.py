@@ -282,6 +282,15 @@ def test_wall_raised_by_half_keeps_directions_and_door(tmp_path):
     assert m["handle_residual"] == 0.0
 
 
+def test_wall_with_per_edge_direction_constraints(tmp_path):
+    vertex, _ = reshape(tmp_path, "vertex", **wall_config())
+    edge, _ = reshape(tmp_path, "edge", **wall_config(strict={"direction_form": "edge"}))
+    v, e = vertex["metrics"], edge["metrics"]
+    assert e["equations"] > v["equations"]  # 3 rows per edge instead of 3 per node
+    assert e["max_angle_error_deg"] < 0.5 and e["rigid_length_error"] < 0.01
+    assert e["strict_residuals"]["direction"] < STRICT_TOL
+
+
 def riser_heights(out_mesh: Path) -> np.ndarray:
     t = truth("reshape-stairs")
     h, d = t["riser"], t["tread"]

@@ -162,26 +162,21 @@ def contact_rows(X0, Fn, contacts, *, strict_weight: float, w_c: float) -> tuple
     a, b, c = X0[T[:, 0]], X0[T[:, 1]], X0[T[:, 2]]
     n = np.cross(b - a, c - a)
     n /= np.linalg.norm(n, axis=1)[:, None]
-    k = np.arange(len(contacts))
-    plane = Rows(
-        np.repeat(np.concatenate([k, k]), 3),
-        np.concatenate([3 * i[:, None] + np.arange(3), 3 * T[:, 0, None] + np.arange(3)]).ravel(),
-        strict_weight * np.concatenate([n, -n]).ravel(),
-        np.zeros(len(contacts)),
-    )
-    rows, cols, vals, rhs = [], [], [], []
-    for corner in range(3):
-        base = 9 * k + 3 * corner
-        M = np.broadcast_to(w_c * np.eye(3), (len(contacts), 3, 3))
-        r, cc, v = _block3(base, i, T[:, corner], M)
-        rows.append(r)
-        cols.append(cc)
-        vals.append(v)
-        rhs.append((9 * k[:, None] + 3 * corner + np.arange(3), w_c * (X0[i] - X0[T[:, corner]])))
-    b = np.zeros(9 * len(contacts))
-    for idx, val in rhs:
-        b[idx.ravel()] = val.ravel()
-    return plane, Rows(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), b)
+    return _plane_rows(i, T[:, 0], n, strict_weight), _offset_rows(X0, np.tile(i, 3), T.T.ravel(), w_c)
+
+
+def _plane_rows(a, b, n, w: float) -> Rows:
+    """One row per pair: ``w (x_a - x_b) . n = 0`` for unit normals ``n (k, 3)``."""
+    k = np.arange(len(a))
+    cols = np.concatenate([3 * a[:, None] + np.arange(3), 3 * b[:, None] + np.arange(3)]).ravel()
+    return Rows(np.repeat(np.concatenate([k, k]), 3), cols, w * np.concatenate([n, -n]).ravel(), np.zeros(len(a)))
+
+
+def _offset_rows(X0, a, b, w: float) -> Rows:
+    """Three rows per pair ``a (k,)``, ``b (k,)``: ``w ((x_a - x_b) - (v_a - v_b))``."""
+    M = np.broadcast_to(w * np.eye(3), (len(a), 3, 3))
+    rows, cols, vals = _block3(3 * np.arange(len(a)), a, b, M)
+    return Rows(rows, cols, vals, w * (X0[a] - X0[b]).ravel())
 
 
 def bridge_rows(X0, pairs, normals, *, strict_weight: float, w_c: float) -> tuple[Rows, Rows]:
@@ -193,16 +188,7 @@ def bridge_rows(X0, pairs, normals, *, strict_weight: float, w_c: float) -> tupl
     if not len(pairs):
         return Rows.empty(), Rows.empty()
     n = np.asarray(normals, np.float64)
-    k = np.arange(len(pairs))
-    plane = Rows(
-        np.repeat(np.concatenate([k, k]), 3),
-        np.concatenate([3 * pairs[:, 0, None] + np.arange(3), 3 * pairs[:, 1, None] + np.arange(3)]).ravel(),
-        strict_weight * np.concatenate([n, -n]).ravel(),
-        np.zeros(len(pairs)),
-    )
-    M = np.broadcast_to(w_c * np.eye(3), (len(pairs), 3, 3))
-    rows, cols, vals = _block3(3 * k, pairs[:, 0], pairs[:, 1], M)
-    return plane, Rows(rows, cols, vals, w_c * (X0[pairs[:, 0]] - X0[pairs[:, 1]]).ravel())
+    return _plane_rows(pairs[:, 0], pairs[:, 1], n, strict_weight), _offset_rows(X0, pairs[:, 0], pairs[:, 1], w_c)
 
 
 def edge_groups(X0, edges, *, angle_deg: float, length_tol: float, distance: float) -> list[np.ndarray]:
@@ -261,10 +247,7 @@ def link_rows(X0, links, *, strict_weight: float) -> Rows:
     links = np.asarray(links, np.int64).reshape(-1, 2)
     if not len(links):
         return Rows.empty()
-    M = np.broadcast_to(strict_weight * np.eye(3), (len(links), 3, 3))
-    rows, cols, vals = _block3(3 * np.arange(len(links)), links[:, 0], links[:, 1], M)
-    b = strict_weight * (X0[links[:, 0]] - X0[links[:, 1]]).ravel()
-    return Rows(rows, cols, vals, b)
+    return _offset_rows(X0, links[:, 0], links[:, 1], strict_weight)
 
 
 def stack_rows(blocks: dict[str, Rows], n_nodes: int) -> tuple[sp.csr_matrix, np.ndarray, dict[str, slice]]:

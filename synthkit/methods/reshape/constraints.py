@@ -5,11 +5,13 @@ is a :class:`Rows` whose rows are already multiplied by their weight, so the lea
 ``min ||A x - b||^2``. Directions ``u_ki`` and lengths ``l_ki`` come from the rest positions
 ``X0 (n, 3)`` and are constants.
 
-Strict constraints (edge direction eq. 1, contact coplanarity eq. 5, user links) get the weight
-``strict_weight`` [Van Loan 1985]; soft ones their paper weights: edge stress eq. 2 with the
-stiffness of eq. 3 (edges shorter than ``l_min`` rigid, ``w = 1``), contact position eq. 6
-(``w_c``), edge groups eq. 7 (``w_g``). Positivity (eq. 4) is checked by the solver after each
-step (section 3.4), not written as rows.
+Each function scales its rows by the weight it is given. Strict constraints (edge direction
+eq. 1, contact coplanarity eq. 5, user links) take ``strict_weight`` [Van Loan 1985]; soft ones
+their paper weights: edge stress eq. 2 with the stiffness of eq. 3 (:func:`stiffness`; edges
+shorter than ``l_min`` rigid, ``w = 1``), contact position eq. 6 (``w_c``), edge groups eq. 7
+(``w_g``). The paper's weights weight squared residuals, so
+:func:`synthkit.methods.reshape.pipeline.build_system` passes their square roots. Positivity
+(eq. 4) is checked by the solver after each step (section 3.4), not written as rows.
 """
 
 from __future__ import annotations

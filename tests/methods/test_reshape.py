@@ -13,7 +13,9 @@ from click.testing import CliRunner
 from synthkit.cli.main import cli
 from synthkit.io.textured import load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
-from synthkit.methods.reshape.graph import ANGLE, CONTOUR, build_graph
+from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
+from synthkit.methods.reshape.graph import ANGLE, CONTOUR, build_graph, contour_loops
+from synthkit.methods.reshape.outputs import COMPRESSED, ELONGATED, edge_colours
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.solver import ReshapeSolver, floating_anchors
 from synthkit.runner import run_config
@@ -99,6 +101,37 @@ def test_graph_counts_of_generated_wall_match_truth():
     assert g.counts["vertices"] == t["vertices"] and g.counts["surfaces"] == t["surfaces"]
     assert g.counts["holes"] == 2  # the window, on the front and on the back face
     assert g.counts["hole_bridges"] > 0
+
+
+def test_contour_loops_count_a_hole_and_ill_formed_vertices():
+    square = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    hole = square + 4
+    loops, holes, ill = contour_loops(np.vstack([square, hole]), np.zeros(8, np.int64), 8)
+    assert (loops, holes, ill) == (2, 1, 0)
+    loops, holes, ill = contour_loops(square[:3], np.zeros(3, np.int64), 4)  # an open chain
+    assert ill == 2
+
+
+def test_angle_errors_and_edge_colours_exact():
+    X0 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    edges = np.array([[0, 1], [0, 2]])
+    X = X0.copy()
+    X[1] = [1, 1, 0]  # edge 0-1 turns by 45 degrees, edge 0-2 keeps its direction
+    np.testing.assert_allclose(angle_errors_deg(X0, X, edges), [45.0, 0.0], atol=1e-12)
+    colours = edge_colours(np.array([1.5, 0.5, 1.0]))
+    np.testing.assert_array_equal(colours[0], ELONGATED)
+    np.testing.assert_array_equal(colours[1], COMPRESSED)
+    assert tuple(colours[2]) not in (ELONGATED, COMPRESSED)
+
+
+def test_laplacian_baseline_translates_with_its_handles():
+    V, F, _ = square_box()
+    X0, F2 = V[[0, 1, 2, 3, 6, 7]], np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]])
+    A, b = laplacian_rows(X0, mesh_edges(F2))
+    assert A.shape == (3 * len(mesh_edges(F2)), 18)
+    d = np.array([0.3, -0.2, 0.5])
+    X = ReshapeSolver(A, np.array([0, 4])).solve(b, X0[[0, 4]] + d)
+    np.testing.assert_allclose(X, X0 + d, atol=1e-12)
 
 
 def test_stiffness_eq3_exact():

@@ -383,14 +383,16 @@ def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
     return graph
 
 
-def _metrics(cfg, sc, graph, system, solver, result, extra) -> dict:
-    """The report's metrics: Table 4 columns, counts, the drag's outcome."""
+def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
+    """The report's metrics: the drag's outcome first (the CLI's one-line summary shows the first
+    four), then Table 4 columns, counts and the ``quality`` figures."""
     m = dict(
-        status=result.status, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
+        status=result.status, steps_done=result.steps_done, max_angle_error_deg=quality["max_angle_error_deg"],
+        factor_ms=solver.factor_ms, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
         nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        factor_ms=solver.factor_ms, normal_ms=solver.normal_ms,
+        normal_ms=solver.normal_ms,
         solve_ms=float(np.median(solver.solve_ms)) if solver.solve_ms else None,
-        backend=solver.backend, steps_done=result.steps_done, steps=cfg.solver.steps,
+        backend=solver.backend, steps=cfg.solver.steps,
         length_raises=result.length_raises, edge_groups=len(system.groups),
         grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
         l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
@@ -398,6 +400,7 @@ def _metrics(cfg, sc, graph, system, solver, result, extra) -> dict:
         strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
         **extra,
     )
+    m.update(quality)
     for join, gap in zip(sc.joins, _portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
         join["gap"] = gap / sc.size
     if result.status == "partial":
@@ -443,8 +446,8 @@ def run(cfg, ctx) -> None:
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
                   anchored_components=int(len(anchors)), frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
-    ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, counts))
-    ctx.metrics.update(_quality(graph, system, result.X, known, reached, sc.size))
+    quality = _quality(graph, system, result.X, known, reached, sc.size)
+    ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):

@@ -1,0 +1,239 @@
+"""Textured meshes that keep their UVs and materials per surface: OBJ (+MTL) and GLB.
+
+``load_textured`` reads an indexed face set whose triangles carry a material and texture
+coordinates; ``save_textured`` writes the same file with new vertex positions and nothing else
+changed (OBJ: the ``v`` lines are rewritten in place, every other line is kept, and the MTL and
+the texture images it names are copied beside the output; GLB: the scene is written again with
+each geometry's visuals and embedded textures, its node transforms applied to the vertices, so
+positions are in world coordinates and stored as float32). ``companion_files`` lists the files an
+OBJ needs beside it.
+
+Render vertices: an OBJ corner is a ``(v, vt)`` pair; each distinct pair is one render vertex, so
+two triangles share a render vertex exactly when they share 3-D and UV coordinates. A GLB's
+vertices are its render vertices (geometries concatenated in scene order, in world coordinates).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from synthkit.errors import InputError
+from synthkit.io.meshes import check_mesh
+
+__all__ = ["TexturedMesh", "load_textured", "save_textured", "companion_files", "TEXTURED_SUFFIXES"]
+
+TEXTURED_SUFFIXES = (".obj", ".glb")
+_MAP_KEY = re.compile(r"^\s*(map_\w+|bump|disp|decal|norm)\s+", re.IGNORECASE)
+
+
+@dataclass
+class TexturedMesh:
+    """A textured indexed face set.
+
+    Attributes
+    ----------
+    V : (#V, 3) float64 render-vertex positions
+    F : (#F, 3) int64 triangles over render vertices
+    UV : (#V, 2) float64 texture coordinates (NaN where the file has none)
+    face_material : (#F,) int64 index into ``materials``
+    materials : material names
+    position_index : (#V,) int64 the file position (OBJ ``v`` line, 0-based; GLB vertex) of each render vertex
+    positions : (#P, 3) float64 the file's positions (OBJ ``v`` lines; for GLB equal to ``V``)
+    source : the file read
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    UV: np.ndarray
+    face_material: np.ndarray
+    materials: list[str]
+    position_index: np.ndarray
+    positions: np.ndarray
+    source: Path
+    _meshes: list = field(default_factory=list, repr=False)
+
+
+def load_textured(path: Path | str) -> TexturedMesh:
+    """Read an OBJ (with its ``usemtl`` materials and ``vt`` coordinates) or a GLB scene.
+
+    Polygons are split into triangle fans. Raises InputError naming the file when it is missing,
+    unreadable, of another format, or has no faces.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: mesh file not found")
+    suffix = path.suffix.lower()
+    if suffix not in TEXTURED_SUFFIXES:
+        raise InputError(f"{path}: unsupported textured mesh format {suffix!r} (use .obj or .glb)")
+    mesh = _load_obj(path) if suffix == ".obj" else _load_glb(path)
+    check_mesh(mesh.V, mesh.F, source=path)
+    return mesh
+
+
+def _parse_index(token: str, count: int) -> int:
+    value = int(token)
+    return value - 1 if value > 0 else count + value
+
+
+def _load_obj(path: Path) -> TexturedMesh:
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read mesh: {exc}") from None
+    positions, uvs, corners, face_mat, materials = [], [], [], [], []
+    current = -1
+    try:
+        for line in text.splitlines():
+            parts = line.split()
+            if not parts:
+                continue
+            tag = parts[0]
+            if tag == "v":
+                positions.append([float(x) for x in parts[1:4]])
+            elif tag == "vt":
+                uvs.append([float(x) for x in (parts[1:3] + ["0"])[:2]])
+            elif tag == "usemtl":
+                name = parts[1] if len(parts) > 1 else ""
+                if name not in materials:
+                    materials.append(name)
+                current = materials.index(name)
+            elif tag == "f":
+                poly = []
+                for tok in parts[1:]:
+                    fields = tok.split("/")
+                    p = _parse_index(fields[0], len(positions))
+                    t = _parse_index(fields[1], len(uvs)) if len(fields) > 1 and fields[1] else -1
+                    poly.append((p, t))
+                for j in range(1, len(poly) - 1):
+                    corners.append([poly[0], poly[j], poly[j + 1]])
+                    face_mat.append(current)
+    except (ValueError, IndexError) as exc:
+        raise InputError(f"{path}: cannot read mesh: malformed OBJ line: {exc}") from None
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    if not corners:
+        raise InputError(f"{path}: mesh has no faces ({len(P)} vertices, no triangles)")
+    C = np.asarray(corners, dtype=np.int64).reshape(-1, 2)
+    if C[:, 0].min() < 0 or C[:, 0].max() >= len(P) or (C[:, 1] < -1).any() or (C[:, 1] >= len(uvs)).any():
+        raise InputError(f"{path}: face indices out of range")
+    keys, inverse = np.unique(C, axis=0, return_inverse=True)
+    UVall = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+    UV = np.full((len(keys), 2), np.nan)
+    has_uv = keys[:, 1] >= 0
+    UV[has_uv] = UVall[keys[has_uv, 1]]
+    fm = np.asarray(face_mat, dtype=np.int64)
+    if (fm < 0).any():
+        materials.append("")
+        fm[fm < 0] = len(materials) - 1
+    return TexturedMesh(
+        V=P[keys[:, 0]], F=inverse.reshape(-1, 3).astype(np.int64), UV=UV, face_material=fm,
+        materials=materials, position_index=keys[:, 0].astype(np.int64), positions=P, source=path,
+    )
+
+
+def _load_glb(path: Path) -> TexturedMesh:
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    geoms = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
+    geoms = [g for g in geoms if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+    if not geoms:
+        raise InputError(f"{path}: mesh has no faces")
+    Vs, Fs, UVs, fms, materials = [], [], [], [], []
+    base = 0
+    for g in geoms:
+        Vs.append(np.asarray(g.vertices, np.float64))
+        Fs.append(np.asarray(g.faces, np.int64) + base)
+        uv = getattr(g.visual, "uv", None)
+        UVs.append(np.asarray(uv, np.float64) if uv is not None else np.full((len(g.vertices), 2), np.nan))
+        name = getattr(getattr(g.visual, "material", None), "name", None) or f"material_{len(materials)}"
+        if name not in materials:
+            materials.append(name)
+        fms.append(np.full(len(g.faces), materials.index(name), np.int64))
+        base += len(g.vertices)
+    V = np.vstack(Vs)
+    return TexturedMesh(
+        V=V, F=np.vstack(Fs), UV=np.vstack(UVs), face_material=np.concatenate(fms), materials=materials,
+        position_index=np.arange(len(V), dtype=np.int64), positions=V, source=path, _meshes=geoms,
+    )
+
+
+def _mtl_files(obj_path: Path) -> list[str]:
+    """The MTL files an OBJ names (relative names as written)."""
+    names = []
+    for line in obj_path.read_text(encoding="utf-8", errors="replace").splitlines():
+        if line.startswith("mtllib"):
+            names.extend(line.split()[1:])
+    return names
+
+
+def companion_files(mesh: TexturedMesh) -> list[str]:
+    """Relative names of the files an OBJ needs beside it (its MTL files and the images they name
+    that exist); empty for a GLB (textures are embedded)."""
+    if mesh.source.suffix.lower() != ".obj":
+        return []
+    folder = mesh.source.parent
+    found = []
+    for name in _mtl_files(mesh.source):
+        mtl = folder / name
+        if not mtl.is_file():
+            continue
+        found.append(name)
+        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+            if _MAP_KEY.match(line):
+                image = line.split()[-1]
+                if (folder / image).is_file() and image not in found:
+                    found.append(image)
+    return found
+
+
+def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str) -> None:
+    """Write ``mesh`` with its file positions replaced by ``positions (#P, 3)``, in the input's
+    format (by ``path``'s suffix, which must match the input's), atomically; an OBJ also gets its
+    :func:`companion_files` copied beside it."""
+    path = Path(path)
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.shape != mesh.positions.shape:
+        raise ValueError(f"positions must have shape {mesh.positions.shape}, got {positions.shape}")
+    suffix = mesh.source.suffix.lower()
+    if path.suffix.lower() != suffix:
+        raise ValueError(f"output {path.name} must keep the input's format {suffix}")
+    tmp = path.with_name(path.name + ".tmp" + suffix)
+    if suffix == ".obj":
+        _write_obj(mesh.source, positions, tmp)
+        for name in companion_files(mesh):
+            target = path.parent / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(mesh.source.parent / name, target)
+    else:
+        scene = trimesh.Scene()
+        start = 0
+        for i, g in enumerate(mesh._meshes):
+            copy = g.copy()
+            copy.vertices = positions[start:start + len(g.vertices)]
+            start += len(g.vertices)
+            scene.add_geometry(copy, geom_name=f"geometry_{i}")
+        tmp.write_bytes(scene.export(file_type="glb"))
+    os.replace(tmp, path)
+
+
+def _write_obj(source: Path, positions: np.ndarray, target: Path) -> None:
+    """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]`` (17 digits: exact)."""
+    out, i = [], 0
+    for line in source.read_text(encoding="utf-8", errors="replace").splitlines():
+        parts = line.split()
+        if parts and parts[0] == "v":
+            x, y, z = positions[i]
+            extra = " ".join(parts[4:])
+            out.append(f"v {x:.17g} {y:.17g} {z:.17g}" + (f" {extra}" if extra else ""))
+            i += 1
+        else:
+            out.append(line)
+    target.write_text("\n".join(out) + "\n", encoding="utf-8")

@@ -1,0 +1,239 @@
+"""Config schema of ``synthkit reshape`` (paper defaults from Cabral et al. 2009, sections 3 and 5).
+
+Lengths are in model units unless a field says "relative" (a share of the model's bounding-box
+diagonal). A config reshapes either one ``input`` or a chain of ``pieces`` joined at portals.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from synthkit.config import InputFile, RunConfig, StrictModel
+
+__all__ = [
+    "CONFIG",
+    "ReshapeConfig",
+    "Selection",
+    "Handle",
+    "Link",
+    "PieceSpec",
+    "Join",
+    "GraphSection",
+    "StiffnessSection",
+    "StrictSection",
+    "ContactSection",
+    "GroupSection",
+    "SolverSection",
+]
+
+Vec3 = list[float]
+
+
+class Box(StrictModel):
+    """An axis-aligned box of model space."""
+
+    min: Vec3 = Field(min_length=3, max_length=3, description="Lower corner (x, y, z).")
+    max: Vec3 = Field(min_length=3, max_length=3, description="Upper corner (x, y, z).")
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if any(a > b for a, b in zip(self.min, self.max, strict=True)):
+            raise ValueError(f"box min {self.min} must not exceed max {self.max}")
+        return self
+
+
+class HalfSpace(StrictModel):
+    """Every vertex with ``coordinate >= above`` (or ``<= below``) along ``axis``."""
+
+    axis: Literal["x", "y", "z"] = Field(description="Coordinate axis.")
+    above: float | None = Field(None, description="Select vertices at or above this coordinate.")
+    below: float | None = Field(None, description="Select vertices at or below this coordinate.")
+
+    @model_validator(mode="after")
+    def _one(self):
+        if (self.above is None) == (self.below is None):
+            raise ValueError("give exactly one of above, below")
+        return self
+
+
+class Selection(StrictModel):
+    """Vertices chosen one way: by file index, nearest to points, in a box, or in a half-space."""
+
+    piece: str | None = Field(
+        None, description="Piece the selection applies to (chains; default: every piece, or the first for index)."
+    )
+    index: list[int] | None = Field(
+        None, min_length=1, description="Vertex indices of the file (OBJ 'v' order or GLB vertices, 0-based)."
+    )
+    nearest: list[Vec3] | None = Field(None, min_length=1, description="The vertex nearest each of these points.")
+    box: Box | None = Field(None, description="Every vertex inside this box.")
+    half_space: HalfSpace | None = Field(None, description="Every vertex on one side of an axis-aligned plane.")
+
+    @model_validator(mode="after")
+    def _exactly_one(self):
+        given = [k for k in ("index", "nearest", "box", "half_space") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of index, nearest, box, half_space (got {', '.join(given) or 'none'})")
+        if self.nearest is not None and any(len(p) != 3 for p in self.nearest):
+            raise ValueError("nearest points must have 3 coordinates")
+        return self
+
+
+class Handle(Selection):
+    """Handle vertices and where they go: a ``target`` for their centroid, or a ``displacement``."""
+
+    target: Vec3 | None = Field(None, min_length=3, max_length=3, description="Final position of the centroid.")
+    displacement: Vec3 | None = Field(None, min_length=3, max_length=3, description="Motion of every vertex.")
+
+    @model_validator(mode="after")
+    def _one_motion(self):
+        if (self.target is None) == (self.displacement is None):
+            raise ValueError("give exactly one of target, displacement")
+        return self
+
+
+class Link(Selection):
+    """A user link (Fig. 6): the two vertices selected (by ``index`` or ``nearest``) move together."""
+
+    @model_validator(mode="after")
+    def _two(self):
+        chosen = self.index if self.index is not None else self.nearest
+        if chosen is None or len(chosen) != 2:
+            raise ValueError("a link selects exactly two vertices by index or nearest")
+        return self
+
+
+class PieceSpec(StrictModel):
+    """One piece of a chain."""
+
+    name: str = Field(min_length=1, description="Name used by chain, handles and output files.")
+    input: InputFile = Field(description="Textured mesh (OBJ+MTL or GLB).")
+    portals: dict[str, list[int]] = Field(
+        default_factory=dict,
+        description="Extra portals by file vertex index; end planes 'x-', 'x+', ... and boundary loops "
+        "'loop0', 'loop1', ... are detected.",
+    )
+
+
+class Join(StrictModel):
+    """Piece ``b``'s portal ``b_portal`` is joined to piece ``a``'s portal ``a_portal`` (b is moved)."""
+
+    a: str = Field(description="Piece already placed.")
+    a_portal: str = Field(description="Portal of a ('x+', 'loop0' ... or a name from its portals).")
+    b: str = Field(description="Piece placed by this join.")
+    b_portal: str = Field(description="Portal of b.")
+
+
+class GraphSection(StrictModel):
+    """Constraint graph (3.1)."""
+
+    weld_tol: float = Field(1e-6, gt=0, le=1e-2, description="Co-located vertices share a node (relative).")
+    flat_angle_deg: float = Field(
+        0.5, ge=0, le=10, description="Triangles whose normals differ by at most this are coplanar (flat edge)."
+    )
+    portal_tol: float = Field(
+        1e-6, gt=0, le=1e-2, description="Distance of a portal vertex to its end plane (relative)."
+    )
+
+
+class StiffnessSection(StrictModel):
+    """Edge stress (eq. 2) with stiffness eq. 3; l_min is the one parameter the paper adapts per model."""
+
+    l_min: float | None = Field(None, gt=0, description="Edges shorter than this are rigid (model units).")
+    l_min_quantile: float = Field(
+        0.25, ge=0, le=1, description="When l_min is not given: this quantile of the graph's edge lengths."
+    )
+    w_small: float = Field(1e-3, gt=0, le=1, description="Stiffness at l_min (paper 1e-3).")
+    w_long: float = Field(1e-5, gt=0, le=1, description="Stiffness of the longest edge (paper 1e-5).")
+
+
+class StrictSection(StrictModel):
+    """Strict constraints enter the least squares with a large weight [Loa85]."""
+
+    weight: float = Field(
+        1e4, gt=0, le=1e8,
+        description="Weight of strict rows (eq. 1, 5, links) on squared residuals; residuals fall like 1 / weight.",
+    )
+    direction_form: Literal["vertex", "edge"] = Field(
+        "vertex", description="Eq. 1 per vertex (paper) or one 3-row constraint per edge."
+    )
+
+
+class ContactSection(StrictModel):
+    """Contacts (eq. 5 strict coplanarity, eq. 6 soft position)."""
+
+    enabled: bool = Field(True, description="Detect vertices of one component on a triangle of another.")
+    tol: float = Field(1e-6, gt=0, le=1e-2, description="Distance of a vertex to the triangle (relative).")
+    w_c: float = Field(1e-5, gt=0, le=1, description="Weight of the contact position rows (paper 1e-5).")
+
+
+class GroupSection(StrictModel):
+    """Edge groups (eq. 7): similar direction, similar length, close together."""
+
+    enabled: bool = Field(True, description="Add edge-group rows (switch off to see Fig. 5's distortion).")
+    w_g: float = Field(
+        0.1, gt=0, le=1,
+        description="Group weight: the paper gives 0.1 (3.2) and 1e-2 (3.3); 0.1 keeps risers equal within 1e-4.",
+    )
+    angle_deg: float = Field(2.0, ge=0, le=45, description="Largest angle between grouped edges.")
+    length_tol: float = Field(0.05, ge=0, le=1, description="Largest length difference, share of the longer edge.")
+    distance: float = Field(
+        2.0, gt=0, le=100, description="Largest distance between grouped edge midpoints, in edge lengths."
+    )
+
+
+class SolverSection(StrictModel):
+    """Solver (3.3) and the collapse check (3.4)."""
+
+    steps: int = Field(10, ge=1, le=10000, description="Handles move in this many equal increments.")
+    backend: Literal["auto", "cholespy", "splu"] = Field("auto", description="Sparse factorization.")
+    short_ratio: float = Field(
+        0.2, ge=0, lt=1, description="An edge shorter than this share of its rest length gets l_ki raised."
+    )
+    raise_factor: float = Field(1.5, gt=1, le=100, description="Factor applied to l_ki of a too-short edge.")
+    flip_ratio: float = Field(
+        1e-3, ge=0, lt=1, description="An edge at or below this share of its rest length has collapsed (eq. 4)."
+    )
+    propagation: int | None = Field(
+        None, ge=0,
+        description="While dragging a chain, only pieces at most this many joins from a handle's piece move; "
+        "the last step (release) solves the whole chain (section 5). None: the whole chain at every step.",
+    )
+    allow_partial: bool = Field(
+        False, description="On a refused motion write the last valid step (metrics.status: partial) instead of exit 3."
+    )
+
+
+class ReshapeConfig(RunConfig):
+    """``synthkit reshape``: structure-preserving reshape of a textured mesh or a chain of pieces."""
+
+    method: Literal["reshape"] = "reshape"
+    input: InputFile | None = Field(None, description="Textured mesh (OBJ+MTL or GLB); or give pieces.")
+    pieces: list[PieceSpec] = Field(default_factory=list, description="Pieces of a chain (instead of input).")
+    chain: list[Join] = Field(default_factory=list, description="Joins placing each later piece at a portal.")
+    handles: list[Handle] = Field(min_length=1, description="Moved vertices (at least one).")
+    fixed: list[Selection] = Field(default_factory=list, description="Vertices that keep their position.")
+    links: list[Link] = Field(default_factory=list, description="User links between two vertices (Fig. 6).")
+    graph: GraphSection = Field(default_factory=GraphSection)
+    stiffness: StiffnessSection = Field(default_factory=StiffnessSection)
+    strict: StrictSection = Field(default_factory=StrictSection)
+    contacts: ContactSection = Field(default_factory=ContactSection)
+    groups: GroupSection = Field(default_factory=GroupSection)
+    solver: SolverSection = Field(default_factory=SolverSection)
+    baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
+    preview_size: int = Field(512, ge=64, le=2048, description="Side of the PNG previews in pixels.")
+    view: Literal["front", "top", "side", "iso"] = Field("iso", description="View of the previews.")
+
+    @model_validator(mode="after")
+    def _input_or_pieces(self):
+        if (self.input is None) == (not self.pieces):
+            raise ValueError("give either input or pieces")
+        names = [p.name for p in self.pieces]
+        if len(set(names)) != len(names):
+            raise ValueError(f"piece names must be unique (got {names})")
+        return self
+
+
+CONFIG = ReshapeConfig

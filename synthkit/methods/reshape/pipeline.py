@@ -1,0 +1,464 @@
+"""``synthkit reshape``: load pieces, build the constraint graph and system, drag the handles, write.
+
+Stages (``report.json`` ``timings``): ``load``, ``assemble`` (portals, chain placement), ``graph``
+(3.1), ``constraints`` (3.2, handles, links), ``factor`` and ``solve`` (3.3-3.4), ``baseline``
+(Laplacian edge-vector deformation with the same handles) and ``outputs``.
+
+Outputs: each piece reshaped in its input's format (OBJ with its MTL and textures copied beside
+it, or GLB) with UVs and materials unchanged; ``before.png``, ``after.png`` (elongated edges blue,
+compressed red, handles green), ``baseline.png`` and ``comparison.png``; metrics in the paper's
+Table 4 columns (``vars``, ``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``,
+``factor_ms``, ``solve_ms``) and the quality figures (see the README).
+
+The method has no random choice: the seed does not change the result.
+
+A motion that would flip an edge is refused: by default an InputError (exit 3) naming the edge
+and the step, nothing written; with ``solver.allow_partial`` the last valid step is written and
+``metrics.status`` is ``"partial"``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from synthkit.errors import ConfigError, InputError
+from synthkit.io.images import save_image
+from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
+from synthkit.methods.reshape import constraints as C
+from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
+from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
+from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
+from synthkit.methods.reshape.outputs import edge_colours, reshape_image
+from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
+from synthkit.preview import montage_png
+
+__all__ = ["run", "System", "build_system"]
+
+log = logging.getLogger("synthkit")
+
+_BYTES_PER_NNZ = 400.0
+"""Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
+
+
+@dataclass
+class System:
+    """The weighted rows of one reshape: ``A (m, 3 n)``, ``b (m,)``, each block's row slice, the
+    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups and l_min."""
+
+    A: object
+    b: np.ndarray
+    slices: dict
+    stress_weights: np.ndarray
+    rigid: np.ndarray
+    contacts: np.ndarray
+    groups: list
+    l_min: float
+
+
+def _pieces(cfg) -> list[tuple[str, object, dict]]:
+    if cfg.input is not None:
+        return [(cfg.input.stem, cfg.input, {})]
+    return [(p.name, p.input, p.portals) for p in cfg.pieces]
+
+
+def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
+    """Portal name -> render vertices of one piece (detected end planes and boundary loops, given
+    indices)."""
+    found = {**detect_portals(mesh.V, tol=tol), **boundary_portals(mesh.V, mesh.F, tol=tol)}
+    for name, idx in extra.items():
+        idx = np.asarray(idx, np.int64)
+        bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
+        if len(bad):
+            raise ConfigError(
+                f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)"
+            )
+        found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
+    return found
+
+
+def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict], list[tuple]]:
+    """World offset ``(3,)`` of each piece, the joins made (for the report) and, per join, the
+    joined render vertices ``(piece a, indices, piece b, indices)``."""
+    names = [n for n, _, _ in _pieces(cfg)]
+    if not cfg.chain and len(names) == 1:
+        return [np.zeros(3)], [], []
+    offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
+    portals = {
+        n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")
+        for i, ((n, _, extra), m) in enumerate(zip(_pieces(cfg), meshes, strict=True))
+    }
+    joins, joined = [], []
+    for i, j in enumerate(cfg.chain):
+        key = f"chain[{i}]"
+        for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
+            if piece not in portals:
+                raise ConfigError(f"{key}.{side}: no piece named {piece!r} (pieces: {', '.join(names)})")
+            if portal not in portals[piece]:
+                raise ConfigError(
+                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} "
+                    f"(portals: {', '.join(portals[piece])})"
+                )
+        if j.a not in offsets:
+            raise ConfigError(f"{key}.a: piece {j.a!r} is not placed yet (join pieces in chain order)")
+        if j.b in offsets:
+            raise ConfigError(f"{key}.b: piece {j.b!r} is placed already")
+        ma, mb = meshes[names.index(j.a)], meshes[names.index(j.b)]
+        Pa = portal_positions(ma.V, portals[j.a][j.a_portal], tol=tol) + offsets[j.a]
+        Pb = portal_positions(mb.V, portals[j.b][j.b_portal], tol=tol)
+        try:
+            t, gap = align_portals(Pa, Pb, tol=100 * tol)
+        except ValueError as exc:
+            raise ConfigError(f"{key}: {j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
+        offsets[j.b] = t
+        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "placed_gap": gap})
+        joined.append((names.index(j.a), portals[j.a][j.a_portal], names.index(j.b), portals[j.b][j.b_portal]))
+    missing = [n for n in names if n not in offsets]
+    if missing:
+        raise ConfigError(f"chain: pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
+    return [offsets[n] for n in names], joins, joined
+
+
+def _portal_gaps(joined, ranges, Vout) -> list[float]:
+    """Largest distance from a joined portal vertex of piece a to the nearest of piece b, per join,
+    in the reshaped world positions ``Vout (#V, 3)``."""
+    gaps = []
+    for ia, va, ib, vb in joined:
+        Pa, Pb = Vout[ranges[ia].start + va], Vout[ranges[ib].start + vb]
+        gaps.append(float(np.linalg.norm(Pa[:, None] - Pb[None], axis=2).min(axis=1).max()))
+    return gaps
+
+
+def _snap_joined(V, ranges, joined) -> None:
+    """Move each joined portal vertex of piece b onto its nearest partner of piece a (in place), so
+    that the graph welds every joined pair into one node even when the placed portals differ by
+    more than the weld tolerance (they may differ up to the portal match tolerance)."""
+    for ia, va, ib, vb in joined:
+        Pa = V[ranges[ia].start + va]
+        _, j = cKDTree(Pa).query(V[ranges[ib].start + vb])
+        V[ranges[ib].start + vb] = Pa[j]
+
+
+def _assemble(names, meshes, offsets):
+    """Concatenated ``V (#V, 3)`` (world), ``F (#F, 3)``, ``face_material (#F,)`` and piece ranges."""
+    Vs, Fs, fms, ranges, base, mbase = [], [], [], [], 0, 0
+    for name, m, off in zip(names, meshes, offsets, strict=True):
+        Vs.append(m.V + off)
+        Fs.append(m.F + base)
+        fms.append(m.face_material + mbase)
+        ranges.append(PieceRange(name, base, base + len(m.V), m.position_index, len(m.positions)))
+        base += len(m.V)
+        mbase += len(m.materials)
+    return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
+
+
+def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float) -> System:
+    """All weighted rows of section 3.2 for ``graph`` (lengths relative to ``size`` resolved).
+
+    The paper's weights weight squared residuals (weighted least squares, ``A^T W A`` as in
+    :class:`synthkit.core.lsq.LeastSquares`), so each row is scaled by the square root of its weight:
+    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``.
+    """
+    X0, edges = graph.X0, graph.edges
+    _, length = C.edge_frames(X0, edges)
+    st = cfg.stiffness
+    l_min = st.l_min if st.l_min is not None else float(np.quantile(length, st.l_min_quantile))
+    w = np.sqrt(C.stiffness(length, l_min=l_min, w_small=st.w_small, w_long=st.w_long))
+    W = float(np.sqrt(cfg.strict.weight))
+    w_c = float(np.sqrt(cfg.contacts.w_c))
+    blocks = {
+        "direction": C.direction_rows(X0, edges, weight=W, form=cfg.strict.direction_form),
+        "stress": C.stress_rows(X0, edges, w),
+    }
+    contacts = np.zeros((0, 2), np.int64)
+    if cfg.contacts.enabled:
+        contacts = C.find_contacts(X0, graph.Fn, graph.component, tol=cfg.contacts.tol * size)
+        blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
+            X0, graph.Fn, contacts, strict_weight=W, w_c=w_c
+        )
+    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(
+        X0, graph.bridges, graph.bridge_normals, strict_weight=W, w_c=w_c
+    )
+    groups = []
+    if cfg.groups.enabled:
+        g = cfg.groups
+        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance)
+        blocks["groups"] = C.group_rows(X0, edges, groups, w_g=float(np.sqrt(g.w_g)))
+    blocks["links"] = C.link_rows(X0, links, strict_weight=W)
+    A, b, slices = C.stack_rows(blocks, graph.n_nodes)
+    return System(A, b, slices, w, length < l_min, contacts, groups, l_min)
+
+
+def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
+    """'vertex 12 of piece' for a node (its first render vertex)."""
+    r = int(np.flatnonzero(graph.node_of_vertex == node)[0])
+    p = next(p for p in ranges if p.start <= r < p.stop)
+    return f"vertex {int(p.position_index[r - p.start])} of {p.name}"
+
+
+def _selections(cfg, graph, V, ranges):
+    """Handles ``(k,)`` with targets ``(k, 3)``, fixed ``(f,)`` and link pairs, as ConfigErrors."""
+    try:
+        handles, targets = resolve_handles(cfg.handles, ranges, V, graph.node_of_vertex, graph.X0)
+        fixed = resolve_fixed(cfg.fixed, handles, ranges, V, graph.node_of_vertex)
+        links = resolve_links(cfg.links, ranges, V, graph.node_of_vertex)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return handles, targets, fixed, links
+
+
+def _known(graph, system_pairs, handles, fixed) -> tuple[np.ndarray, np.ndarray]:
+    """Known nodes (handles, fixed, then one anchor per floating cluster) and the anchors."""
+    used = np.zeros(graph.n_nodes, bool)
+    used[graph.Fn.reshape(-1)] = True
+    given = np.concatenate([handles, fixed])
+    anchors = floating_anchors(graph.n_nodes, system_pairs, given, used)
+    unused = np.flatnonzero(~used)
+    return np.concatenate([given, anchors, unused]), anchors
+
+
+def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
+    """Nodes of the pieces farther than ``solver.propagation`` joins from every piece holding a
+    handle (empty without a limit): they keep their place while dragging (section 5)."""
+    limit = cfg.solver.propagation
+    if limit is None or len(sc.names) == 1:
+        return np.zeros(0, np.int64)
+    piece_nodes = [graph.node_of_vertex[r.start:r.stop] for r in sc.ranges]
+    dist = {n: 0 for n, nodes in zip(sc.names, piece_nodes, strict=True) if np.isin(nodes, handles).any()}
+    frontier = list(dist)
+    while frontier:
+        nxt = []
+        for j in cfg.chain:
+            for a, b in ((j.a, j.b), (j.b, j.a)):
+                if a in frontier and b not in dist:
+                    dist[b] = dist[a] + 1
+                    nxt.append(b)
+        frontier = nxt
+    far = [nodes for n, nodes in zip(sc.names, piece_nodes, strict=True) if dist.get(n, limit + 1) > limit]
+    return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
+
+
+def _quality(graph, system, X, known, targets_all, size) -> dict:
+    """Angle, rigid-length, handle and contact figures of node positions ``X (n, 3)``."""
+    X0, edges = graph.X0, graph.edges
+    ang = angle_errors_deg(X0, X, edges)
+    _, rest = C.edge_frames(X0, edges)
+    new = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    rigid = system.rigid
+    contact = 0.0
+    if len(system.contacts):
+        i, t = system.contacts[:, 0], system.contacts[:, 1]
+        T = graph.Fn[t]
+        n = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        contact = float(np.abs(np.einsum("ij,ij->i", X[i] - X[T[:, 0]], n)).max() / size)
+    return {
+        "max_angle_error_deg": float(ang.max()) if len(ang) else 0.0,
+        "mean_angle_error_deg": float(ang.mean()) if len(ang) else 0.0,
+        "rigid_length_error": float(np.abs(new[rigid] / rest[rigid] - 1).max()) if rigid.any() else 0.0,
+        "handle_residual": float(np.linalg.norm(X[known] - targets_all, axis=1).max() / size),
+        "contact_residual": contact,
+        "max_stretch": float((new / rest).max()),
+        "min_stretch": float((new / rest).min()),
+    }
+
+
+def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float) -> dict:
+    """Largest residual of each strict block, unweighted and relative to the model size."""
+    r = system.A @ X.ravel() - system.b
+    out = {}
+    for name in ("direction", "coplanarity", "hole_plane", "links"):
+        sl = system.slices.get(name)
+        if sl is not None and sl.stop > sl.start:
+            out[name] = float(np.abs(r[sl]).max() / np.sqrt(weight) / size)
+    return out
+
+
+def _baseline(graph, known, X_known, backend) -> np.ndarray:
+    """Laplacian baseline positions ``(n, 3)``; floating mesh components get their own anchor."""
+    edges = mesh_edges(graph.Fn)
+    used = np.zeros(graph.n_nodes, bool)
+    used[graph.Fn.reshape(-1)] = True
+    extra = floating_anchors(graph.n_nodes, edges, known, used)
+    A, b = laplacian_rows(graph.X0, edges)
+    Xk = np.vstack([X_known, graph.X0[extra]])
+    return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
+
+
+def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
+    """before.png, after.png, baseline.png and comparison.png."""
+    def image(Xn, key, name):
+        Vn = Xn[graph.node_of_vertex]
+        seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
+        rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
+        ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
+        img = reshape_image(Vn, F, seg, edge_colours(ratio), Xn[handles], view=cfg.view, size=cfg.preview_size)
+        save_image(ctx.path(key, name), img)
+        return img
+
+    imgs = [image(graph.X0, "before", "before.png"), image(X, "after", "after.png")]
+    titles = ["before", "after (reshape)"]
+    if Xb is not None:
+        imgs.append(image(Xb, "baseline_preview", "baseline.png"))
+        titles.append("Laplacian baseline")
+    montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
+
+
+def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X):
+    """Each piece in its input's format, with its companion files."""
+    written = set()
+    for name, m, off, r in zip(names, meshes, offsets, ranges, strict=True):
+        P = m.positions.copy()
+        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
+        suffix = m.source.suffix.lower()
+        target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
+        for extra in companion_files(m):
+            if extra not in written:
+                ctx.path(f"file_{extra}", extra)
+                written.add(extra)
+        save_textured(m, P, target)
+
+
+def _refuse(cfg, result: DragResult, graph, ranges) -> None:
+    a, b = (_vertex_name(n, graph, ranges) for n in result.edge)
+    msg = (
+        f"handles: the edge between {a} and {b} would flip at step {result.step} of {cfg.solver.steps}; "
+        f"motion refused, last valid step {result.steps_done} (solver.allow_partial: true writes it)"
+    )
+    raise InputError(msg)
+
+
+@dataclass
+class Scene:
+    """The assembled pieces: names, meshes, world offsets ``(3,)``, joins (report) and joined portal
+    vertices, render vertices ``V (#V, 3)``, ``F (#F, 3)``, materials, piece ranges, model size."""
+
+    names: list
+    meshes: list
+    offsets: list
+    joins: list
+    joined: list
+    V: np.ndarray
+    F: np.ndarray
+    face_material: np.ndarray
+    ranges: list
+    size: float
+    source: object
+
+
+def _load(cfg, ctx) -> Scene:
+    specs = _pieces(cfg)
+    names = [n for n, _, _ in specs]
+    with ctx.stage("load"):
+        meshes = [load_textured(path) for _, path, _ in specs]
+    with ctx.stage("assemble"):
+        lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
+        hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
+        piece_size = float(np.linalg.norm(hi - lo)) or 1.0
+        offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
+        V, F, fm, ranges = _assemble(names, meshes, offsets)
+        _snap_joined(V, ranges, joined)
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, specs[0][1])
+
+
+def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
+    with ctx.stage("graph"):
+        try:
+            graph = build_graph(
+                sc.V, sc.F, sc.face_material, weld_tol=cfg.graph.weld_tol * sc.size,
+                flat_angle_deg=cfg.graph.flat_angle_deg,
+            )
+        except ValueError as exc:
+            raise InputError(f"{sc.source}: {exc}") from None
+    if not len(graph.edges):
+        raise InputError(f"{sc.source}: the constraint graph has no edge")
+    if graph.counts["ill_formed_contour_vertices"]:
+        log.warning("%s: %d contour vertices are not on exactly two contour edges (contours not well formed)",
+                    sc.source, graph.counts["ill_formed_contour_vertices"])
+    return graph
+
+
+def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
+    """The report's metrics: the drag's outcome first (the CLI's one-line summary shows the first
+    four), then Table 4 columns, counts and the ``quality`` figures."""
+    m = dict(
+        status=result.status, steps_done=result.steps_done, max_angle_error_deg=quality["max_angle_error_deg"],
+        factor_ms=solver.factor_ms, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
+        nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
+        normal_ms=solver.normal_ms,
+        solve_ms=float(np.median(solver.solve_ms)) if solver.solve_ms else None,
+        backend=solver.backend, steps=cfg.solver.steps,
+        length_raises=result.length_raises, edge_groups=len(system.groups),
+        grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
+        l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
+        strict_weight=cfg.strict.weight,
+        strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
+        **extra,
+    )
+    m.update(quality)
+    for join, gap in zip(sc.joins, _portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
+        join["gap"] = gap / sc.size
+    if result.status == "partial":
+        m["refused_edge"] = [_vertex_name(n, graph, sc.ranges) for n in result.edge]
+        m["refused_step"] = result.step
+    return m
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    sc = _load(cfg, ctx)
+    graph = _graph(cfg, ctx, sc)
+    with ctx.stage("constraints"):
+        handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges)
+        ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
+                           60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
+                           "matrix entries", bytes_each=_BYTES_PER_NNZ)
+        system = build_system(cfg, graph, links, size=sc.size)
+        pairs = np.vstack([graph.edges, links, graph.bridges,
+                           np.column_stack([system.contacts[:, 0], graph.Fn[system.contacts[:, 1], 0]])])
+        known, anchors = _known(graph, pairs, handles, fixed)
+    T = graph.X0.copy()
+    T[handles] = targets
+    frozen = _frozen_nodes(cfg, sc, graph, handles)
+    sv = cfg.solver
+    with ctx.stage("factor"):
+        cache = FactorCache(system.A, backend=sv.backend)
+        try:
+            full = cache.get(known)
+            limited = cache.get(np.union1d(known, frozen)) if len(frozen) else full
+        except ValueError as exc:
+            raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
+    with ctx.stage("solve"):
+        result = drag(
+            lambda step: full if step == sv.steps else limited, system.b, X0=graph.X0, T=T, steps=sv.steps,
+            edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
+            short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
+            progress=lambda steps: ctx.progress(steps, total=sv.steps, desc="reshape steps"),
+        )
+    if result.status == "partial" and not sv.allow_partial:
+        _refuse(cfg, result, graph, sc.ranges)
+    reached = graph.X0[known] + (result.steps_done / sv.steps) * (T[known] - graph.X0[known])
+    counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
+                  anchored_components=int(len(anchors)), frozen_nodes=int(len(frozen)),
+                  factorizations=len(cache), factor_cache_hits=cache.hits)
+    quality = _quality(graph, system, result.X, known, reached, sc.size)
+    ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
+    Xb = None
+    if cfg.baseline:
+        with ctx.stage("baseline"):
+            Xb = _baseline(graph, known, reached, sv.backend)
+        base = _quality(graph, system, Xb, known, reached, sc.size)
+        ctx.metrics["baseline"] = base
+        ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
+            ctx.metrics["max_angle_error_deg"], 1e-12
+        )
+    with ctx.stage("outputs"):
+        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X)
+        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
+    log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
+             full.factor_ms)

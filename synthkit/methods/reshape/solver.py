@@ -1,0 +1,248 @@
+"""Least-squares reshape solver with handles eliminated (paper sections 3.3 and 3.4).
+
+``A (m, 3 n)`` and ``b (m,)`` hold every weighted constraint row over the node positions
+``x (3 n,)``. Handle and fixed nodes are *known*: their columns move to the right-hand side,
+``A_u x_u = b - A_k x_k``, so the normal matrix ``N = A_u^T A_u`` depends only on which nodes are
+known. :class:`ReshapeSolver` factors it once (sparse Cholesky, cholespy; or SuperLU tuned as in
+:mod:`synthkit.core.lsq`) and each step costs one pair of triangular solves.
+
+The paper's weights span nine orders of magnitude (strict rows 1e4 against contact positions
+1e-5), so ``N`` can have a condition number near 1e12 on real models while being regular. The
+factorization is therefore checked by its backward error (``||N x - r|| <= 1e-9 ||r||`` on a
+test right-hand side), which a stable Cholesky meets on such matrices; the forward check of
+:class:`synthkit.core.lsq.LeastSquares` (1e-6 on ``x``) would refuse them.
+
+:class:`FactorCache` keeps one factorization per set of known nodes, so a chain dragged with a
+limited propagation length and then released (section 5) factors twice and reuses both.
+:func:`drag` moves the handles to their targets in ``steps`` equal increments. After each step it
+checks eq. 4 on every graph edge: an edge whose projected length ``u_ki . (x_i - x_k)`` fell below
+``short_ratio`` of its rest length gets its stress target ``l_ki`` multiplied by ``raise_factor``
+(only ``b`` changes) and the step is solved again; an edge whose projected length is at most
+``flip_ratio`` of its rest length has collapsed or flipped, and the motion is refused: the result
+is the last valid step.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import splu
+
+from synthkit.core.lsq import have_cholespy
+
+__all__ = ["ReshapeSolver", "FactorCache", "DragResult", "drag", "known_columns", "floating_anchors"]
+
+
+def known_columns(known: np.ndarray) -> np.ndarray:
+    """Columns ``(3 k,)`` of the known nodes ``known (k,)``."""
+    return (3 * np.asarray(known, np.int64)[:, None] + np.arange(3)).ravel()
+
+
+def floating_anchors(n: int, pairs, known, used) -> np.ndarray:
+    """The lowest node ``(c,)`` of every cluster of ``used (n,) bool`` nodes, linked by ``pairs (k, 2)``,
+    that holds no ``known`` node. Without a known node such a cluster can translate freely and the
+    normal matrix is singular; fixing one node keeps it where it is."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(G, directed=False)
+    held = np.zeros(label.max() + 1, bool)
+    held[label[np.asarray(known, np.int64)]] = True
+    nodes = np.flatnonzero(np.asarray(used, bool) & ~held[label])
+    _, first = np.unique(label[nodes], return_index=True)
+    return nodes[first]
+
+
+class ReshapeSolver:
+    """Factor the reshape system once for a set of known (handle and fixed) nodes; solve per step.
+
+    Parameters
+    ----------
+    A : (m, 3 n) sparse weighted constraint matrix
+    known : (k,) int64 nodes whose positions are given
+    backend : "auto" (cholespy when installed, else splu), "cholespy" or "splu"
+
+    Attributes: ``vars`` (unknowns), ``nnz_A`` (of ``A_u``), ``nnz_AtA``, ``normal_ms`` (forming
+    ``A_u^T A_u``), ``factor_ms`` (the sparse factorization alone, Table 4's "factor"),
+    ``solve_ms`` (one entry per solve), ``backend``.
+    Raises ValueError when the normal matrix is singular (an unconstrained node or component).
+    """
+
+    def __init__(self, A, known, *, backend: str = "auto"):
+        if backend not in ("auto", "cholespy", "splu"):
+            raise ValueError(f"unknown backend {backend!r}")
+        A = sp.csc_matrix(A)
+        self.known = np.asarray(known, np.int64)
+        self.known_cols = known_columns(self.known)
+        free = np.ones(A.shape[1], bool)
+        free[self.known_cols] = False
+        self.free_cols = np.flatnonzero(free)
+        A_u = A[:, self.free_cols].tocsr()
+        self.A_k = A[:, self.known_cols].tocsr()
+        self._At = A_u.T.tocsr()
+        self.vars = int(len(self.free_cols))
+        self.nnz_A = int(A_u.nnz)
+        self.n_nodes = A.shape[1] // 3
+        self.backend = ("cholespy" if have_cholespy() else "splu") if backend == "auto" else backend
+        start = time.perf_counter()
+        N = (self._At @ A_u).tocsr()
+        N.sum_duplicates()
+        self.nnz_AtA = int(N.nnz)
+        self.normal_ms = 1e3 * (time.perf_counter() - start)
+        start = time.perf_counter()
+        self._factor(N)
+        self.factor_ms = 1e3 * (time.perf_counter() - start)
+        self._check(N)
+        self.solve_ms: list[float] = []
+
+    def _factor(self, N) -> None:
+        if N.shape[0] == 0:
+            return
+        if self.backend == "cholespy":
+            import cholespy
+
+            try:
+                self._chol = cholespy.CholeskySolverD(
+                    N.shape[0], N.indptr.astype(np.int32), N.indices.astype(np.int32),
+                    np.ascontiguousarray(N.data), cholespy.MatrixType.CSR,
+                )
+            except (ValueError, RuntimeError) as exc:
+                raise ValueError(f"normal matrix is singular: {exc}") from None
+        else:
+            try:
+                self._lu = splu(N.tocsc(), permc_spec="COLAMD", diag_pivot_thresh=0.0,
+                                options={"SymmetricMode": True})
+            except RuntimeError as exc:
+                raise ValueError(f"normal matrix is singular: {exc}") from None
+
+    def _solve_normal(self, rhs: np.ndarray) -> np.ndarray:
+        if len(rhs) == 0:
+            return rhs
+        if self.backend == "cholespy":
+            x = np.zeros_like(rhs)
+            self._chol.solve(np.ascontiguousarray(rhs), x)
+            return x
+        return self._lu.solve(rhs)
+
+    def _check(self, N) -> None:
+        """Backward-error check of the factorization on a test right-hand side."""
+        r = N @ np.linspace(1.0, 2.0, N.shape[0])
+        if not len(r):
+            return
+        x = self._solve_normal(r)
+        if not np.all(np.isfinite(x)) or np.linalg.norm(N @ x - r) > 1e-9 * np.linalg.norm(r):
+            raise ValueError("normal matrix is numerically singular (a node or component is unconstrained)")
+
+    def solve(self, b, X_known) -> np.ndarray:
+        """Node positions ``X (n, 3)`` for right-hand side ``b (m,)`` and known positions ``X_known (k, 3)``."""
+        start = time.perf_counter()
+        rhs = np.asarray(b, np.float64) - self.A_k @ np.asarray(X_known, np.float64).ravel()
+        x = np.empty(3 * self.n_nodes)
+        x[self.free_cols] = self._solve_normal(np.asarray(self._At @ rhs))
+        x[self.known_cols] = np.asarray(X_known, np.float64).ravel()
+        self.solve_ms.append(1e3 * (time.perf_counter() - start))
+        return x.reshape(-1, 3)
+
+
+@dataclass
+class DragResult:
+    """Outcome of :func:`drag`: ``X (n, 3)`` at the last valid step, ``steps_done``, ``status``
+    ("ok" or "partial"), the refused ``edge`` (node pair) and ``step`` when partial, the number of
+    ``length_raises`` and the stress targets ``lengths (E,)`` in use at the end."""
+
+    X: np.ndarray
+    steps_done: int
+    status: str
+    lengths: np.ndarray
+    length_raises: int = 0
+    edge: tuple[int, int] | None = None
+    step: int | None = None
+
+
+def _projected(X, edges, u) -> np.ndarray:
+    return np.einsum("ij,ij->i", X[edges[:, 1]] - X[edges[:, 0]], u)
+
+
+def drag(
+    solver_at,
+    b,
+    *,
+    X0,
+    T,
+    steps: int,
+    edges,
+    stress_slice: slice,
+    stress_weights,
+    short_ratio: float,
+    raise_factor: float,
+    flip_ratio: float,
+    progress=None,
+) -> DragResult:
+    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
+
+    ``solver_at(s)`` gives the :class:`ReshapeSolver` of step ``s`` (1..steps; the same solver for
+    every step, or a limited-propagation one while dragging and a full one at release); at step
+    ``s`` its known nodes sit at ``X0 + s / steps (T - X0)``. ``edges (E, 2)`` are the graph edges
+    whose stress rows occupy ``b[stress_slice]`` with weights ``stress_weights (E,)``;
+    ``progress``, when given, wraps the iterable of steps (a progress bar). Returns the
+    :class:`DragResult` of the last valid step.
+    """
+    X0 = np.asarray(X0, np.float64)
+    T = np.asarray(T, np.float64)
+    b = np.array(b, np.float64)
+    u = X0[edges[:, 1]] - X0[edges[:, 0]]
+    rest = np.linalg.norm(u, axis=1)
+    u /= np.maximum(rest, 1e-300)[:, None]
+    lengths = rest.copy()
+    X_prev, raises = X0, 0
+    step_numbers = range(1, steps + 1)
+    for s in progress(step_numbers) if progress is not None else step_numbers:
+        solver = solver_at(s)
+        Xk = X0[solver.known] + (s / steps) * (T[solver.known] - X0[solver.known])
+        X = solver.solve(b, Xk)
+        short = _projected(X, edges, u) < short_ratio * rest
+        if short.any():
+            lengths[short] *= raise_factor
+            raises += int(short.sum())
+            b[stress_slice] = stress_weights * lengths
+            X = solver.solve(b, Xk)
+        proj = _projected(X, edges, u)
+        flipped = np.flatnonzero(proj <= flip_ratio * rest)
+        if len(flipped):
+            worst = flipped[np.argmin(proj[flipped] / rest[flipped])]
+            edge = (int(edges[worst, 0]), int(edges[worst, 1]))
+            return DragResult(X_prev, s - 1, "partial", lengths, raises, edge, s)
+        X_prev = X
+    return DragResult(X_prev, steps, "ok", lengths, raises)
+
+
+class FactorCache:
+    """Factorizations of one system ``A`` kept per set of known nodes (factor once per handle set).
+
+    ``get(known)`` returns the cached :class:`ReshapeSolver` for that set, factoring on a miss;
+    ``hits`` counts the reuses and ``len()`` the factorizations made.
+    """
+
+    def __init__(self, A, *, backend: str = "auto"):
+        self.A = A
+        self.backend = backend
+        self._solvers: dict[bytes, ReshapeSolver] = {}
+        self.hits = 0
+
+    def get(self, known) -> ReshapeSolver:
+        known = np.asarray(known, np.int64)
+        key = np.sort(known).tobytes()
+        if key in self._solvers:
+            self.hits += 1
+        else:
+            self._solvers[key] = ReshapeSolver(self.A, known, backend=self.backend)
+        return self._solvers[key]
+
+    def __len__(self) -> int:
+        return len(self._solvers)
+
+    def solvers(self) -> list[ReshapeSolver]:
+        return list(self._solvers.values())

@@ -22,8 +22,9 @@ def command(ctx: click.Context, method: str, out_file: str | None) -> None:
     from synthkit.config_template import config_template
     from synthkit.methods import config_module, package_module
 
-    text = config_template(config_module(method).CONFIG, method=method,
-                           values=getattr(package_module(method), "INIT_VALUES", None))
+    package = package_module(method)
+    text = config_template(config_module(method).CONFIG, method=method, values=getattr(package, "INIT_VALUES", None),
+                           required=tuple(getattr(package, "INIT_REQUIRED", ())))
     if out_file is None:
         click.echo(text, nl=False)
         return

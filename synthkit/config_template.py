@@ -4,7 +4,8 @@ Each key is written with its default and a comment giving its description and it
 choices. Sub-sections are nested mappings. Keys without a default, and keys a method needs one of
 (such as petri-synth's ``lattice.unit`` or ``construction.points``), take the method's
 ``INIT_VALUES`` (dotted key -> value, from the method package) marked ``example value``; input
-files left to the user are ``null`` marked ``REQUIRED``.
+files left to the user (required ones, and the package's ``INIT_REQUIRED``) are ``null`` marked
+``REQUIRED``.
 """
 
 from __future__ import annotations
@@ -19,11 +20,20 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 INDENT = "  "
+_REQUIRED = object()
+"""Marks a key of ``required`` among the values."""
 
 
-def config_template(model: type[BaseModel], *, method: str, values: dict[str, Any] | None = None) -> str:
-    """The commented YAML text of ``model`` (a RunConfig subclass) for subcommand ``method``."""
+def config_template(
+    model: type[BaseModel], *, method: str, values: dict[str, Any] | None = None, required: tuple[str, ...] = ()
+) -> str:
+    """The commented YAML text of ``model`` (a RunConfig subclass) for subcommand ``method``.
+
+    ``values`` (dotted key -> value) are written as example values; ``required`` names optional
+    keys a usable config must give all the same (such as one of two alternatives), marked REQUIRED.
+    """
     values = dict(values or {})
+    values.update({key: _REQUIRED for key in required})
     lines = [f"# synthkit {method} config: every key with its default (synthkit init {method}).",
              "# Relative paths resolve against this file's folder.", ""]
     lines += _model_lines(model, values, prefix="", depth=0, method=method)
@@ -40,7 +50,9 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
             lines.append(f"{pad}method: {method}")
             continue
         sub = _sub_model(field.annotation)
-        if dotted in values:
+        if values.get(dotted) is _REQUIRED:
+            lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
+        elif dotted in values:
             lines.append(f"{pad}{key}: {_flow(values[dotted])}  # example value; {_comment(field)}")
         elif sub is not None and (field.is_required() or field.default_factory is not None
                                   or any(k.startswith(dotted + ".") for k in values)):

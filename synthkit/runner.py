@@ -45,6 +45,9 @@ class RunContext:
         Seconds per stage, accumulated by :meth:`stage`.
     outputs : dict[str, str]
         Output key -> file name relative to the output folder, registered by :meth:`path`.
+    status : str
+        ``report.json``'s ``status`` of a run that succeeds: ``"ok"``, or ``"partial"`` when a method
+        wrote a documented partial result (reshape's ``solver.allow_partial``).
     budget : Budget
         The run's memory budget; call ``ctx.budget.require(key, value, count, unit, bytes_each=...)``
         with each size estimate before allocating (see :mod:`synthkit.limits`).
@@ -59,6 +62,7 @@ class RunContext:
         self.timings: dict[str, float] = {}
         self.outputs: dict[str, str] = {}
         self.budget = budget if budget is not None else Budget()
+        self.status = "ok"
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
@@ -210,7 +214,7 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
         pipeline_module(method).run(cfg, ctx)
         if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
             raise RuntimeError(f"method {method} wrote no PNG preview")
-        return _write_report(method, cfg, ctx, config_path, start, "ok")
+        return _write_report(method, cfg, ctx, config_path, start, ctx.status)
     except SynthkitError as exc:
         named = _naming_config(exc, config_path)
         if named.keep_outputs:

@@ -427,6 +427,7 @@ def test_collapse_partial_writes_last_valid_step(tmp_path):
     report, out = reshape(tmp_path, "partial", **collapse_config(allow_partial=True))
     m = report["metrics"]
     assert m["status"] == "partial" and m["steps_done"] == 5 and m["refused_step"] == 6
+    assert report["status"] == "partial"
     assert m["length_raises"] > 0  # edges grew short before the flip: their l_ki was raised
     assert m["min_stretch"] > 0 and m["max_angle_error_deg"] < 0.5
     assert (out / "reshape-wall.obj").is_file()

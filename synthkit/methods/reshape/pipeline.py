@@ -448,6 +448,8 @@ def run(cfg, ctx) -> None:
                   factorizations=len(cache), factor_cache_hits=cache.hits)
     quality = _quality(graph, system, result.X, known, reached, sc.size)
     ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
+    if result.status == "partial":
+        ctx.status = "partial"
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):

@@ -198,8 +198,9 @@ def test_two_processes_into_one_new_out_one_is_refused(tmp_path):
 @pytest.mark.slow
 def test_sigterm_exits_143_and_removes_staging(tmp_path):
     out = tmp_path / "big"
-    cmd = [*SYNTHKIT, "symmetry-texture", str(CONFIGS / "symmetry-texture" / "quilt.yaml"), "--out", str(out),
-           "--no-progress", "--set", "output_size=[1536, 1536]"]
+    # this guided transfer runs for a minute or more: the signal always reaches a run in progress
+    cmd = [*SYNTHKIT, "symmetry-texture", str(CONFIGS / "symmetry-texture" / "transfer.yaml"), "--out", str(out),
+           "--no-progress", "--set", "output_size=[256, 256]", "--set", "synth.sweeps=20"]
     proc = subprocess.Popen(cmd, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not list(tmp_path.glob(".big.partial-*")) and time.monotonic() < deadline:

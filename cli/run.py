@@ -124,7 +124,7 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
     if verbosity(ctx) >= 0:
         click.echo(f"run: {len(rows) - len(failed)} succeeded, {len(failed)} failed", err=True)
         for r in failed:
-            where = f" [{Path(r['out']).name}]" if r["sweep"] and r["out"] else ""
+            where = f" [{batch.folder_name(Path(r['config']).stem, r['sweep'])}]" if r["sweep"] else ""
             click.echo(f"  failed: {r['config']}{where} (exit {r['exit_code']}): {r['error']}", err=True)
     ctx.exit(next((r["exit_code"] for r in failed), 0))
 

@@ -319,7 +319,7 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
     token = uuid.uuid4().hex[:8]
     queue = list(range(len(tasks)))[::-1]
     meta: dict[str, tuple[int, int, float]] = {}
-    done = as_completed()
+    done = as_completed(loop=client.loop)
     overheads: list[float] = []
 
     def submit(i: int, attempt: int) -> None:

@@ -202,8 +202,8 @@ class ClusterError(Exception):
 def local_cluster(n_workers: int, *, retries_handled_by_client: bool = True):
     """A LocalCluster of ``n_workers`` single-threaded worker processes, threads limited to 1 each.
 
-    The thread variables are set in the environment the worker processes are spawned with, so they
-    hold before numpy, BLAS or numba start. The scheduler does not reschedule a task whose worker
+    The thread variables (:data:`THREAD_ENV`) are set in the environment the worker processes are
+    spawned with, so they hold before numpy, BLAS or numba start. The scheduler does not reschedule a task whose worker
     died (``allowed-failures: 0``): :func:`run_on_dask` resubmits it itself, ``retries`` times.
     Worker memory is not limited by Dask (as in a sequential run; ``--max-memory`` budgets each run).
     """
@@ -212,8 +212,10 @@ def local_cluster(n_workers: int, *, retries_handled_by_client: bool = True):
     import dask
     from distributed import LocalCluster
 
-    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
-    environ.update({name: "1" for name in THREAD_ENV})
+    # Dask's default pre-spawn environment also sets MALLOC_TRIM_THRESHOLD_=65536, which makes
+    # glibc return memory to the system at every free: the bundled retarget analysis then runs twice
+    # as slowly. A worker here gets the thread limits only, like a sequential run's memory behaviour.
+    environ = {name: "1" for name in THREAD_ENV}
     settings = {
         "distributed.nanny.pre-spawn-environ": environ,
         "distributed.scheduler.worker-saturation": 1.0,

@@ -69,12 +69,25 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
     failure (0 when all succeeded).
     """
     from synthkit import batch
+    from synthkit.errors import ConfigError
 
     try:
         axes = batch.sweep_axes(sweeps)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--sweep") from None
-    if seed is not None and any(key == "seed" for key, _ in axes):
+    entries = []  # (config, overrides before --set, sweep axes before --sweep)
+    for path in configs:
+        try:
+            spec = batch.read_batch_file(path)
+        except ConfigError as exc:
+            click.echo(f"error: {exc}", err=True)
+            ctx.exit(2)
+        entries.extend([(c, spec.overrides, spec.axes) for c in spec.configs] if spec else [(path, [], [])])
+    for _, _, file_axes in entries:
+        twice = sorted({k for k, _ in file_axes} & {k for k, _ in axes})
+        if twice:
+            raise click.BadParameter(f"{twice[0]} is swept by a batch file too", param_hint="--sweep")
+    if seed is not None and any(key == "seed" for _, _, a in entries for key, _ in [*a, *axes]):
         raise click.BadParameter("--seed and --sweep seed=... both set the seed; give one", param_hint="--sweep")
     if scheduler and scheduler_file:
         raise click.UsageError("give --scheduler or --scheduler-file, not both")
@@ -87,14 +100,15 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
                    f"pip install '{batch.DIST_EXTRA}'", err=True)
         ctx.exit(2)
 
-    jobs = [batch.Job(path, [*overrides, *batch.sweep_overrides(combo)], combo)
-            for path in configs for combo in batch.combinations(axes)]
+    jobs = [batch.Job(path, [*base, *overrides, *batch.sweep_overrides(combo)], combo,
+                      set_overrides=[*base, *overrides])
+            for path, base, file_axes in entries for combo in batch.combinations([*file_axes, *axes])]
     names = [batch.folder_name(Path(job.config).stem, job.sweep) for job in jobs]
     clashes = sorted({s for s in names if names.count(s) > 1})
     if clashes:
         click.echo(f"error: configs share output names under {out_root}: {', '.join(clashes)}", err=True)
         ctx.exit(2)
-    rows: list[dict] = [_row(job, overrides, "skipped") for job in jobs]
+    rows: list[dict] = [_row(job, "skipped") for job in jobs]
     bar = _progress_bar(ctx, len(jobs), no_progress)
     try:
         if remote or workers > 1:
@@ -129,8 +143,8 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
     ctx.exit(next((r["exit_code"] for r in failed), 0))
 
 
-def _row(job, overrides, status: str) -> dict:
-    return {"config": job.config, "overrides": list(overrides), "sweep": dict(job.sweep), "status": status,
+def _row(job, status: str) -> dict:
+    return {"config": job.config, "overrides": list(job.set_overrides), "sweep": dict(job.sweep), "status": status,
             "exit_code": None, "seconds": None, "out": None, "worker": None, "metrics": {}, "error": None}
 
 

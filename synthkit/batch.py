@@ -137,15 +137,93 @@ def sweep_overrides(sweep: dict[str, str]) -> list[str]:
     return [f"{k}={v}" for k, v in sweep.items()]
 
 
+# ----------------------------------------------------------------------------------- batch files
+
+BATCH_KEYS = ("configs", "set", "sweep")
+"""Top-level keys of a batch file (a YAML file with ``configs:`` and no ``method:``)."""
+
+
+@dataclass
+class BatchFile:
+    """A batch file: configs (paths relative to the file), ``set:`` overrides and ``sweep:`` axes."""
+
+    path: str
+    configs: list[str]
+    overrides: list[str]
+    axes: list[tuple[str, list[str]]]
+
+
+def _yaml_text(value: Any) -> str:
+    """``value`` as YAML text for an override: a string as written when it reads back as itself,
+    anything else as JSON (which is YAML)."""
+    import yaml
+
+    if isinstance(value, str):
+        try:
+            if yaml.safe_load(value) == value:
+                return value
+        except yaml.YAMLError:
+            pass
+    return json.dumps(value)
+
+
+def read_batch_file(path: str) -> BatchFile | None:
+    """The batch file at ``path``, or None when ``path`` is not one (a config, or not readable:
+    the run then reports that as for any config).
+
+    A batch file is a YAML mapping with ``configs:`` (a list of config files, relative to the batch
+    file) and no ``method:``; optional ``set:`` maps ``key.path`` to a value (as ``--set``) and
+    ``sweep:`` maps ``key.path`` to a list of values or a range string ``"A..B"`` (as ``--sweep``).
+    Raises ConfigError naming the file and the key for a malformed one.
+    """
+    from synthkit.config import load_yaml
+    from synthkit.errors import ConfigError, SynthkitError
+
+    try:
+        data = load_yaml(Path(path))
+    except SynthkitError:
+        return None
+    if "configs" not in data or "method" in data:
+        return None
+    unknown = sorted(set(data) - set(BATCH_KEYS))
+    if unknown:
+        raise ConfigError(f"{path}: unknown key {unknown[0]!r} in a batch file (keys: {', '.join(BATCH_KEYS)})")
+    configs, overrides, sweep = data["configs"], data.get("set") or {}, data.get("sweep") or {}
+    if not isinstance(configs, list) or not configs or not all(isinstance(c, str) and c for c in configs):
+        raise ConfigError(f"{path}: configs: expected a list of config file paths")
+    for key, value in (("set", overrides), ("sweep", sweep)):
+        if not isinstance(value, dict) or not all(isinstance(k, str) and _KEY.match(k) for k in value):
+            raise ConfigError(f"{path}: {key}: expected a mapping of key.path to values")
+    axes = []
+    for key, values in sweep.items():
+        if isinstance(values, str):
+            values = split_values(values)
+        elif isinstance(values, list) and values:
+            values = [_yaml_text(v) for v in values]
+        else:
+            raise ConfigError(f"{path}: sweep.{key}: expected a list of values or a range such as 0..9")
+        try:
+            axes.append((key, expand_values(values)))
+        except ValueError as exc:
+            raise ConfigError(f"{path}: sweep.{key}: {exc}") from None
+        if len(set(axes[-1][1])) != len(axes[-1][1]):
+            raise ConfigError(f"{path}: sweep.{key}: repeats a value")
+    base = Path(path).parent
+    return BatchFile(path=str(path), configs=[str(base / c) if not os.path.isabs(c) else c for c in configs],
+                     overrides=[f"{k}={_yaml_text(v)}" for k, v in overrides.items()], axes=axes)
+
+
 # ------------------------------------------------------------------------------------------ jobs
 
 @dataclass
 class Job:
-    """One run of a batch: a config, its overrides (``--set`` then sweep) and its output folder."""
+    """One run of a batch: a config, its overrides (batch file ``set:``, ``--set``, then the sweep's,
+    all in ``overrides``; the first two also in ``set_overrides``) and its output folder."""
 
     config: str
     overrides: list[str]
     sweep: dict[str, str] = field(default_factory=dict)
+    set_overrides: list[str] = field(default_factory=list)
     out: str | None = None
 
 
@@ -364,6 +442,8 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
 
 __all__ = [
     "DIST_EXTRA",
+    "BatchFile",
+    "read_batch_file",
     "THREAD_ENV",
     "ClusterError",
     "Job",

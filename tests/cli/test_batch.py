@@ -132,6 +132,47 @@ def test_sweep_failure_is_isolated(runner, echo_config, tmp_path):
     assert not (root / "echo__gain-0").exists() and (root / "echo__gain-1" / "result.png").is_file()
 
 
+def test_batch_file_with_set_and_sweep(runner, echo_config, tmp_path):
+    sub = tmp_path / "study"
+    sub.mkdir()
+    (sub / "study.yaml").write_text(
+        "configs: [../echo.yaml]\n"
+        "set: {mode: copy}\n"
+        "sweep:\n  gain: [0.5, 2]\n  seed: 1..3\n"
+    )
+    root = tmp_path / "o"
+    result = runner.invoke(cli, ["run", str(sub / "study.yaml"), "--out-root", str(root), "--set", "filter.sigma=2"])
+    assert result.exit_code == 0, result.stderr
+    rows = json.loads((root / "batch.json").read_text())["runs"]
+    assert len(rows) == 6 and rows[0]["config"] == str(sub / "../echo.yaml")
+    assert rows[0]["overrides"] == ["mode=copy", "filter.sigma=2"]
+    assert [Path(r["out"]).name for r in rows] == [f"echo__gain-{g}__seed-{s}" for g in ("0.5", "2") for s in "123"]
+    report = json.loads((root / "echo__gain-2__seed-3" / "report.json").read_text())
+    assert report["seed"] == 3 and report["config"]["gain"] == 2.0 and report["config"]["filter"]["sigma"] == 2.0
+
+
+@pytest.mark.parametrize("text, message", [
+    ("configs: [a.yaml]\nsweeps: {seed: 1..2}\n", "unknown key 'sweeps' in a batch file"),
+    ("configs: a.yaml\n", "configs: expected a list of config file paths"),
+    ("configs: [a.yaml]\nsweep: {seed: 5}\n", "sweep.seed: expected a list of values or a range such as 0..9"),
+    ("configs: [a.yaml]\nsweep: {seed: 3..1}\n", "sweep.seed: range 3..1 is empty"),
+    ("configs: [a.yaml]\nset: [seed]\n", "set: expected a mapping"),
+])
+def test_bad_batch_file_one_line_exit_2(runner, tmp_path, text, message):
+    path = tmp_path / "b.yaml"
+    path.write_text(text)
+    result = runner.invoke(cli, ["run", str(path), "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 2
+    assert result.stderr.strip().splitlines() == [f"error: {path}: {message}"]
+
+
+def test_sweep_key_in_batch_file_and_option_is_refused(runner, echo_config, tmp_path):
+    path = tmp_path / "b.yaml"
+    path.write_text("configs: [echo.yaml]\nsweep: {seed: 1..2}\n")
+    result = runner.invoke(cli, ["run", str(path), "--sweep", "seed=3,4", "--out-root", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "seed is swept by a batch file too" in result.stderr
+
+
 @pytest.mark.parametrize("args, message", [
     (["--sweep", "gain"], "--sweep"),
     (["--sweep", "seed=1,2", "--seed", "3"], "both set the seed"),

@@ -12,6 +12,7 @@ travels back through Dask. A worker that dies during a run is seen by the client
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import itertools
 import json
@@ -187,7 +188,9 @@ def read_batch_file(path: str) -> BatchFile | None:
         return None
     unknown = sorted(set(data) - set(BATCH_KEYS))
     if unknown:
-        raise ConfigError(f"{path}: unknown key {unknown[0]!r} in a batch file (keys: {', '.join(BATCH_KEYS)})")
+        close = difflib.get_close_matches(unknown[0], BATCH_KEYS, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"keys: {', '.join(BATCH_KEYS)}"
+        raise ConfigError(f"{path}: unknown key {unknown[0]!r} in a batch file ({hint})")
     configs, overrides, sweep = data["configs"], data.get("set") or {}, data.get("sweep") or {}
     if not isinstance(configs, list) or not configs or not all(isinstance(c, str) and c for c in configs):
         raise ConfigError(f"{path}: configs: expected a list of config file paths")

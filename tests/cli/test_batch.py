@@ -152,7 +152,7 @@ def test_batch_file_with_set_and_sweep(runner, echo_config, tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    ("configs: [a.yaml]\nsweeps: {seed: 1..2}\n", "unknown key 'sweeps' in a batch file"),
+    ("configs: [a.yaml]\nsweeps: {seed: 1..2}\n", "unknown key 'sweeps' in a batch file (did you mean 'sweep'?)"),
     ("configs: a.yaml\n", "configs: expected a list of config file paths"),
     ("configs: [a.yaml]\nsweep: {seed: 5}\n", "sweep.seed: expected a list of values or a range such as 0..9"),
     ("configs: [a.yaml]\nsweep: {seed: 3..1}\n", "sweep.seed: range 3..1 is empty"),

@@ -156,7 +156,7 @@ def test_batch_file_with_set_and_sweep(runner, echo_config, tmp_path):
     ("configs: a.yaml\n", "configs: expected a list of config file paths"),
     ("configs: [a.yaml]\nsweep: {seed: 5}\n", "sweep.seed: expected a list of values or a range such as 0..9"),
     ("configs: [a.yaml]\nsweep: {seed: 3..1}\n", "sweep.seed: range 3..1 is empty (write the smaller end first)"),
-    ("configs: [a.yaml]\nset: [seed]\n", "set: expected a mapping"),
+    ("configs: [a.yaml]\nset: [seed]\n", "set: expected a mapping of key.path to values"),
 ])
 def test_bad_batch_file_one_line_exit_2(runner, tmp_path, text, message):
     path = tmp_path / "b.yaml"

@@ -382,8 +382,18 @@ def check_workers(client, files: Sequence[str], out_root: str) -> None:
                                "filesystem every worker shares")
 
 
-def _slots(client) -> int:
-    return max(1, sum(client.nthreads().values()))
+class _Slots:
+    """How many runs may be in flight: the workers' threads, asked of the scheduler at most every
+    ``refresh`` seconds (workers may join or leave a cluster during a batch)."""
+
+    def __init__(self, client, refresh: float = 5.0):
+        self.client, self.refresh, self.asked, self.value = client, refresh, -float("inf"), 1
+
+    def __call__(self) -> int:
+        if time.monotonic() - self.asked > self.refresh:
+            self.value = max(1, sum(self.client.nthreads().values()))
+            self.asked = time.monotonic()
+        return self.value
 
 
 def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
@@ -404,13 +414,14 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
     meta: dict[str, tuple[int, int, float]] = {}
     done = as_completed(loop=client.loop)
     overheads: list[float] = []
+    slots = _Slots(client)
 
     def submit(i: int, attempt: int) -> None:
         key = f"synthkit-run-{token}-{i}-{attempt}"
         meta[key] = (i, attempt, time.perf_counter())
         done.add(client.submit(execute, **tasks[i], key=key, pure=False))
 
-    for _ in range(min(_slots(client), len(queue))):
+    for _ in range(min(slots(), len(queue))):
         submit(queue.pop(), 0)
     for future in done:
         i, attempt, submitted = meta.pop(future.key)
@@ -438,7 +449,7 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
         outcome |= {"attempts": attempt + 1, "latency": latency}
         on_done(i, outcome)
         if queue:
-            for _ in range(min(_slots(client) - len(meta), len(queue))):
+            for _ in range(min(slots() - len(meta), len(queue))):
                 submit(queue.pop(), 0)
     return {"overhead": sum(overheads) / len(overheads) if overheads else 0.0}
 

@@ -86,6 +86,7 @@ def main() -> None:
         start = time.perf_counter()
         cluster = batch.local_cluster(2)
         client = Client(cluster, set_as_default=False)
+        batch.prepare_workers(client)
         t_start = time.perf_counter() - start
         outcomes: dict[int, dict] = {}
         tasks = [{"config": str(link), "out_dir": str(par_root / link.stem), "seed": None, "overrides": [],

@@ -242,6 +242,7 @@ def _run_distributed(ctx, jobs, rows, bar, *, out_root, seed, overwrite, workers
 
             cluster = batch.local_cluster(workers)
             client = Client(cluster, set_as_default=False)
+        batch.prepare_workers(client)
     except batch.ClusterError as exc:
         for handle in (client, cluster):
             if handle is not None:

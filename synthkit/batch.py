@@ -382,6 +382,13 @@ def check_workers(client, files: Sequence[str], out_root: str) -> None:
                                "filesystem every worker shares")
 
 
+def prepare_workers(client) -> None:
+    """Register :class:`synthkit.batch_plugin.MainThreadImports` on every worker, present and future."""
+    from synthkit.batch_plugin import MainThreadImports
+
+    client.register_plugin(MainThreadImports())
+
+
 class _Slots:
     """How many runs may be in flight: the workers' threads, asked of the scheduler at most every
     ``refresh`` seconds (workers may join or leave a cluster during a batch)."""
@@ -470,6 +477,7 @@ __all__ = [
     "folder_name",
     "local_cluster",
     "parse_sweep",
+    "prepare_workers",
     "read_scheduler_file",
     "run_on_dask",
     "sanitise",

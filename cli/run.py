@@ -273,7 +273,10 @@ def _run_distributed(ctx, jobs, rows, bar, *, out_root, seed, overwrite, workers
     finally:
         client.close()
         if cluster is not None:
-            cluster.close()
+            cluster.close()  # interrupted: the workers are gone, so are their runs' staging folders
+            for i in order:
+                if rows[i]["status"] == "skipped":
+                    outdir.remove_leftovers(Path(jobs[i].out).absolute())
     return 0
 
 

@@ -413,3 +413,30 @@ def test_local_workers_thread_limits_and_main_thread_imports():
         cluster.close()
     assert state == {"pymeshlab": True, "threads": dict.fromkeys(batch.THREAD_ENV, "1"), "malloc_trim": None,
                      "main": "MainThread"}
+
+
+@needs_dask
+@pytest.mark.slow
+def test_sigterm_during_a_local_cluster_batch_leaves_no_half_folder(tmp_path):
+    root = tmp_path / "o"
+    root.mkdir()
+    proc = subprocess.Popen([str(Path(sys.executable).parent / "synthkit"), "run", str(FAST[3]), str(FAST[2]),
+                             "--out-root", str(root), "--workers", "2", "--no-progress"], env=_env(), cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(root.glob(".*.partial-*")) and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, stderr
+    assert "error: terminated (SIGTERM)" in stderr
+    assert _hidden(root) == []
+    for row in _rows(root):
+        folder = root / Path(row["config"]).stem
+        assert row["status"] in ("ok", "skipped")
+        assert (folder / "report.json").is_file() if row["status"] == "ok" else not folder.exists()

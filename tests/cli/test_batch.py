@@ -439,4 +439,6 @@ def test_sigterm_during_a_local_cluster_batch_leaves_no_half_folder(tmp_path):
     for row in _rows(root):
         folder = root / Path(row["config"]).stem
         assert row["status"] in ("ok", "skipped")
-        assert (folder / "report.json").is_file() if row["status"] == "ok" else not folder.exists()
+        # a run may finish on its worker after the client stopped listening: skipped, yet complete
+        assert (folder / "report.json").is_file() and (folder / ".synthkit-output").is_file() or (
+            row["status"] == "skipped" and not folder.exists())

@@ -323,6 +323,16 @@ def read_scheduler_file(path: str) -> str:
     return address
 
 
+_ADDRESS = re.compile(r"^(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+def check_address(address: str, *, what: str) -> None:
+    """Refuse (ClusterError) what is not ``[PROTOCOL://]HOST:PORT`` with a port in 1..65535."""
+    match = _ADDRESS.match(address)
+    if not match or not 1 <= int(match.group(3)) <= 65535:
+        raise ClusterError(f"{what}: not a scheduler address (tcp://HOST:PORT)")
+
+
 def connect(address: str, *, timeout: float, what: str):
     """A Client of the scheduler at ``address`` with at least one worker, within ``timeout`` seconds.
 
@@ -331,6 +341,7 @@ def connect(address: str, *, timeout: float, what: str):
 
     from distributed import Client
 
+    check_address(address, what=what)
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     start = time.monotonic()
     try:
@@ -467,6 +478,7 @@ __all__ = [
     "read_batch_file",
     "THREAD_ENV",
     "ClusterError",
+    "check_address",
     "Job",
     "check_access",
     "check_workers",

@@ -213,6 +213,17 @@ def _env() -> dict[str, str]:
     return env
 
 
+@pytest.mark.parametrize("address", ["notanaddress", "inproc://x", "tcp://127.0.0.1:99999", "tcp://h:0", "tcp://:1"])
+def test_scheduler_address_checked_before_connecting(address):
+    with pytest.raises(batch.ClusterError, match=re.escape(f"--scheduler {address}: not a scheduler address")):
+        batch.check_address(address, what=f"--scheduler {address}")
+
+
+def test_scheduler_addresses_accepted():
+    for address in ("tcp://127.0.0.1:8786", "node-3.cluster:8786", "tls://[::1]:8786", "ucx://10.0.0.2:13337"):
+        batch.check_address(address, what="--scheduler")
+
+
 @needs_dask
 def test_unreachable_scheduler_one_line_exit_2_within_timeout(runner, tmp_path):
     address = f"tcp://127.0.0.1:{_free_port()}"

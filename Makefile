@@ -13,7 +13,7 @@ help: ## List the targets
 
 $(STAMP): pyproject.toml setup.py
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,dist]'
 	$(BIN)/python -c 'from synthkit.core.graphcut import compile_kernels; compile_kernels()'
 	touch $(STAMP)
 

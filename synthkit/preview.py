@@ -95,20 +95,7 @@ def rasterize_mesh(
         i, j = np.nonzero(np.add.outer(np.arange(n + 1), np.arange(n + 1)) <= n)
         bary = np.stack([i, j, n - i - j], axis=1) / n
         for chunk in np.array_split(faces, max(1, len(faces) * len(bary) // 2_000_000 + 1)):
-            pts = np.einsum("sk,fkd->fsd", bary, pix[chunk])
-            z = np.einsum("sk,fk->fs", bary, tri[chunk, :, 2])
-            px = np.clip(np.round(pts[..., 0]).astype(np.int64), 0, size - 1)
-            py = np.clip(np.round(pts[..., 1]).astype(np.int64), 0, size - 1)
-            flat = (py * size + px).ravel()
-            zf = z.ravel()
-            fid = np.repeat(chunk, len(bary))
-            order = np.lexsort((-zf, flat))
-            flat, zf, fid = flat[order], zf[order], fid[order]
-            first = np.r_[True, flat[1:] != flat[:-1]]
-            flat, zf, fid = flat[first], zf[first], fid[first]
-            closer = zf > depth[flat]
-            depth[flat[closer]] = zf[closer]
-            face_at[flat[closer]] = fid[closer]
+            _splat(bary, pix[chunk], tri[chunk, :, 2], chunk, size, depth, face_at)
     covered = face_at >= 0
     img.reshape(-1, 3)[covered] = colors[face_at[covered]]
     if lines is not None and len(lines):
@@ -119,6 +106,32 @@ def rasterize_mesh(
             cv2.line(canvas, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), (0.85, 0.1, 0.1), 2, cv2.LINE_AA)
         img = canvas
     return img
+
+
+def _splat(bary: np.ndarray, pix: np.ndarray, z: np.ndarray, faces: np.ndarray, size: int,
+           depth: np.ndarray, face_at: np.ndarray) -> None:
+    """Splat the samples ``bary (S, 3)`` of triangles ``pix (f, 3, 2)`` (pixels) with depths
+    ``z (f, 3)`` into the z-buffer ``depth (size*size,)`` / ``face_at`` (face index ``faces[i]``).
+
+    Per pixel the deepest sample wins, the first one (face order, then sample order) among equal
+    depths, and it replaces the buffer only when strictly nearer: the result of a stable sort by
+    pixel and depth, without the sort (one ``maximum.at`` and one ``minimum.at`` over the samples).
+    """
+    pts = np.einsum("sk,fkd->fsd", bary, pix)  # einsum's sums: written out, they differ in the last bit
+    zs = np.einsum("sk,fk->fs", bary, z).ravel()
+    px = np.clip(np.round(pts[..., 0]).astype(np.int64), 0, size - 1)
+    py = np.clip(np.round(pts[..., 1]).astype(np.int64), 0, size - 1)
+    flat = (py * size + px).ravel()
+    best = np.full(size * size, -np.inf)
+    np.maximum.at(best, flat, zs)
+    level = np.nonzero(zs == best[flat])[0]
+    first = np.full(size * size, len(zs), dtype=np.int64)
+    np.minimum.at(first, flat[level], level)
+    pixels = np.nonzero(first < len(zs))[0]
+    sample = first[pixels]
+    closer = zs[sample] > depth[pixels]
+    depth[pixels[closer]] = zs[sample[closer]]
+    face_at[pixels[closer]] = faces[sample[closer] // len(bary)]
 
 
 def render_mesh_png(path: Path | str, V: np.ndarray, F: np.ndarray, **kwargs) -> np.ndarray:

@@ -369,7 +369,9 @@ def test_run_summary_names_each_failure_and_writes_batch_json(runner, tmp_path, 
     result = runner.invoke(cli, ["run", str(echo_config), str(bad), str(crash), "--out-root", str(root)])
     assert result.exit_code == 2
     tail = result.stderr.strip().splitlines()[-3:]
-    assert tail == ["run: 1 succeeded, 2 failed", f"  failed: {bad} (exit 2)", f"  failed: {crash} (exit 3)"]
+    assert tail[0] == "run: 1 succeeded, 2 failed"
+    assert tail[1] == f"  failed: {bad} (exit 2): {bad}: gain: Input should be greater than 0 (got 0)"
+    assert tail[2].startswith(f"  failed: {crash} (exit 3): ") and tail[2].endswith("deliberately refused")
     batch = json.loads((root / "batch.json").read_text())
     rows = {Path(r["config"]).name: r for r in batch["runs"]}
     assert [rows[n]["status"] for n in ("echo.yaml", "bad.yaml", "crash.yaml")] == ["ok", "failed", "failed"]

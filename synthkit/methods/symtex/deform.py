@@ -465,7 +465,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         max_evaluations=dc.max_evaluations,
         progress=ctx.progress,
         out_shape=out_shape,
-        max_stretch=dc.max_stretch,
+        max_stretch=cfg.tile.max_stretch if cfg.mode == "tile" else dc.max_stretch,
         min_gain=dc.min_gain,
     )
     interp = dc.interpolation
@@ -490,7 +490,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "mean_displacement": float(moved.mean()),
         "max_displacement": float(moved.max()),
         "max_stretch": opt.stretch(),
-        "max_stretch_bound": dc.max_stretch,
+        "max_stretch_bound": opt.max_stretch,
         "moves_rejected_by_stretch": opt.rejected_stretch,
     }
     baseline = None

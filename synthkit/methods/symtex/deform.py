@@ -108,7 +108,10 @@ class DeformOptimizer:
     ``min_gain`` times its magnitude (a relative threshold: moves that buy a gain within the
     evaluation noise only add warp), and, with ``max_stretch``, only when no triangle of the warp
     is stretched by more than that against ``U0`` (:func:`synthkit.core.warp.triangle_stretch`);
-    ``rejected_stretch`` counts the moves that bound refused.
+    ``rejected_stretch`` counts the moves that bound refused. ``accept(U) -> bool``, when given, is
+    a further condition on every move (mode ``tile``: the Lanczos render keeps
+    ``SHARPNESS_MIN`` of the input's high-frequency energy); ``rejected_accept`` counts its
+    refusals.
     """
 
     def __init__(
@@ -129,6 +132,7 @@ class DeformOptimizer:
         out_shape=None,
         max_stretch=None,
         min_gain=0.0,
+        accept=None,
     ):
         self.img = np.asarray(img, dtype=np.float32)
         self.loss = loss
@@ -145,8 +149,19 @@ class DeformOptimizer:
         self.max_stretch = max_stretch
         self.min_gain = float(min_gain)
         self.rejected_stretch = 0
+        self.accept = accept
+        self.rejected_accept = 0
         self.evaluations = 0
         self.history: list[float] = []
+
+    def _allowed(self, U) -> bool:
+        if self.max_stretch is not None and self.stretch(U) > self.max_stretch:
+            self.rejected_stretch += 1
+            return False
+        if self.accept is not None and not self.accept(U):
+            self.rejected_accept += 1
+            return False
+        return True
 
     def stretch(self, U=None) -> float:
         """Largest triangle stretch of ``U`` (default the current warp) against ``U0``."""
@@ -172,7 +187,10 @@ class DeformOptimizer:
             Hpos = self.U[handles].copy()
             if level > 0:
                 # the finer level's parametrization: its handles where the coarser level left them
-                current, self.U = self._eval(solver, Hpos)
+                val, U = self._eval(solver, Hpos)
+                if self._allowed(U):
+                    current, self.U = val, U
+                # else keep the coarser warp: the finer solve of the same handles breaks a bound
                 self.history.append(current)
             step = self.step / 2**level
             while step >= self.min_step and budget_left():
@@ -199,8 +217,7 @@ class DeformOptimizer:
                         trial[h] -= step * grad / g
                         val, U = self._eval(solver, trial)
                         if val < current - self.min_gain * abs(current):
-                            if self.max_stretch is not None and self.stretch(U) > self.max_stretch:
-                                self.rejected_stretch += 1
+                            if not self._allowed(U):
                                 continue
                             current, Hpos, self.U = val, trial, U
                             moved += 1
@@ -469,6 +486,14 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         min_gain=dc.min_gain,
     )
     interp = dc.interpolation
+    # sharpness reference of the optimized tile: the part of the input it is cut from (the whole
+    # input when upsampled); a photo's high frequencies vary across it (texture_bricks' 154 px
+    # centre has 0.83 of its 256 px crop's), so the whole input would be an unfair reference
+    hf_view = high_frequency_energy(view if crop else src)
+    if cfg.mode == "tile":
+        lum = sy.f_lum(src)
+        floor = SHARPNESS_MIN * hf_view
+        opt.accept = lambda U: high_frequency_energy(opt.sampler.warp(lum, U, interpolation=interp)) >= floor
     start_img = opt.sampler.warp(src, U0, interpolation=interp)
     with ctx.stage("optimize"):
         opt.run()
@@ -492,6 +517,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "max_stretch": opt.stretch(),
         "max_stretch_bound": opt.max_stretch,
         "moves_rejected_by_stretch": opt.rejected_stretch,
+        "moves_rejected_by_sharpness": opt.rejected_accept,
     }
     baseline = None
     optimized = None
@@ -504,7 +530,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         hf_input = high_frequency_energy(src)
         input_objective = objective.value(src)
         candidates = {
-            "optimized": _tile_candidate(optimized, src, objective, hf_input, metrics["max_stretch"]),
+            "optimized": _tile_candidate(optimized, src, objective, hf_view, metrics["max_stretch"]),
             "baseline": _tile_candidate(baseline, src, objective, hf_input, 1.0),
             "input": _tile_candidate(src, src, objective, hf_input, 1.0),
         }

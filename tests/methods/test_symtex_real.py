@@ -59,11 +59,23 @@ def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path, write_config):
 
 
 @pytest.mark.slow
-def test_real_grid_photo_warped_is_symmetrized_back(tmp_path, symmetrized_toward):
-    """A photographed grid (lattice-p4) warped by a known smooth field: ARAP symmetrization raises
-    E_symm and brings the image closer to the unwarped photograph."""
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "lattice-p4 resampled to 96 px (a period of ~10 px, 5x the field's amplitude of 3 px "
+        "relative to it): the remaining field error is 3.15 px of 2.87 (2.48 without the "
+        "deform.max_stretch bound); the mean absolute image difference this test used to check "
+        "improved partly because bilinear rendering blurred the thin lines (issue 14)"
+    ),
+)
+def test_real_grid_photo_warped_is_symmetrized_back(tmp_path, write_config):
+    """A photographed grid (lattice-p4) resized to 96 px and warped by a known smooth field: ARAP
+    symmetrization raises E_symm and removes half of the displacement error, measured against the
+    field (see the 128 px native crop in test_real_photo_known_warp_has_half_its_error_removed)."""
     grid = real_texture("lattice-p4.jpg", 96)
-    symmetrized_toward(tmp_path, grid, textures.smooth_warp(grid, 3.0))
+    m, before, after = symmetrize_real(tmp_path, write_config, grid, 3.0)
+    assert m["objective_end"] > m["objective_start"]
+    assert after <= 0.5 * before, (before, after)
 
 
 @pytest.mark.slow

@@ -62,8 +62,8 @@ def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path, write_config):
 @pytest.mark.xfail(
     strict=True,
     reason=(
-        "lattice-p4 resampled to 96 px (a period of ~10 px, 5x the field's amplitude of 3 px "
-        "relative to it): the remaining field error is 3.15 px of 2.87 (2.48 without the "
+        "lattice-p4 resampled to 96 px (a period of ~10 px, about three times the field's 3 px "
+        "amplitude): the remaining field error is 3.15 px of 2.87 (2.48 without the "
         "deform.max_stretch bound); the mean absolute image difference this test used to check "
         "improved partly because bilinear rendering blurred the thin lines (issue 14)"
     ),
@@ -247,6 +247,13 @@ MISSED = pytest.mark.xfail(
         "irregular across the wrap, and maximizing E_symm warps it (README symmetrize table)"
     ),
 )
+MISSED_OBJECTIVE = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed by the objective, not the search: E_symm of the result exceeds the "
+        "unwarped photograph's (brick 1.09e-4 vs 5.8e-5, cars 0.0129 vs 0.0116; README)"
+    ),
+)
 
 
 @pytest.mark.slow
@@ -259,7 +266,12 @@ def test_real_regular_photo_comes_back_nearly_unchanged(tmp_path, write_config, 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "name", ["lattice-p4.jpg", pytest.param("brick", marks=MISSED), pytest.param("lattice-p2-2.jpg", marks=MISSED)]
+    "name",
+    [
+        "lattice-p4.jpg",
+        pytest.param("brick", marks=MISSED_OBJECTIVE),
+        pytest.param("lattice-p2-2.jpg", marks=MISSED_OBJECTIVE),
+    ],
 )
 def test_real_photo_known_warp_has_half_its_error_removed(tmp_path, write_config, name):
     """A 128 px native crop warped by textures.smooth_warp (amplitude 3 px, mean error 2.87 px):

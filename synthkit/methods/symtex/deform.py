@@ -13,12 +13,32 @@ halved per finer level), every handle in turn estimates the gradient of the loss
 differences of size ``step`` and moves ``step`` along it when that lowers the loss; cycles repeat
 until none moves (or ``max_cycles``), then the step halves until it falls below ``min_step``.
 
-Tiling (mode ``tile``): the warp starts zoomed on the centre, leaving ``margin`` of each side that
-the deformation may pull in; after optimizing E_symm of the toroidal S_T, :func:`toroidal_blend`
-makes the image periodic with period ``(H, W)``: the wrap-around step between opposite borders is
-targeted to an interior-like step and the border corrections are spread into the interior by
-mean value coordinates. The baseline (paper Fig. 7, top rows) is the same blend of the untouched
-input, without symmetry optimization.
+Tiling (mode ``tile``): the tile is the centre of the input less ``margin`` of each side, at the
+input's resolution (``tile.zoom: crop``; the paper zooms the centre to the input's size, which
+upsamples by 1 / (1 - 2 margin) and blurs: ``zoom: upsample``); the deformation may pull the
+margin in. After optimizing E_symm of the toroidal S_T, :func:`toroidal_blend` makes the image
+periodic with period ``(H, W)``: the wrap-around step between opposite borders is targeted to an
+interior-like step and the border corrections are spread into the interior by mean value
+coordinates. The baseline (paper Fig. 7, top rows) is the same blend of the untouched input,
+without symmetry optimization; :func:`choose_tile` returns the better of the optimized tile, the
+baseline and the input (see :func:`run_deform`).
+
+Where real photographs contradict the paper (issue 14, README tables):
+
+- E_symm favours magnification and blur: a smoother image has a broader S_T, whose variance is
+  larger. Unbounded, the warp zoomed into a brick wall (texture_bricks) and bent its courses,
+  keeping 0.71 of its high-frequency energy. Hence the stretch bound (``tile.max_stretch`` 1.1,
+  ``deform.max_stretch`` 1.25) and, for tiles, the refusal of moves whose render loses 10 % of
+  the high frequencies; the result is rendered with Lanczos, as bilinear reads at sub-pixel
+  shifts keep 0.34-0.5 of them.
+- The seam ratio rewards smoothness: on diagonal stripes (lattice-p3-21) the baseline's 0.12
+  comes from the blend smearing mismatched stripes into a grey band, while the optimized tile,
+  whose stripes continue across the seams, scores 0.33 (a seam like the interior scores 1).
+- The paper's S_T is that of a toroidal ``f`` (eq. 2). A photograph whose period does not divide
+  its size is irregular across the wrap, so symmetrization by the toroidal E_symm warps even an
+  unwarped photograph of stripes (E_symm x2.9 for 2.2 px of mean displacement). The ``overlap``
+  S_T (:func:`synthkit.core.symmetry.translational`) has no wrap; on these photographs it
+  halves the needless displacement but does not remove half of a known warp either.
 """
 
 from __future__ import annotations

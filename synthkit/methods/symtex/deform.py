@@ -510,11 +510,13 @@ def run_deform(cfg, ctx, src, tgt) -> None:
     # input when upsampled); a photo's high frequencies vary across it (texture_bricks' 154 px
     # centre has 0.83 of its 256 px crop's), so the whole input would be an unfair reference
     hf_view = high_frequency_energy(view if crop else src)
-    if cfg.mode == "tile":
-        lum = sy.f_lum(src)
-        floor = SHARPNESS_MIN * hf_view
-        opt.accept = lambda U: high_frequency_energy(opt.sampler.warp(lum, U, interpolation=interp)) >= floor
     start_img = opt.sampler.warp(src, U0, interpolation=interp)
+    if cfg.mode == "tile":
+        # upsample: the zoom itself keeps ~0.3 of the high frequencies; moves may not lose more
+        # than 10 % of what the zoomed start has (such a tile is never returned: see choose_tile)
+        lum = sy.f_lum(src)
+        floor = SHARPNESS_MIN * (hf_view if crop else high_frequency_energy(start_img))
+        opt.accept = lambda U: high_frequency_energy(opt.sampler.warp(lum, U, interpolation=interp)) >= floor
     with ctx.stage("optimize"):
         opt.run()
         image = opt.sampler.warp(src, opt.U, interpolation=interp)

@@ -50,8 +50,9 @@ def resolve_auto_signals(cfg: SymtexConfig, src: np.ndarray, metrics: dict) -> S
     torus, raw S_T is ``(N mu^2 + AC_g) / (N mu^2 + AC_g(0))``, and ``1 - f`` has ``(1 - mu)`` in
     place of ``mu``: the same pattern, divided by a larger constant for the signal whose mean is
     farther from 0. On dark line art on white (``mu`` near 1) E_symm of lum is 1e-5 to 1e-8 of a
-    flat S near 1; 1-lum carries the same pattern at 100-1000x that size. E_L2 compares
-    standardized representations, which are the same for lum and 1-lum: ``lum``.
+    flat S near 1; 1-lum carries the same pattern at 40-1200x that size (a synthetic grid, the
+    negative of lattice-p4). With ``symmetry.mode: overlap`` (mean-free) both are equal: ``lum``.
+    E_L2 compares standardized representations, which are the same for lum and 1-lum: ``lum``.
     """
     if cfg.objective_kind() == "symm":
         from synthkit.methods.symtex.common import build_objective

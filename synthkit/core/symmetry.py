@@ -209,11 +209,13 @@ def translational(
         i.e. the normalized sum of ``f(y, x) f(y + dy, x + dx)``.
     """
     f = _check_signal(f)
-    if mode not in ("toroidal", "zero"):
-        raise ValueError(f"mode must be 'toroidal' or 'zero', got {mode!r}")
+    if mode not in ("toroidal", "zero", "overlap"):
+        raise ValueError(f"mode must be 'toroidal', 'zero' or 'overlap', got {mode!r}")
     dtype = np.float32 if f.dtype == np.float32 else np.float64
     f = f.astype(dtype, copy=False)
     H, W = f.shape
+    if mode == "overlap":
+        return _overlap_translational(f, window, standardize, workers).astype(dtype, copy=False)
     wy, wx = _window_of((H, W), window, mode)
     if mode == "toroidal":
         shape = (H, W)
@@ -229,6 +231,30 @@ def translational(
     if standardize:
         S = _standardized(S)
     return S.astype(dtype, copy=False)
+
+
+def _overlap_translational(f, window, standardize, workers):
+    """S_T of a photograph, not a torus: the mean-free signal's linear autocorrelation over the
+    overlap of ``f`` and its shift, per overlapping pixel, over its zero-displacement value.
+
+    ``S(t) = (sum g(x) g(x + t) / n(t)) / (sum g^2 / (H W))`` with ``g = f - mean(f)`` and
+    ``n(t) = (H - |ty|) (W - |tx|)`` the pixels both cover: a correlation coefficient, 1 at
+    ``t = 0`` and near 1 at every period of a regular pattern whatever the image size. The
+    toroidal S_T counts the wrap-around too, so a photograph whose period does not divide its
+    size is irregular on the torus and maximizing that E_symm warps it (issue 14). Default window:
+    displacements up to half the size (overlaps of at least a quarter of the image).
+    """
+    H, W = f.shape
+    wy, wx = _window_of((H, W), window, "toroidal" if window is None else "zero")
+    g = f - f.mean()
+    shape = (sfft.next_fast_len(2 * H - 1, real=True), sfft.next_fast_len(2 * W - 1, real=True))
+    spec = sfft.rfft2(g, s=shape, workers=workers)
+    ac = sfft.irfft2(spec.real**2 + spec.imag**2, s=shape, workers=workers)
+    dy, dx = np.arange(-wy, wy + 1), np.arange(-wx, wx + 1)
+    S = ac[np.ix_(dy % shape[0], dx % shape[1])]
+    n = np.outer(H - np.abs(dy), W - np.abs(dx)).astype(S.dtype)
+    S = (S / n) / (ac[0, 0] / (H * W))
+    return _standardized(S) if standardize else S
 
 
 # ---------------------------------------------------------------------------------------------

@@ -350,3 +350,25 @@ def test_spectral_float32_and_lazy_ac_after_apply(rng):
         g[np.ix_(ry, rx)] += deltas[2]
     c = g - f.mean()
     np.testing.assert_allclose(inc.ac, sy.translational(c, window=win, standardize=False) * (c * c).sum(), atol=1e-9)
+
+
+def test_translational_overlap_is_a_correlation_coefficient(rng):
+    """mode "overlap": exact brute-force value on a small signal; 1 at zero displacement; a
+    period that does not divide the size still gives ~1 (the toroidal S_T does not); the same
+    for f and 1 - f."""
+    f = rng.random((7, 9))
+    S = sy.translational(f, mode="overlap", window=(2, 3), standardize=False)
+    g = f - f.mean()
+    var = (g * g).mean()
+    dy, dx = 1, -2
+    a = g[max(0, -dy) : 7 - max(0, dy), max(0, -dx) : 9 - max(0, dx)]
+    b = g[max(0, dy) : 7 + min(0, dy), max(0, dx) : 9 + min(0, dx)]
+    assert S[2 + dy, 3 + dx] == pytest.approx((a * b).mean() / var)
+    assert S[2, 3] == pytest.approx(1.0)
+    np.testing.assert_allclose(sy.translational(1 - f, mode="overlap", window=(2, 3), standardize=False), S)
+    x = np.arange(50)
+    stripes = np.tile(np.sin(2 * np.pi * x / 7.0), (50, 1))  # period 7 does not divide 50
+    St = sy.translational(stripes, mode="overlap", window=(3, 10), standardize=False)
+    assert St[3, 10 + 7] > 0.99
+    Storus = sy.translational(stripes, mode="toroidal", window=(3, 10), standardize=False)
+    assert Storus[3, 10 + 7] < St[3, 10 + 7] - 0.03  # the wrap-around columns are out of phase

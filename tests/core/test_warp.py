@@ -68,3 +68,33 @@ def test_mean_value_coordinates_properties():
     np.testing.assert_allclose(w[2], [1, 0, 0, 0])
     np.testing.assert_allclose(w[3], [0.5, 0.5, 0, 0])
     assert np.all(w[:2] > 0)
+
+
+def test_triangle_stretch_exact_values():
+    """Two triangles of a unit square: rigid 1, x stretched by 1.2 -> 1.2, squeezed to 0.8 ->
+    1.25, a flipped triangle inf; shapes and dtype."""
+    V = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+    c, s = np.cos(0.3), np.sin(0.3)
+    rigid = V @ np.array([[c, s], [-s, c]]) + [5.0, -2.0]
+    np.testing.assert_allclose(warp.triangle_stretch(V, rigid, F), [1.0, 1.0])
+    np.testing.assert_allclose(warp.triangle_stretch(V, V * [1.2, 1.0], F), [1.2, 1.2])
+    np.testing.assert_allclose(warp.triangle_stretch(V, V * [0.8, 1.0], F), [1.25, 1.25])
+    flipped = V.copy()
+    flipped[2] = [0.2, -0.5]  # vertex 2 crosses edge 0-1: triangle 0 flips
+    out = warp.triangle_stretch(V, flipped, F)
+    assert out.shape == (2,) and out.dtype == np.float64 and np.isinf(out[0])
+    with pytest.raises(ValueError, match="degenerate"):
+        warp.triangle_stretch(np.zeros((4, 2)), V, F)
+
+
+def test_mesh_sampler_lanczos_keeps_identity_and_range():
+    rng = np.random.default_rng(2)
+    img = rng.random((20, 24)).astype(np.float32)
+    V = np.array([[0, 0], [23, 0], [0, 19], [23, 19.0]])
+    s = warp.MeshSampler(V, (10, 12))  # a 10x12 tile read from inside the 20x24 image
+    np.testing.assert_allclose(s.warp(img, V / 2 + [4.0, 3.0], interpolation="lanczos")[0, 0], img[3, 4], atol=1e-5)
+    half = s.warp(img, V / 2 + 4.5, interpolation="lanczos")
+    assert half.min() >= img.min() and half.max() <= img.max()
+    with pytest.raises(ValueError, match="interpolation"):
+        s.warp(img, V, interpolation="nearest")

@@ -399,3 +399,71 @@ def test_zero_padded_st_rejected_for_synth(tmp_path, inputs, write_config):
 
     ok = dict(mode="symmetrize", source="noise.png", symmetry={"mode": "zero"})
     load_method_config(write_config(inputs, "z3", **ok))
+
+
+def test_choose_tile_rule():
+    """Lowest seam ratio; the optimized tile only with E_symm >= the input's (0.1% slack) and
+    sharpness >= 0.9; ties to optimized, then baseline."""
+    from synthkit.methods.symtex.deform import choose_tile
+
+    def cand(seam, obj=1.0, sharp=1.0):
+        return {"seam_ratio": seam, "objective": obj, "sharpness": sharp}
+
+    base = {"baseline": cand(0.4, obj=0.5), "input": cand(5.0)}
+    assert choose_tile({"optimized": cand(0.2), **base}, 1.0) == "optimized"
+    assert choose_tile({"optimized": cand(0.2, obj=0.9995), **base}, 1.0) == "optimized"
+    assert choose_tile({"optimized": cand(0.2, obj=0.99), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.2, sharp=0.89), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.4), **base}, 1.0) == "optimized"
+    assert choose_tile({"optimized": cand(0.2), "baseline": cand(0.4), "input": cand(0.1)}, 1.0) == "input"
+    assert choose_tile({"optimized": cand(0.2), "baseline": cand(0.1), "input": cand(0.1)}, 1.0) == "baseline"
+
+
+def test_tile_crop_and_high_frequency_energy():
+    from synthkit.methods.symtex.deform import high_frequency_energy, tile_crop
+
+    assert tile_crop((256, 221), 0.2) == ((154, 133), (51, 44))
+    assert tile_crop((10, 10), 0.0) == ((10, 10), (0, 0))
+    with pytest.raises(ValueError, match="margin"):
+        tile_crop((8, 8), 0.45)
+    assert high_frequency_energy(np.full((16, 16), 0.3)) == pytest.approx(0.0)
+    noise = textures.noise(64)
+    import cv2
+
+    blurred = cv2.GaussianBlur(noise, (0, 0), 1.5)
+    assert high_frequency_energy(blurred) < 0.5 * high_frequency_energy(noise)
+
+
+def test_signals_auto_picks_inverted_luminance_for_line_art(tmp_path, write_config):
+    """signals: auto (the default): dark lines on white -> 1-lum for E_symm (its raw S varies
+    40x more on this grid), lum for E_L2 (standardized S of lum and 1-lum are the same)."""
+    from synthkit.methods.symtex.config import SymtexConfig
+    from synthkit.methods.symtex.pipeline import resolve_auto_signals
+
+    art = np.ones((48, 48, 3), dtype=np.float32)
+    art[::12] = 0.1
+    art[:, ::12] = 0.1
+    cfg = SymtexConfig(mode="symmetrize", source=__file__)
+    assert cfg.symmetry.signals == "auto"
+    metrics = {}
+    resolved = resolve_auto_signals(cfg, art, metrics)
+    assert resolved.symmetry.signals == ["1-lum"]
+    assert metrics["signal_variances"]["1-lum"] > 10 * metrics["signal_variances"]["lum"]
+    assert cfg.symmetry.signals == "auto"  # the config itself is not changed
+    transfer = SymtexConfig(mode="filter", source=__file__)
+    assert resolve_auto_signals(transfer, art, {}).symmetry.signals == ["lum"]
+    with pytest.raises(ValueError, match="signals"):
+        SymtexConfig(mode="symmetrize", source=__file__, symmetry={"signals": "automatic"})
+
+
+def test_tile_upsample_zoom_keeps_input_size(tmp_path, write_config):
+    save_image(tmp_path / "c.png", textures.wavy(160)[13:77, 7:71])
+    quick = {"points": 8, "levels": 1, "max_cycles": 1, "max_evaluations": 20}
+    cfg = dict(TILE, tile={"zoom": "upsample"}, deform=quick)
+    report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    assert m["tile_candidates"]["optimized"]["size"] == [64, 64]
+    crop = dict(cfg, tile={"zoom": "crop"})
+    m2 = run_config(write_config(tmp_path, "c", **crop), out_dir=tmp_path / "out2", show_progress=False)["metrics"]
+    assert m2["tile_candidates"]["optimized"]["size"] == [38, 38]
+    assert m2["max_stretch"] <= 1.1 and m2["max_stretch_bound"] == 1.1

@@ -59,11 +59,23 @@ def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path, write_config):
 
 
 @pytest.mark.slow
-def test_real_grid_photo_warped_is_symmetrized_back(tmp_path, symmetrized_toward):
-    """A photographed grid (lattice-p4) warped by a known smooth field: ARAP symmetrization raises
-    E_symm and brings the image closer to the unwarped photograph."""
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "lattice-p4 resampled to 96 px (a period of ~10 px, about three times the field's 3 px "
+        "amplitude): the remaining field error is 3.15 px of 2.87 (2.48 without the "
+        "deform.max_stretch bound); the mean absolute image difference this test used to check "
+        "improved partly because bilinear rendering blurred the thin lines (issue 14)"
+    ),
+)
+def test_real_grid_photo_warped_is_symmetrized_back(tmp_path, write_config):
+    """A photographed grid (lattice-p4) resized to 96 px and warped by a known smooth field: ARAP
+    symmetrization raises E_symm and removes half of the displacement error, measured against the
+    field (see the 128 px native crop in test_real_photo_known_warp_has_half_its_error_removed)."""
     grid = real_texture("lattice-p4.jpg", 96)
-    symmetrized_toward(tmp_path, grid, textures.smooth_warp(grid, 3.0))
+    m, before, after = symmetrize_real(tmp_path, write_config, grid, 3.0)
+    assert m["objective_end"] > m["objective_start"]
+    assert after <= 0.5 * before, (before, after)
 
 
 @pytest.mark.slow
@@ -89,3 +101,198 @@ def test_real_photo_crop_tiles_seamlessly(tmp_path, write_config, seam_steps):
     assert seam <= 1.5 * interior
     assert seam < naive
     assert report["metrics"]["objective_warped"] >= report["metrics"]["objective_start"]
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 14: tile and symmetrize on real photographs improve them and never damage them
+
+
+def native_crop(name: str, size: int) -> np.ndarray:
+    """``(<=size, <=size, 3)`` float32: the top-left ``size`` px of photograph ``name`` at its own
+    resolution (``brick``, ``grass``, ``gravel``: skimage's, installed with scikit-image)."""
+    if name in ("brick", "grass", "gravel"):
+        from skimage import data
+
+        img = getattr(data, name)().astype(np.float32) / 255.0
+        img = np.repeat(img[:, :, None], 3, axis=2)
+    else:
+        path = REAL / name
+        if not path.is_file():
+            pytest.skip(f"real data absent: {path}")
+        img = load_image(path)
+    return np.ascontiguousarray(img[:size, :size])
+
+
+TILE_REAL = dict(
+    mode="tile",
+    source="c.png",
+    symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
+    deform={"points": 24, "levels": 2, "step": 4.0, "max_cycles": 2, "max_evaluations": 300},
+)
+TILE_PHOTOS = [
+    "lattice-p3-21.jpg",  # diagonal stripes, does not tile as cut
+    "lattice-p4.jpg",  # a grid that already tiles
+    "lattice-p2-2.jpg",  # rows of cars
+    "texture_bricks.jpg",
+    "aerial_rocks_02_diff_1k.jpg",
+    "brick",
+    "grass",
+    "gravel",
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", TILE_PHOTOS)
+def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_config, name):
+    """Issue 14's tile goals on a 160 px native crop: the returned tile's seam ratio is at most the
+    blended baseline's and the input's; the optimized tile is returned only when its E_symm is not
+    below the input's and it keeps 90 % of the input's high-frequency energy; the warp stays
+    within tile.max_stretch; result.png is the candidate report.json names. The 3x3 tilings
+    (tiled_3x3.png of the result, tiled_optimized_3x3.png, tiled_baseline_3x3.png) stay in tmp_path."""
+    from synthkit.methods.symtex.deform import E_SYMM_TOL, SHARPNESS_MIN, high_frequency_energy, seam_ratio
+
+    crop = native_crop(name, 160)
+    save_image(tmp_path / "c.png", crop)
+    report = run_config(write_config(tmp_path, "t", **TILE_REAL), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    c = m["tile_candidates"]
+    assert m["seam_ratio"] <= m["baseline_seam_ratio"]
+    assert m["seam_ratio"] <= m["seam_ratio_input"]
+    assert m["max_stretch"] <= m["max_stretch_bound"] == 1.1
+    assert c["optimized"]["max_stretch"] == m["max_stretch"]
+    if m["tile_choice"] == "optimized":
+        assert m["objective_end"] >= m["input_objective"] * (1 - E_SYMM_TOL)
+        assert m["sharpness"] >= SHARPNESS_MIN
+        assert m["tile_size"] == [96, 96]  # native crop: 160 less 2 x 32 px of margin, no upsampling
+    out = load_image(tmp_path / "out" / "result.png")
+    file = {"optimized": "optimized.png", "baseline": "baseline.png", "input": "../c.png"}[m["tile_choice"]]
+    np.testing.assert_array_equal(out, load_image(tmp_path / "out" / file))
+    # the figures are those of the returned image (8-bit rounding aside)
+    assert seam_ratio(out) == pytest.approx(m["seam_ratio"], rel=0.1, abs=1e-3)
+    assert high_frequency_energy(out) / high_frequency_energy(crop) == pytest.approx(m["sharpness"], rel=0.05)
+    tiled = load_image(tmp_path / "out" / report["outputs"]["tiled"])
+    assert tiled.shape[:2] == (3 * out.shape[0], 3 * out.shape[1])
+
+
+def test_tile_of_rgba_photo_with_transparent_hole_composites_over_white(tmp_path, write_config, caplog):
+    """A photo with a transparent hole (an inpainting mask) is read composited over white, with
+    one warning (synthkit.io.images): the hole is white, not black, and the tile is the tile of
+    the composited RGB image (within the 8-bit rounding of writing that image)."""
+    import logging
+
+    rgb = native_crop("texture_bricks.jpg", 64)
+    alpha = np.ones(rgb.shape[:2], dtype=np.float32)
+    alpha[20:36, 24:44] = 0.0  # the hole
+    alpha[36:40, 24:44] = 0.5  # a translucent edge
+    rgba = np.concatenate([rgb, alpha[:, :, None]], axis=2)
+    save_image(tmp_path / "c.png", rgba)
+    assert load_image(tmp_path / "c.png", mode="any").shape[2] == 4
+    flat = np.round(rgba[..., :3] * 255) / 255 * np.round(alpha * 255)[:, :, None] / 255
+    flat = flat + (1 - np.round(alpha * 255)[:, :, None] / 255)
+    save_image(tmp_path / "flat.png", flat)
+    cfg = dict(TILE_REAL, deform={"points": 12, "levels": 1, "step": 2.0, "max_cycles": 1, "max_evaluations": 40})
+    with caplog.at_level(logging.WARNING, logger="synthkit"):
+        run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    said = [r.getMessage() for r in caplog.records if "composited over white" in r.getMessage()]
+    assert len(said) == 1 and "400 of 4096" in said[0] and "c.png" in said[0]
+    read = load_image(tmp_path / "c.png")
+    np.testing.assert_allclose(read[20:36, 24:44], 1.0)  # white, not black
+    flat_cfg = write_config(tmp_path, "f", **dict(cfg, source="flat.png"))
+    run_config(flat_cfg, out_dir=tmp_path / "outf", show_progress=False)
+    np.testing.assert_allclose(
+        load_image(tmp_path / "out" / "result.png"), load_image(tmp_path / "outf" / "result.png"), atol=1.5 / 255
+    )
+
+
+SYMMETRIZE_REAL = dict(
+    mode="symmetrize",
+    source="w.png",
+    symmetry={"window": 0.5},
+    deform={"points": 24, "levels": 2, "step": 4.0, "max_cycles": 2, "max_evaluations": 500},
+)
+
+
+def field_error(sample_map: np.ndarray, amplitude: float) -> float:
+    """Mean remaining displacement (px) after undoing :func:`textures.smooth_warp` of ``amplitude``.
+
+    The warped image is ``w(q) = f(q + d(q))`` with ``d(x, y) = (a sin(2 pi y / H), a sin(2 pi x / W))``
+    and the result samples ``w`` at ``sample_map (H, W, 2)`` (x, y), so it shows ``f`` at
+    ``s + d(s)``; the error is that position less the pixel's own, less its mean (S_T does not see
+    a translation of the whole image). The identity map gives the error before.
+    """
+    H, W = sample_map.shape[:2]
+    s = sample_map.astype(np.float64)
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    ex = s[..., 0] + amplitude * np.sin(2 * np.pi * s[..., 1] / H) - xx
+    ey = s[..., 1] + amplitude * np.sin(2 * np.pi * s[..., 0] / W) - yy
+    return float(np.hypot(ex - ex.mean(), ey - ey.mean()).mean())
+
+
+def symmetrize_real(tmp_path, write_config, photo, amplitude, **symmetry):
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    warped = textures.smooth_warp(photo, amplitude) if amplitude else photo
+    save_image(tmp_path / "w.png", warped)
+    cfg = dict(SYMMETRIZE_REAL, symmetry={**SYMMETRIZE_REAL["symmetry"], **symmetry})
+    report = run_config(write_config(tmp_path, "s", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    smap = np.load(tmp_path / "out" / report["outputs"]["sample_map"])
+    H, W = smap.shape[:2]
+    identity = np.stack(np.meshgrid(np.arange(W), np.arange(H)), axis=2)
+    return report["metrics"], field_error(identity, amplitude), field_error(smap, amplitude)
+
+
+MISSED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed: toroidal S_T of a crop whose period does not divide its size is "
+        "irregular across the wrap, and maximizing E_symm warps it (README symmetrize table)"
+    ),
+)
+MISSED_OBJECTIVE = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed by the objective, not the search: E_symm of the result exceeds the "
+        "unwarped photograph's (brick 1.09e-4 vs 5.8e-5, cars 0.0129 vs 0.0116; README)"
+    ),
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["lattice-p4.jpg", pytest.param("lattice-p3-21.jpg", marks=MISSED)])
+def test_real_regular_photo_comes_back_nearly_unchanged(tmp_path, write_config, name):
+    """An already regular photograph (128 px native crop): mean displacement at most 1 px."""
+    m, _, _ = symmetrize_real(tmp_path, write_config, native_crop(name, 128), 0.0)
+    assert m["mean_displacement"] <= 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        "lattice-p4.jpg",
+        pytest.param("brick", marks=MISSED_OBJECTIVE),
+        pytest.param("lattice-p2-2.jpg", marks=MISSED_OBJECTIVE),
+    ],
+)
+def test_real_photo_known_warp_has_half_its_error_removed(tmp_path, write_config, name):
+    """A 128 px native crop warped by textures.smooth_warp (amplitude 3 px, mean error 2.87 px):
+    symmetrization removes at least half of the displacement error, measured against the field."""
+    m, before, after = symmetrize_real(tmp_path, write_config, native_crop(name, 128), 3.0)
+    assert before == pytest.approx(2.87, abs=0.01)
+    assert after <= 0.5 * before, (before, after)
+    assert m["objective_end"] > m["objective_start"]
+
+
+@pytest.mark.slow
+def test_real_line_art_auto_signal_is_inverted_luminance_and_undoes_warp(tmp_path, write_config):
+    """Dark line art on white (the negative of the photographed grid lattice-p4): E_symm of lum is
+    ~1e-6, a flat S near 1; signals: auto picks 1-lum and then removes the known warp as well as
+    on the original grid. With lum the optimizer moves the wrong way (recorded, not asserted)."""
+    art = 1.0 - native_crop("lattice-p4.jpg", 128)
+    m, before, after = symmetrize_real(tmp_path, write_config, art, 3.0)
+    assert m["signals"] == ["1-lum"]
+    v = m["signal_variances"]
+    assert v["lum"] < 1e-5 < 1e-3 < v["1-lum"]
+    assert after <= 0.5 * before
+    m_lum, _, after_lum = symmetrize_real(tmp_path / "lum", write_config, art, 3.0, signals=["lum"])
+    assert m_lum["signals"] == ["lum"]
+    assert after < after_lum

@@ -25,13 +25,23 @@ class SymmetrySection(StrictModel):
     kind: Literal["translational", "rotational", "reflective"] = Field(
         "translational", description="S_T (translations), S_R (rotations about a centre), S_Ref (reflections)."
     )
-    signals: list[Signal] = Field(
-        ["lum"],
+    signals: list[Signal] | Literal["auto"] = Field(
+        "auto",
         min_length=1,
-        description="Input signals f_lum, f_1-lum, f_edge; objective summed over them (Fig. 7: lum + 1-lum).",
+        description=(
+            "Input signals f_lum, f_1-lum, f_edge; objective summed over them (Fig. 7: lum + 1-lum). "
+            "auto: for E_symm (tile, symmetrize) the one of lum and 1-lum whose raw S has the larger "
+            "variance (dark line art on white: 1-lum; a signal near constant 1 puts its S near 1 "
+            "everywhere); for E_L2 lum (standardized S of lum and 1-lum are the same). "
+            "metrics.signals says which."
+        ),
     )
-    mode: Literal["toroidal", "zero"] = Field(
-        "toroidal", description="S_T autocorrelation on a torus or with zero padding (deform/lens only)."
+    mode: Literal["toroidal", "zero", "overlap"] = Field(
+        "toroidal",
+        description=(
+            "S_T autocorrelation on a torus, with zero padding, or overlap: the mean-free "
+            "correlation per overlapping pixel, for photographs that are not tori (deform/lens only)."
+        ),
     )
     window: float = Field(
         0.5,
@@ -102,6 +112,30 @@ class DeformSection(StrictModel):
     )
     max_cycles: int = Field(4, ge=1, le=100, description="Cycles over the control points per step size.")
     max_evaluations: int = Field(20000, ge=10, description="Budget of objective evaluations (paper: up to 20000).")
+    max_stretch: float | None = Field(
+        1.25,
+        ge=1.0,
+        le=100.0,
+        description=(
+            "Distortion bound: a move is refused when it would stretch (or squeeze) any mesh "
+            "triangle by more than this factor against the start (max singular value, or 1/min); "
+            "null = unbounded (the paper's model, which smeared bark and bent brick courses)."
+        ),
+    )
+    min_gain: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="A move is taken only when it improves the objective by more than this share of its value.",
+    )
+    interpolation: Literal["linear", "cubic", "lanczos"] = Field(
+        "lanczos",
+        description=(
+            "Resampling of the rendered result (the optimizer's probes are bilinear): a half-pixel "
+            "shift keeps 0.84 of a brick photo's high-frequency energy with lanczos, 0.70 with "
+            "cubic, 0.34 with linear (which averages neighbours at every sub-pixel shift)."
+        ),
+    )
 
 
 class LensSection(StrictModel):
@@ -120,7 +154,25 @@ class TileSection(StrictModel):
     """Toroidal tiling by symmetrization (mode: tile)."""
 
     margin: float = Field(
-        0.2, ge=0.0, le=0.45, description="Zoom on the centre leaving this fraction as margin (paper: 20%)."
+        0.2, ge=0.0, le=0.45, description="Start on the centre leaving this fraction as margin (paper: 20%)."
+    )
+    zoom: Literal["crop", "upsample"] = Field(
+        "crop",
+        description=(
+            "crop: the tile is the centre less the margins at the input's resolution (smaller than "
+            "the input, no resampling); upsample: the paper's zoom of the centre to the input's "
+            "size (blurs by 1 / (1 - 2 margin))."
+        ),
+    )
+    max_stretch: float | None = Field(
+        1.1,
+        ge=1.0,
+        le=100.0,
+        description=(
+            "Distortion bound of the tile's warp, in place of deform.max_stretch: a tile repeats "
+            "its warp and magnification costs sharpness; at 1.25 a photographed row of cars came "
+            "out in waves and a brick wall lost 30 % of its high frequencies."
+        ),
     )
     mvc_spacing: int = Field(
         1,
@@ -177,7 +229,7 @@ class SymtexConfig(RunConfig):
                 "perturbation 'synth' evaluates the toroidal S_T of its toroidal tiling; "
                 "symmetry.mode 'zero' applies to perturbation 'deform' or 'lens' only"
             )
-        if pert == "synth" and "edge" in self.symmetry.signals:
+        if pert == "synth" and self.symmetry.signals != "auto" and "edge" in self.symmetry.signals:
             raise ValueError("perturbation 'synth' supports the signals 'lum' and '1-lum' (symmetry.signals)")
         if pert == "synth" and self.synth.overlap >= self.synth.patch:
             raise ValueError(f"synth.overlap {self.synth.overlap} must be smaller than synth.patch {self.synth.patch}")

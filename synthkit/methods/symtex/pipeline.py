@@ -42,6 +42,34 @@ def _check_signals(img: np.ndarray, signals, path: Path, what: str) -> None:
             raise InputError(f"{path}: {what} has a constant {s} signal: its symmetry representation is undefined")
 
 
+def resolve_auto_signals(cfg: SymtexConfig, src: np.ndarray, metrics: dict) -> SymtexConfig:
+    """``cfg`` with ``symmetry.signals: auto`` replaced by one signal chosen on ``src``.
+
+    E_symm (tile, symmetrize): of ``lum`` and ``1-lum``, the one whose raw representation has the
+    larger variance; both variances go to ``metrics.signal_variances``. With ``f = mu + g`` on a
+    torus, raw S_T is ``(N mu^2 + AC_g) / (N mu^2 + AC_g(0))``, and ``1 - f`` has ``(1 - mu)`` in
+    place of ``mu``: the same pattern, divided by a larger constant for the signal whose mean is
+    farther from 0. On dark line art on white (``mu`` near 1) E_symm of lum is 1e-5 to 1e-8 of a
+    flat S near 1; 1-lum carries the same pattern at 40-1200x that size (a synthetic grid, the
+    negative of lattice-p4). With ``symmetry.mode: overlap`` (mean-free) both are equal: ``lum``.
+    E_L2 compares standardized representations, which are the same for lum and 1-lum: ``lum``.
+    """
+    if cfg.objective_kind() == "symm":
+        from synthkit.methods.symtex.common import build_objective
+
+        objective = build_objective(cfg, src.shape[:2])
+        variances = {}
+        for s in ("lum", "1-lum"):
+            f = sy.signal(src.astype(np.float64), s)
+            variances[s] = sy.e_symm(objective.represent(f, standardize=False)) if np.ptp(f) > 1e-6 else 0.0
+        chosen = max(variances, key=lambda k: (variances[k], k == "lum"))
+        metrics["signal_variances"] = variances
+    else:
+        chosen = "lum"
+    sym = cfg.symmetry.model_copy(update={"signals": [chosen]})
+    return cfg.model_copy(update={"symmetry": sym})
+
+
 PIXEL_BYTES = 512
 """Bytes per pixel of the working image: signals, their padded transforms, S fields and candidate
 buffers (estimate)."""
@@ -61,11 +89,14 @@ def run(cfg: SymtexConfig, ctx) -> None:
     pert = cfg.resolved_perturbation()
     with ctx.stage("load"):
         src = _load(cfg.source, "source image")
+        if cfg.symmetry.signals == "auto":
+            cfg = resolve_auto_signals(cfg, src, ctx.metrics)
         _check_signals(src, cfg.symmetry.signals, cfg.source, "source image")
         tgt = None
         if cfg.target is not None and cfg.mode == "transfer":
             tgt = _load(cfg.target, "target image")
             _check_signals(tgt, cfg.symmetry.signals, cfg.target, "target image")
+    ctx.metrics["signals"] = list(cfg.symmetry.signals)
     check_image_budget(ctx.budget, cfg, src)
     if pert == "synth":
         _run_synth(cfg, ctx, src, tgt)

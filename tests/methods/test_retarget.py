@@ -213,15 +213,18 @@ MAN_MADE = ("bookshelf", "facade", "railing", "stairs", "sheared_grid", "bridge"
 
 
 @pytest.mark.slow
-def test_issue_sparsity_threshold_top7_on_every_man_made_sample():
-    """The issue: man-made samples put at least 70% of offsets in the top 7% of bins (all six, tessellated
-    like modelled assets; measured 0.76-0.80), and the lattice's own offsets carry that share, not
-    repeats made by the tessellation grid."""
+def test_sparsity_of_every_man_made_sample_under_the_section_iv_protocol():
+    """Section IV's statistics (Poisson-disk features only, issue 15): every man-made sample puts
+    at least 38% of its offsets in the top 7% of bins and 62% in the top 20% (measured 0.41-0.49
+    and 0.65-0.74; the organic meshes of ../shared score 0.23-0.25), and the lattice's own offsets
+    carry at least 90% of that share, not repeats made by the tessellation grid. (Before issue 15
+    the statistics also counted the samples' grid vertices and the samples reached 0.76-0.80.)"""
     figures, failed = {}, []
     for name in MAN_MADE:
         an, truth, scale = _analysed(name)
         top7, top20 = share_in_top(an.bin_counts, 0.07), share_in_top(an.bin_counts, 0.20)
         assert top7 == pytest.approx(an.top7) and top20 == pytest.approx(an.top20)
+        assert an.n_statistics_features == len(an.features.P) - an.features.n_vertex_features
         lattice = np.array(truth["lattice"]) / scale
         n_top = int(np.floor(0.07 * len(an.bin_counts)))
         top = an.bin_keys[:n_top] * 0.05
@@ -229,9 +232,9 @@ def test_issue_sparsity_threshold_top7_on_every_man_made_sample():
         on_lattice = np.abs(top - (lattice.T @ np.rint(coef)).T).max(axis=1) <= 0.05
         lattice_share = an.bin_counts[:n_top][on_lattice].sum() / an.bin_counts.sum()
         figures[name] = (round(top7, 3), round(top20, 3), round(float(lattice_share), 3))
-        if top7 < 0.70 or top20 < 0.85 or lattice_share < 0.70:
+        if top7 < 0.38 or top20 < 0.62 or lattice_share < 0.9 * top7:
             failed.append(name)
-    assert not failed, f"below 0.70 in the top 7% (or 0.85 in the top 20%): {failed}; (top7, top20, lattice) {figures}"
+    assert not failed, f"below 0.38 in the top 7% (or 0.62 in the top 20%): {failed}; (top7, top20, lattice) {figures}"
 
 
 # ---------------------------------------------------------------- end to end
@@ -672,9 +675,14 @@ def test_cli_shrink_below_one_cell_exit_2(tmp_path, sample_dir):
 @pytest.mark.slow
 @pytest.mark.skipif(not KENNEY.is_dir(), reason="../shared/data/meshes/kenney-city absent")
 def test_kenney_building_offsets_and_output(tmp_path):
+    """building-small-a along its wall slide (0.1 up). Since issue 15 the default analysis reports
+    the floor height (0.4 up, tests/methods/test_retarget_real.py) and growing by a floor has no
+    seamless labeling (the hollow storey between the full base slab and the full roof), so this
+    stitching test turns the grip rule of ``reduce_to_generators`` off to keep the slide."""
     path = KENNEY / "building-small-a.glb"
     cfg = tmp_path / "k.yaml"
-    cfg.write_text(json.dumps({"method": "retarget", "input": str(path), "target": {"steps": [1]}}))
+    cfg.write_text(json.dumps({"method": "retarget", "input": str(path), "target": {"steps": [1]},
+                               "analysis": {"generator_grip_ratio": 0}}))
     rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
     m = rep["metrics"]
     offsets = np.array(m["principal_offsets"])

@@ -35,7 +35,14 @@ from synthkit.core.mesh import merge_vertices, normalize_unit
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
-from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, repair_t_junctions
+from synthkit.methods.retarget.synthesis import (
+    RetargetProblem,
+    VoxelGrid,
+    assemble,
+    make_grid,
+    mesh_quality,
+    repair_t_junctions,
+)
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
 __all__ = ["run", "Retargeted", "synthesize", "resolve_steps", "weld_seams"]
@@ -257,6 +264,8 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
             "n_vertex_features": int(an.features.n_vertex_features),
             "n_dense_samples": int(len(an.features.dense_P)),
             "n_offsets": int(len(an.offsets)),
+            "n_statistics_features": int(an.n_statistics_features),
+            "n_statistics_offsets": int(len(an.stat_offsets)),
             "n_bins": int(len(an.bin_counts)),
             "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
         }
@@ -317,6 +326,38 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
         face_colors=colours,
         size=cfg.preview_size,
     )
+
+
+def _stitch_metrics(res: Retargeted, Vn, F, input_quality: dict) -> dict:
+    """Issue 15's stitching figures of one result against the input (normalised units, welded by
+    position within 1e-6): open edges, duplicate faces, smallest angle, face counts, and the limits
+    they are held to: the input's open edges times the number of copies used, and the input's faces
+    times the volume ratio (output bounding box over input bounding box) times 1.5."""
+    q = mesh_quality(res.V, res.F)
+    copies = int(len(np.unique(res.labeling)))
+    used = np.unique(F)
+    vin = float(np.prod(np.maximum(np.ptp(Vn[used], axis=0), 1e-12)))
+    vout = float(np.prod(np.maximum(np.ptp(res.V, axis=0), 1e-12))) if len(res.V) else 0.0
+    ratio = vout / vin
+    return {
+        "boundary_edges": q["boundary_edges"],
+        "input_boundary_edges": input_quality["boundary_edges"],
+        "boundary_edges_limit": int(input_quality["boundary_edges"] * copies),
+        "copies": copies,
+        "nonmanifold_edges": q["nonmanifold_edges"],
+        "input_nonmanifold_edges": input_quality["nonmanifold_edges"],
+        "duplicate_faces": q["duplicate_faces"],
+        "input_duplicate_faces": input_quality["duplicate_faces"],
+        "min_angle_deg": q["min_angle_deg"],
+        "input_min_angle_deg": input_quality["min_angle_deg"],
+        "sliver_faces": q["sliver_faces"],
+        "input_sliver_faces": input_quality["sliver_faces"],
+        "welded_faces": q["faces"],
+        "input_welded_faces": input_quality["faces"],
+        "volume_ratio": ratio,
+        "face_ratio": q["faces"] / max(input_quality["faces"], 1),
+        "faces_limit": int(np.floor(input_quality["faces"] * ratio * 1.5)),
+    }
 
 
 def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: float) -> dict:
@@ -414,6 +455,8 @@ def run(cfg, ctx) -> None:
             min_angle=np.radians(a.min_angle_deg),
             max_principal=a.max_principal,
             dummy_length=a.dummy_length,
+            statistics_features=a.statistics_features,
+            generator_grip_ratio=a.generator_grip_ratio,
             rng=ctx.rng,
         )
     _statistics_outputs(an, V, F, center, scale, cfg, ctx)
@@ -446,11 +489,13 @@ def run(cfg, ctx) -> None:
     if cfg.offsets == "regular":
         ctx.timings["graphcut"] = ctx.timings.get("regular_graphcut", 0.0)
     with ctx.stage("output"):
+        input_quality = mesh_quality(Vn, F)
         renders = [before]
         titles = ["input"]
         for prefix, res, st, secs in results:
             renders.append(_save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix))
             metrics = _result_metrics(res, st, secs, scale)
+            metrics.update(_stitch_metrics(res, Vn, F, input_quality))
             if prefix:
                 ctx.metrics["baseline"] = metrics
             else:

@@ -40,6 +40,7 @@ from synthkit.methods.retarget.synthesis import (
     VoxelGrid,
     assemble,
     make_grid,
+    merge_coplanar_faces,
     mesh_quality,
     repair_t_junctions,
 )
@@ -53,8 +54,10 @@ log = logging.getLogger("synthkit")
 
 @dataclass
 class Retargeted:
-    """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)``, ``face_label (m,)``,
-    the grid, the problem (labels, shapes), the labeling ``(N,)`` and its energy."""
+    """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)`` (the retargeted mesh,
+    flat regions re-triangulated across seams), ``labelled_F (k, 3)`` with ``face_label (k,)`` (the
+    same surface with every face inside one label's copy, for ``labels.ply``), the grid, the
+    problem (labels, shapes), the labeling ``(N,)`` and its energy."""
 
     V: np.ndarray
     F: np.ndarray
@@ -64,6 +67,7 @@ class Retargeted:
     labeling: np.ndarray
     energy: float
     cycles: int
+    labelled_F: np.ndarray | None = None
 
 
 def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float) -> list[np.ndarray]:
@@ -142,10 +146,15 @@ def synthesize(
         fl = fl[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])]
         Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
         fl = fl[src]
-        used = np.unique(Fw)
+        Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=cfg.weld_tolerance)
+        fl = fl[src]
+        Fw, _ = merge_coplanar_faces(Vw, Fl, None, tol=cfg.weld_tolerance)
+        used = np.unique(Fl)
         remap = np.full(len(Vw), -1)
         remap[used] = np.arange(len(used))
-    return Retargeted(Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles)
+    return Retargeted(
+        Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles, labelled_F=remap[Fl]
+    )
 
 
 def weld_seams(Vc, F, face_label, grid: VoxelGrid, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -316,13 +325,14 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     )
     colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
     labels_path = ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply")
-    save_mesh(mesh, labels_path, face_labels=res.face_label,
+    labelled = trimesh.Trimesh(Vm, res.labelled_F, process=False)
+    save_mesh(labelled, labels_path, face_labels=res.face_label,
               face_colors=label_colours(res.face_label, res.problem.n_labels))
     render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
     return render_mesh_png(
         ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
         Vm,
-        res.F,
+        res.labelled_F,
         face_colors=colours,
         size=cfg.preview_size,
     )
@@ -382,6 +392,7 @@ def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: floa
         "label_shifts": res.problem.labels.tolist(),
         "labels_used": int(len(np.unique(res.labeling))),
         "output_faces": int(len(res.F)),
+        "labelled_faces": int(len(res.labelled_F)),
         "output_vertices": int(len(res.V)),
     }
 

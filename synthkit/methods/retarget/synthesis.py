@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import descriptor_distances
 from synthkit.core.graphcut import ExpansionResult, alpha_expansion
-from synthkit.core.mesh import weld
+from synthkit.core.mesh import boundary_loops, triangulate_polygons, weld
 
 __all__ = [
     "VoxelGrid",
@@ -37,6 +37,7 @@ __all__ = [
     "assemble",
     "repair_t_junctions",
     "mesh_quality",
+    "merge_coplanar_faces",
 ]
 
 
@@ -499,3 +500,128 @@ def mesh_quality(V, F, *, tol: float = 1e-6) -> dict:
         "min_angle_deg": float(smallest.min()),
         "sliver_faces": int((smallest < 1.0).sum()),
     }
+
+
+def merge_coplanar_faces(
+    V, F, face_label=None, *, tol: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """Re-triangulate each connected region of coplanar faces (of one label) with fewer faces.
+
+    ``V (n, 3)`` welded, ``F (m, 3)``, ``face_label (m,)`` or None. Faces are grouped when they
+    share an edge (used by exactly those two faces), have the same label (when labels are given)
+    and lie in one plane (unit normals
+    within ``1e-9`` of each other's direction and plane offsets within ``tol``). A region of three
+    or more faces is replaced by the ear-clipping triangulation of its boundary loops
+    (:func:`synthkit.core.mesh.triangulate_polygons`, holes included) when that uses fewer faces
+    and covers the same area (relative ``1e-9``); otherwise it is kept. Every boundary vertex is
+    kept, so neighbouring regions stay conforming; only vertices inside a flat region go. With
+    labels, labels are never mixed, so every face still lies on its own copy of the input (the
+    labelled output); without, the pieces of two copies that continue one flat surface across a
+    seam become one region (the retargeted mesh). Returns ``(F2 (m2, 3),
+    src (m2,))`` with each new face's source face (one face of its region).
+
+    Finding (issue 15): cutting a low-poly asset along the seams splits each large face (a wall
+    is two triangles) into a fan of pieces per seam plane it crosses, and the weld's T-junction
+    repair fans them again; a flat region has no need for them once its copy is cut out.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    m = len(F)
+    lab = np.zeros(m, np.int64) if face_label is None else np.asarray(face_label, dtype=np.int64).reshape(-1)
+    if m == 0:
+        return F, np.arange(0)
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    area2 = np.linalg.norm(cr, axis=1)
+    nrm = np.divide(cr, area2[:, None], out=np.zeros_like(cr), where=area2[:, None] > 0)
+    off = np.einsum("ij,ij->i", nrm, V[F[:, 0]])
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    fid = np.tile(np.arange(m), 3)
+    _, inv, counts = np.unique(E, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    order = np.argsort(inv, kind="stable")
+    two = counts[inv[order]] == 2
+    first = order[two][0::2]
+    second = order[two][1::2]
+    a, b = fid[first], fid[second]
+    same = (
+        (lab[a] == lab[b])
+        & (area2[a] > 0)
+        & (area2[b] > 0)
+        & (np.einsum("ij,ij->i", nrm[a], nrm[b]) >= 1 - 1e-9)
+        & (np.abs(off[a] - off[b]) <= tol)
+    )
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    G = sp.coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
+    ncomp, comp = connected_components(G, directed=False)
+    sizes = np.bincount(comp, minlength=ncomp)
+    # vertices touching at most two regions: removable from those regions' loops where straight
+    vc = np.unique(np.stack([F.reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
+    n_regions = np.bincount(vc[:, 0], minlength=len(V))
+    members = np.argsort(comp, kind="stable")
+    starts = np.r_[0, np.cumsum(sizes)]
+    region_loops = {}
+    for c in range(ncomp):
+        faces = members[starts[c] : starts[c + 1]]
+        if area2[faces[0]] > 0:
+            region_loops[c] = boundary_loops(F[faces])
+
+    def collinear(loop) -> np.ndarray:
+        """``(len(loop),) bool``: the vertex lies strictly between its two loop neighbours, within ``tol``."""
+        P, Q, X = V[np.roll(loop, 1)], V[np.roll(loop, -1)], V[loop]
+        d = Q - P
+        ln = np.linalg.norm(d, axis=1)
+        t = np.einsum("ij,ij->i", X - P, d) / np.where(ln > 0, ln, 1.0)
+        off_line = np.linalg.norm(X - P - t[:, None] * d / np.where(ln > 0, ln, 1.0)[:, None], axis=1)
+        return (ln > 0) & (t > 0) & (t < ln) & (off_line <= tol)
+
+    locked = n_regions > 2  # a vertex is dropped only where every loop through it runs straight
+    for _ in range(4):
+        seen = np.zeros(len(V), np.int64)
+        straight_in = np.zeros(len(V), np.int64)
+        for loops in region_loops.values():
+            for lp in loops:
+                np.add.at(seen, lp, 1)
+                np.add.at(straight_in, lp[collinear(lp)], 1)
+        drop = (seen > 0) & (straight_in == seen) & ~locked
+        keep = np.ones(m, bool)
+        new_faces, new_src = [], []
+        failed = False
+        for c, loops in region_loops.items():
+            faces = members[starts[c] : starts[c + 1]]
+            kept_loops = [lp[~drop[lp]] for lp in loops]
+            if len(faces) < 3 and not any(drop[lp].any() for lp in loops):
+                continue  # nothing to gain
+            tris = np.zeros((0, 3), np.int64)
+            if all(len(lp) >= 3 for lp in kept_loops):
+                n = nrm[faces[0]]
+                u = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+                u /= np.linalg.norm(u)
+                w = np.cross(n, u)
+                P2 = np.zeros((len(V), 2))
+                verts = np.unique(F[faces])
+                P2[verts] = np.stack([V[verts] @ u, V[verts] @ w], axis=1)
+                tris = triangulate_polygons(P2, kept_loops)
+            ok = 0 < len(tris) <= len(faces)
+            if ok:
+                t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])
+                total = area2[faces].sum()
+                same_area = abs(np.linalg.norm(t2, axis=1).sum() - total) <= 1e-9 * total
+                ok = bool(np.all(t2 @ nrm[faces[0]] > 0)) and same_area
+            if not ok:
+                if any(drop[lp].any() for lp in loops):
+                    for lp in loops:
+                        locked[lp] = True
+                    failed = True
+                continue
+            keep[faces] = False
+            new_faces.append(tris)
+            new_src.append(np.full(len(tris), faces[0]))
+        if not failed:
+            break
+    else:  # still failing: keep every vertex, only re-triangulate regions that need none dropped
+        return F, np.arange(m)
+    F2 = np.concatenate([F[keep]] + new_faces) if new_faces else F
+    src = np.concatenate([np.flatnonzero(keep)] + new_src) if new_faces else np.arange(m)
+    return F2, src

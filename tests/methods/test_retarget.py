@@ -122,9 +122,12 @@ def test_mesh_quality_tiny_fixtures():
     F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
     q = mesh_quality(V, F)
     assert q == {"faces": 4, "boundary_edges": 0, "nonmanifold_edges": 0, "duplicate_faces": 0,
-                 "min_angle_deg": pytest.approx(45.0), "sliver_faces": 0}
+                 "back_to_back_faces": 0, "min_angle_deg": pytest.approx(45.0), "sliver_faces": 0}
     q = mesh_quality(V, np.concatenate([F[:3], [[0, 1, 2]]]))  # face 0 again, reversed; face 3 gone
-    assert q["duplicate_faces"] == 1 and q["boundary_edges"] == 2 and q["nonmanifold_edges"] == 2
+    assert q["duplicate_faces"] == 0 and q["back_to_back_faces"] == 1
+    assert q["boundary_edges"] == 2 and q["nonmanifold_edges"] == 2
+    q = mesh_quality(V, np.concatenate([F, [[2, 1, 0]]]))  # face 0 again, same orientation (rotated)
+    assert q["duplicate_faces"] == 1 and q["back_to_back_faces"] == 0
     # an unwelded copy of a vertex at the same position does not open the surface
     V2 = np.concatenate([V, V[[3]]])
     assert mesh_quality(V2, np.array([[0, 2, 1], [0, 1, 4], [0, 3, 2], [1, 2, 3]]))["boundary_edges"] == 0

@@ -141,7 +141,7 @@ def test_kenney_grown_two_steps_is_clean(tmp_path):
     assert m["copies"] >= 2 and m["volume_ratio"] > 1.1, found
     assert m["boundary_edges"] <= m["input_boundary_edges"] * m["copies"] == m["boundary_edges_limit"], found
     assert m["welded_faces"] <= m["input_welded_faces"] * m["volume_ratio"] * 1.5, found
-    assert m["duplicate_faces"] == 0 and m["nonmanifold_edges"] <= 2 * m["copies"] + m["input_nonmanifold_edges"] + 6
+    assert m["duplicate_faces"] == 0 and m["nonmanifold_edges"] <= 10, found  # measured 6 (input 0)
     assert m["min_angle_deg"] is not None and 0 <= m["min_angle_deg"] <= 60, found
     # the figures are those of the written mesh (model units, float32 file: weld a little wider)
     res = trimesh.load(out / "retargeted.glb", force="mesh", process=False)

@@ -7,6 +7,9 @@ in the input's format, ``labels.npy`` (label index per output voxel), ``labels.p
 int32 labels and their colours, :func:`label_colours`), PNG previews (sparsity curve, offset
 histogram, offsets over the model, before / after / labels renders) and metrics.
 
+Each result's metrics include the stitching figures of :func:`_stitch_metrics` (open edges,
+duplicate faces, smallest angle, face and volume ratios with their limits, issue 15).
+
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
 seams in ``infinite_terms``), as the paper's conventional MRF shows its artifacts.
@@ -358,6 +361,8 @@ def _stitch_metrics(res: Retargeted, Vn, F, input_quality: dict) -> dict:
         "input_nonmanifold_edges": input_quality["nonmanifold_edges"],
         "duplicate_faces": q["duplicate_faces"],
         "input_duplicate_faces": input_quality["duplicate_faces"],
+        "back_to_back_faces": q["back_to_back_faces"],
+        "input_back_to_back_faces": input_quality["back_to_back_faces"],
         "min_angle_deg": q["min_angle_deg"],
         "input_min_angle_deg": input_quality["min_angle_deg"],
         "sliver_faces": q["sliver_faces"],

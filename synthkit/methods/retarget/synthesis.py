@@ -469,8 +469,10 @@ def mesh_quality(V, F, *, tol: float = 1e-6) -> dict:
     - ``faces``: faces left after the weld (collapsed faces dropped);
     - ``boundary_edges``: edges used by exactly one face (open edges);
     - ``nonmanifold_edges``: edges used by more than two faces;
-    - ``duplicate_faces``: faces beyond the first over the same three welded vertices (either
-      orientation), i.e. a surface present twice;
+    - ``duplicate_faces``: faces beyond the first over the same three welded vertices in the same
+      orientation, i.e. a surface present twice;
+    - ``back_to_back_faces``: faces over the same three vertices as another in the opposite
+      orientation (the double-sided walls of many assets; not an error of stitching);
     - ``min_angle_deg``: the smallest interior angle over the faces (0 for a zero-area sliver;
       clipping leaves slivers where a cut passes close to a vertex);
     - ``sliver_faces``: faces with an angle below 1 degree.
@@ -480,10 +482,13 @@ def mesh_quality(V, F, *, tol: float = 1e-6) -> dict:
     Vw, Fw = weld(V, F, tol) if len(V) else (V, F)
     if len(Fw) == 0:
         return {"faces": 0, "boundary_edges": 0, "nonmanifold_edges": 0, "duplicate_faces": 0,
-                "min_angle_deg": None, "sliver_faces": 0}
+                "back_to_back_faces": 0, "min_angle_deg": None, "sliver_faces": 0}
     E = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
     _, counts = np.unique(E, axis=0, return_counts=True)
-    _, fcounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
+    first = np.argmin(Fw, axis=1)
+    rot = np.take_along_axis(Fw, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)  # same cycle, min first
+    _, fcounts = np.unique(rot, axis=0, return_counts=True)
+    _, scounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
     tri = Vw[Fw]
     angles = []
     for k in range(3):
@@ -497,6 +502,7 @@ def mesh_quality(V, F, *, tol: float = 1e-6) -> dict:
         "boundary_edges": int((counts == 1).sum()),
         "nonmanifold_edges": int((counts > 2).sum()),
         "duplicate_faces": int((fcounts - 1).sum()),
+        "back_to_back_faces": int((scounts - 1).sum() - (fcounts - 1).sum()),
         "min_angle_deg": float(smallest.min()),
         "sliver_faces": int((smallest < 1.0).sum()),
     }

@@ -34,6 +34,18 @@ class AnalysisSection(StrictModel):
     min_grip: float = Field(
         0.005, ge=0, le=1, description="Share of the surface that must pin a principal offset (rejects sliding)."
     )
+    generator_grip_ratio: float = Field(
+        2.0,
+        ge=0,
+        le=100,
+        description="A dominant offset stands for an eligible multiple that pins this many times more surface "
+        "(a slide, not a generator; 0: off).",
+    )
+    statistics_features: Literal["samples", "all"] = Field(
+        "samples",
+        description="Features the sparsity statistics are taken over: the Poisson-disk features (section IV) "
+        "or all features, vertices included.",
+    )
     min_angle_deg: float = Field(
         60.0, ge=1, le=90, description="Minimum angle between principal offsets (theta); below 1 degree two "
         "offsets span no lattice."

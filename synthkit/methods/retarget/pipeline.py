@@ -7,6 +7,9 @@ in the input's format, ``labels.npy`` (label index per output voxel), ``labels.p
 int32 labels and their colours, :func:`label_colours`), PNG previews (sparsity curve, offset
 histogram, offsets over the model, before / after / labels renders) and metrics.
 
+Each result's metrics include the stitching figures of :func:`_stitch_metrics` (open edges,
+duplicate faces, smallest angle, face and volume ratios with their limits, issue 15).
+
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
 seams in ``infinite_terms``), as the paper's conventional MRF shows its artifacts.
@@ -35,7 +38,15 @@ from synthkit.core.mesh import merge_vertices, normalize_unit
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
-from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, assemble, make_grid, repair_t_junctions
+from synthkit.methods.retarget.synthesis import (
+    RetargetProblem,
+    VoxelGrid,
+    assemble,
+    make_grid,
+    merge_coplanar_faces,
+    mesh_quality,
+    repair_t_junctions,
+)
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
 __all__ = ["run", "Retargeted", "synthesize", "resolve_steps", "weld_seams"]
@@ -46,8 +57,10 @@ log = logging.getLogger("synthkit")
 
 @dataclass
 class Retargeted:
-    """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)``, ``face_label (m,)``,
-    the grid, the problem (labels, shapes), the labeling ``(N,)`` and its energy."""
+    """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)`` (the retargeted mesh,
+    flat regions re-triangulated across seams), ``labelled_F (k, 3)`` with ``face_label (k,)`` (the
+    same surface with every face inside one label's copy, for ``labels.ply``), the grid, the
+    problem (labels, shapes), the labeling ``(N,)`` and its energy."""
 
     V: np.ndarray
     F: np.ndarray
@@ -57,6 +70,7 @@ class Retargeted:
     labeling: np.ndarray
     energy: float
     cycles: int
+    labelled_F: np.ndarray | None = None
 
 
 def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float) -> list[np.ndarray]:
@@ -135,10 +149,15 @@ def synthesize(
         fl = fl[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])]
         Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
         fl = fl[src]
-        used = np.unique(Fw)
+        Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=cfg.weld_tolerance)
+        fl = fl[src]
+        Fw, _ = merge_coplanar_faces(Vw, Fl, None, tol=cfg.weld_tolerance)
+        used = np.unique(Fl)
         remap = np.full(len(Vw), -1)
         remap[used] = np.arange(len(used))
-    return Retargeted(Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles)
+    return Retargeted(
+        Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles, labelled_F=remap[Fl]
+    )
 
 
 def weld_seams(Vc, F, face_label, grid: VoxelGrid, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -257,6 +276,8 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
             "n_vertex_features": int(an.features.n_vertex_features),
             "n_dense_samples": int(len(an.features.dense_P)),
             "n_offsets": int(len(an.offsets)),
+            "n_statistics_features": int(an.n_statistics_features),
+            "n_statistics_offsets": int(len(an.stat_offsets)),
             "n_bins": int(len(an.bin_counts)),
             "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
         }
@@ -307,16 +328,51 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     )
     colours = _palette(res.problem.n_labels)[res.face_label] if len(res.face_label) else None
     labels_path = ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply")
-    save_mesh(mesh, labels_path, face_labels=res.face_label,
+    labelled = trimesh.Trimesh(Vm, res.labelled_F, process=False)
+    save_mesh(labelled, labels_path, face_labels=res.face_label,
               face_colors=label_colours(res.face_label, res.problem.n_labels))
     render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
     return render_mesh_png(
         ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
         Vm,
-        res.F,
+        res.labelled_F,
         face_colors=colours,
         size=cfg.preview_size,
     )
+
+
+def _stitch_metrics(res: Retargeted, Vn, F, input_quality: dict) -> dict:
+    """Issue 15's stitching figures of one result against the input (normalised units, welded by
+    position within 1e-6): open edges, duplicate faces, smallest angle, face counts, and the limits
+    they are held to: the input's open edges times the number of copies used, and the input's faces
+    times the volume ratio (output bounding box over input bounding box) times 1.5."""
+    q = mesh_quality(res.V, res.F)
+    copies = int(len(np.unique(res.labeling)))
+    used = np.unique(F)
+    vin = float(np.prod(np.maximum(np.ptp(Vn[used], axis=0), 1e-12)))
+    vout = float(np.prod(np.maximum(np.ptp(res.V, axis=0), 1e-12))) if len(res.V) else 0.0
+    ratio = vout / vin
+    return {
+        "boundary_edges": q["boundary_edges"],
+        "input_boundary_edges": input_quality["boundary_edges"],
+        "boundary_edges_limit": int(input_quality["boundary_edges"] * copies),
+        "copies": copies,
+        "nonmanifold_edges": q["nonmanifold_edges"],
+        "input_nonmanifold_edges": input_quality["nonmanifold_edges"],
+        "duplicate_faces": q["duplicate_faces"],
+        "input_duplicate_faces": input_quality["duplicate_faces"],
+        "back_to_back_faces": q["back_to_back_faces"],
+        "input_back_to_back_faces": input_quality["back_to_back_faces"],
+        "min_angle_deg": q["min_angle_deg"],
+        "input_min_angle_deg": input_quality["min_angle_deg"],
+        "sliver_faces": q["sliver_faces"],
+        "input_sliver_faces": input_quality["sliver_faces"],
+        "welded_faces": q["faces"],
+        "input_welded_faces": input_quality["faces"],
+        "volume_ratio": ratio,
+        "face_ratio": q["faces"] / max(input_quality["faces"], 1),
+        "faces_limit": int(np.floor(input_quality["faces"] * ratio * 1.5)),
+    }
 
 
 def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: float) -> dict:
@@ -341,6 +397,7 @@ def _result_metrics(res: Retargeted, steps, graphcut_seconds: float, scale: floa
         "label_shifts": res.problem.labels.tolist(),
         "labels_used": int(len(np.unique(res.labeling))),
         "output_faces": int(len(res.F)),
+        "labelled_faces": int(len(res.labelled_F)),
         "output_vertices": int(len(res.V)),
     }
 
@@ -423,6 +480,8 @@ def run(cfg, ctx) -> None:
             min_angle=np.radians(a.min_angle_deg),
             max_principal=a.max_principal,
             dummy_length=a.dummy_length,
+            statistics_features=a.statistics_features,
+            generator_grip_ratio=a.generator_grip_ratio,
             rng=ctx.rng,
         )
     _statistics_outputs(an, V, F, center, scale, cfg, ctx)
@@ -455,11 +514,13 @@ def run(cfg, ctx) -> None:
     if cfg.offsets == "regular":
         ctx.timings["graphcut"] = ctx.timings.get("regular_graphcut", 0.0)
     with ctx.stage("output"):
+        input_quality = mesh_quality(Vn, F)
         renders = [before]
         titles = ["input"]
         for prefix, res, st, secs in results:
             renders.append(_save_result(res, center, scale, suffix, cfg, ctx, prefix=prefix))
             metrics = _result_metrics(res, st, secs, scale)
+            metrics.update(_stitch_metrics(res, Vn, F, input_quality))
             if prefix:
                 ctx.metrics["baseline"] = metrics
             else:

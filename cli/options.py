@@ -33,6 +33,10 @@ set_option = set_option_for()
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace an existing output folder.")
 progress_option = click.option("--no-progress", is_flag=True, help="Do not show progress bars.")
 json_option = click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
+previews_option = click.option(
+    "--previews", type=click.Choice(["all", "summary", "none"]), default="all", show_default=True,
+    help="PNG previews to render: every one, the one summary image of each run, or none (results and "
+         "report.json are written either way).")
 
 
 def verbosity(ctx: click.Context) -> int:
@@ -142,9 +146,10 @@ def method_command(
     @set_option_for(set_example)
     @overwrite_option
     @progress_option
+    @previews_option
     @json_option
     @report_errors
-    def command(config, out_dir, seed, overrides, overwrite, no_progress, as_json, **extra):
+    def command(config, out_dir, seed, overrides, overwrite, no_progress, previews, as_json, **extra):
         from synthkit.runner import default_out_dir, run_config
 
         ctx = click.get_current_context()
@@ -159,6 +164,7 @@ def method_command(
             overwrite=overwrite,
             show_progress=not no_progress and verbosity(ctx) >= 0,
             budget=run_budget(ctx),
+            previews=previews,
         )
         if as_json:
             click.echo(json.dumps(report, indent=2))

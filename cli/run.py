@@ -22,6 +22,7 @@ from .options import (
     describe_exception,
     json_option,
     overwrite_option,
+    previews_option,
     print_summary,
     progress_option,
     run_budget,
@@ -58,10 +59,11 @@ IN_PROCESS = "in-process"
               help="Resubmit a run whose worker died (killed, out of memory) up to this many times.")
 @overwrite_option
 @progress_option
+@previews_option
 @json_option
 @click.pass_context
 def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler, scheduler_file, connect_timeout,
-            retries, overwrite, no_progress, as_json) -> None:
+            retries, overwrite, no_progress, previews, as_json) -> None:
     """Run every CONFIG, dispatching on its `method:` key.
 
     A failed config is reported and the batch goes on; at the end every failure is listed, the
@@ -114,7 +116,7 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
         if remote or workers > 1:
             code = _run_distributed(ctx, jobs, rows, bar, out_root=out_root, seed=seed, overwrite=overwrite,
                                     workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
-                                    timeout=connect_timeout, retries=retries)
+                                    timeout=connect_timeout, retries=retries, previews=previews)
             if code:
                 ctx.exit(code)
         else:
@@ -127,7 +129,7 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
                     bar.update()
                     continue
                 with _above(bar):
-                    rows[i] = _run_one(ctx, rows[i], job.out, seed, job.overrides, overwrite, no_progress)
+                    rows[i] = _run_one(ctx, rows[i], job.out, seed, job.overrides, overwrite, no_progress, previews)
                 bar.update()
     finally:
         bar.close()
@@ -162,7 +164,8 @@ def _out_dir(job, out_root: str) -> Path:
     return target
 
 
-def _run_one(ctx, row: dict, out_dir: str, seed, overrides, overwrite: bool, no_progress: bool) -> dict:
+def _run_one(ctx, row: dict, out_dir: str, seed, overrides, overwrite: bool, no_progress: bool,
+             previews: str = "all") -> dict:
     """Run one config into ``out_dir`` in this process; return its batch row (failures are recorded,
     not raised)."""
     from synthkit.runner import run_config
@@ -171,7 +174,8 @@ def _run_one(ctx, row: dict, out_dir: str, seed, overrides, overwrite: bool, no_
     start = time.perf_counter()
     try:
         report = run_config(row["config"], out_dir=out_dir, seed=seed, overrides=overrides, overwrite=overwrite,
-                            show_progress=not no_progress and verbosity(ctx) >= 0, budget=run_budget(ctx))
+                            show_progress=not no_progress and verbosity(ctx) >= 0, budget=run_budget(ctx),
+                            previews=previews)
     except Exception as exc:
         failed = _failed(ctx, row, exc)
         failed["seconds"] = round(time.perf_counter() - start, 3)
@@ -201,7 +205,7 @@ def _failed_line(ctx, row: dict, code: int, line: str) -> dict:
 
 
 def _run_distributed(ctx, jobs, rows, bar, *, out_root, seed, overwrite, workers, scheduler, scheduler_file,
-                     timeout, retries) -> int:
+                     timeout, retries, previews="all") -> int:
     """Run ``jobs`` on Dask, filling ``rows``; return 0, or the exit code of a cluster that cannot be used
     (its line printed). Configs are validated here first, with the same errors as a sequential run."""
     from synthkit import batch, outdir
@@ -227,7 +231,8 @@ def _run_distributed(ctx, jobs, rows, bar, *, out_root, seed, overwrite, workers
         tasks[i] = {"config": os.path.abspath(job.config) if remote else job.config,
                     "out_dir": os.path.abspath(job.out) if remote else job.out,
                     "seed": seed, "overrides": job.overrides, "overwrite": overwrite,
-                    "max_bytes": None if gib is None else int(gib * 2**30), "verbosity": verbosity(ctx)}
+                    "max_bytes": None if gib is None else int(gib * 2**30), "verbosity": verbosity(ctx),
+                    "previews": previews}
     if not tasks:
         return 0
     cluster = client = None

@@ -29,6 +29,9 @@ from synthkit.methods import METHODS, available_methods, config_module, pipeline
 
 log = logging.getLogger("synthkit")
 
+PREVIEW_LEVELS = ("all", "summary", "none")
+"""What ``--previews`` may say: every PNG preview, the one summary image of a run, or none."""
+
 
 class RunContext:
     """What a pipeline gets besides its config: where to write, randomness, timing, progress.
@@ -48,12 +51,22 @@ class RunContext:
     status : str
         ``report.json``'s ``status`` of a run that succeeds: ``"ok"``, or ``"partial"`` when a method
         wrote a documented partial result (reshape's ``solver.allow_partial``).
+    previews : str
+        ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
     budget : Budget
         The run's memory budget; call ``ctx.budget.require(key, value, count, unit, bytes_each=...)``
         with each size estimate before allocating (see :mod:`synthkit.limits`).
     """
 
-    def __init__(self, out_dir: Path, *, seed: int, show_progress: bool = True, budget: Budget | None = None):
+    def __init__(
+        self,
+        out_dir: Path,
+        *,
+        seed: int,
+        show_progress: bool = True,
+        budget: Budget | None = None,
+        previews: str = "all",
+    ):
         self.out_dir = Path(out_dir)
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
@@ -63,6 +76,16 @@ class RunContext:
         self.outputs: dict[str, str] = {}
         self.budget = budget if budget is not None else Budget()
         self.status = "ok"
+        if previews not in PREVIEW_LEVELS:
+            raise ValueError(f"previews must be one of {', '.join(PREVIEW_LEVELS)}, got {previews!r}")
+        self.previews = previews
+
+    def wants_preview(self, level: str = "all") -> bool:
+        """Whether to render a preview of ``level``: ``"summary"`` (the one image that shows a run's
+        result, rendered unless previews are ``none``) or ``"all"`` (every other preview)."""
+        if level not in ("summary", "all"):
+            raise ValueError(f"preview level must be 'summary' or 'all', got {level!r}")
+        return self.previews == "all" or (self.previews == "summary" and level == "summary")
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
@@ -168,6 +191,7 @@ def run_config(
     overwrite: bool = False,
     show_progress: bool = True,
     budget: Budget | None = None,
+    previews: str = "all",
 ) -> dict[str, Any]:
     """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report.
 
@@ -189,7 +213,7 @@ def run_config(
         outdir.clear_staging(staging, target)
         try:
             outdir.make_staging(staging)
-            ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget)
+            ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:
@@ -212,7 +236,7 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
     start = time.perf_counter()
     try:
         pipeline_module(method).run(cfg, ctx)
-        if not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
+        if ctx.previews != "none" and not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
             raise RuntimeError(f"method {method} wrote no PNG preview")
         return _write_report(method, cfg, ctx, config_path, start, ctx.status)
     except SynthkitError as exc:
@@ -244,6 +268,7 @@ def _write_report(
         "version": __version__,
         "status": status,
         "seed": cfg.seed,
+        "previews": ctx.previews,
         "config": cfg.model_dump(mode="json"),
         "config_file": str(Path(config_path).resolve()),
         "timings": ctx.timings,

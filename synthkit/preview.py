@@ -134,10 +134,17 @@ def _splat(bary: np.ndarray, pix: np.ndarray, z: np.ndarray, faces: np.ndarray, 
     face_at[pixels[closer]] = faces[sample[closer] // len(bary)]
 
 
-def render_mesh_png(path: Path | str, V: np.ndarray, F: np.ndarray, **kwargs) -> np.ndarray:
-    """Render a mesh with :func:`rasterize_mesh` and write it as PNG; returns the image."""
+def _save(path: Path | str | None, img: np.ndarray) -> None:
+    """Write ``img`` to ``path``; a ``None`` path (a preview the run does not keep) writes nothing."""
+    if path is not None:
+        save_image(path, img)
+
+
+def render_mesh_png(path: Path | str | None, V: np.ndarray, F: np.ndarray, **kwargs) -> np.ndarray:
+    """Render a mesh with :func:`rasterize_mesh` and write it as PNG (``path`` None: only render);
+    returns the image."""
     img = rasterize_mesh(V, F, **kwargs)
-    save_image(path, img)
+    _save(path, img)
     return img
 
 
@@ -155,7 +162,9 @@ def colorize(field: np.ndarray, *, vmin: float | None = None, vmax: float | None
     return rgb
 
 
-def heatmap_png(path: Path | str, field: np.ndarray, *, title: str | None = None, min_size: int = 256) -> np.ndarray:
+def heatmap_png(
+    path: Path | str | None, field: np.ndarray, *, title: str | None = None, min_size: int = 256
+) -> np.ndarray:
     """Write a 2-D scalar field as a viridis heatmap PNG (upscaled to ``min_size``); returns it."""
     rgb = colorize(field)
     h, w = rgb.shape[:2]
@@ -164,13 +173,13 @@ def heatmap_png(path: Path | str, field: np.ndarray, *, title: str | None = None
         rgb = cv2.resize(rgb, (w * factor, h * factor), interpolation=cv2.INTER_NEAREST)
     if title:
         rgb = _with_title(rgb, title)
-    save_image(path, rgb)
+    _save(path, rgb)
     return rgb
 
 
-def image_png(path: Path | str, img: np.ndarray) -> None:
+def image_png(path: Path | str | None, img: np.ndarray) -> None:
     """Write an image (grey or colour, float in [0, 1]) as PNG."""
-    save_image(path, img)
+    _save(path, img)
 
 
 def _as_rgb(img: np.ndarray) -> np.ndarray:
@@ -187,7 +196,7 @@ def _with_title(img: np.ndarray, title: str) -> np.ndarray:
 
 
 def montage_png(
-    path: Path | str, images: Sequence[np.ndarray], *, titles: Sequence[str] | None = None, height: int = 256
+    path: Path | str | None, images: Sequence[np.ndarray], *, titles: Sequence[str] | None = None, height: int = 256
 ) -> np.ndarray:
     """Place images side by side at a common ``height`` (with optional titles) and write a PNG."""
     tiles = []
@@ -201,12 +210,12 @@ def montage_png(
         tiles.append(rgb)
         tiles.append(np.ones((tiles[-1].shape[0], 6, 3), dtype=np.float32))
     out = np.concatenate(tiles[:-1], axis=1)
-    save_image(path, out)
+    _save(path, out)
     return out
 
 
 def plot_curve_png(
-    path: Path | str,
+    path: Path | str | None,
     xs: np.ndarray,
     ys: np.ndarray,
     *,
@@ -246,5 +255,5 @@ def plot_curve_png(
     cv2.putText(img, title, (left, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv2.LINE_AA)
     cv2.putText(img, xlabel, (w // 2 - 40, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
     cv2.putText(img, ylabel, (4, top - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
-    save_image(path, img)
+    _save(path, img)
     return img.astype(np.float32) / 255.0

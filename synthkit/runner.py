@@ -87,6 +87,11 @@ class RunContext:
             raise ValueError(f"preview level must be 'summary' or 'all', got {level!r}")
         return self.previews == "all" or (self.previews == "summary" and level == "summary")
 
+    def preview_path(self, key: str, filename: str, level: str = "all") -> Path | None:
+        """:meth:`path` for a preview of ``level`` the run keeps, else None (the preview functions of
+        :mod:`synthkit.preview` then render without writing)."""
+        return self.path(key, filename) if self.wants_preview(level) else None
+
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
         """Time the enclosed block; seconds are added to ``timings[name]``."""

@@ -242,21 +242,24 @@ def export_nets(cfg: PetriConfig, ctx, net: ColouredPetriNet, ex_net: ColouredPe
 
 
 def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, library_xyz, axes, lines) -> None:
-    """``result.png``, ``construction_space.png`` (the example in the curve's view with ``lines (k, 2,
-    3)`` drawn over it) and ``montage.png`` (example, space, result and, when run, the baseline ``bnet``),
-    from pieces decimated to about :data:`PREVIEW_FACES` triangles in all."""
+    """``result.png`` (the summary preview), ``construction_space.png`` (the example in the curve's view
+    with ``lines (k, 2, 3)`` drawn over it) and ``montage.png`` (example, space, result and, when run,
+    the baseline ``bnet``), from pieces decimated to about :data:`PREVIEW_FACES` triangles in all."""
+    if not ctx.wants_preview("summary"):
+        return
     colors = label_colors(max(net.n_labels, 1))
-    view = VIEW_OF_PLANE[cfg.construction.plane]
     n_max = max(net.n_cells, grid.size)
     lib_xyz = preview_library(library_xyz, max(PREVIEW_FACES // n_max, 64))
     lib_abc = reorder_library(lib_xyz, axes)
-    EV, EF, e_label = assemble(lib_xyz, grid, ex_net.corners)
     PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
     small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
-    img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
-    img_space = preview.rasterize_mesh(EV, EF, view=view, lines=lines, **large)
     img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
     preview.image_png(ctx.path("preview_result", "result.png"), img_res)
+    if not ctx.wants_preview("all"):
+        return
+    EV, EF, e_label = assemble(lib_xyz, grid, ex_net.corners)
+    img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
+    img_space = preview.rasterize_mesh(EV, EF, view=VIEW_OF_PLANE[cfg.construction.plane], lines=lines, **large)
     preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
     images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
     if bnet is not None:

@@ -290,14 +290,18 @@ def _baseline(graph, known, X_known, backend) -> np.ndarray:
 
 
 def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
-    """before.png, after.png, baseline.png and comparison.png."""
+    """before.png, after.png, baseline.png and comparison.png (the summary preview)."""
+    if not ctx.wants_preview("summary"):
+        return
+
     def image(Xn, key, name):
         Vn = Xn[graph.node_of_vertex]
         seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
         rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
         ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
         img = reshape_image(Vn, F, seg, edge_colours(ratio), Xn[handles], view=cfg.view, size=cfg.preview_size)
-        save_image(ctx.path(key, name), img)
+        if ctx.wants_preview("all"):
+            save_image(ctx.path(key, name), img)
         return img
 
     imgs = [image(graph.X0, "before", "before.png"), image(X, "after", "after.png")]

@@ -282,6 +282,10 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
             "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
         }
     )
+    # the statistics are the summary of a run that stops after them (--analyze-only, no repetition)
+    level = "summary" if cfg.analyze_only or an.n_principal == 0 else "all"
+    if not ctx.wants_preview(level):
+        return
     plot_curve_png(
         ctx.path("sparsity_plot", "sparsity.png"),
         an.curve_x * 100.0,
@@ -290,6 +294,8 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
         ylabel="% of offsets",
         title=f"top 7%: {an.top7:.0%}  top 20%: {an.top20:.0%}",
     )
+    if not ctx.wants_preview("all"):
+        return
     keys, counts = an.bin_keys, an.bin_counts
     views = []
     for a0, a1 in ((0, 1), (0, 2)):
@@ -317,8 +323,9 @@ def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
     )
 
 
-def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefix: str) -> np.ndarray:
-    """Write mesh, label volume, labelled PLY and renders of one result; returns the label render."""
+def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefix: str) -> np.ndarray | None:
+    """Write mesh, label volume, labelled PLY and renders of one result; returns the label render (None
+    when previews are off)."""
     Vm = res.V * scale + center
     mesh = trimesh.Trimesh(Vm, res.F, process=False)
     name = f"{prefix}retargeted{suffix}"
@@ -331,9 +338,12 @@ def _save_result(res: Retargeted, center, scale, suffix: str, cfg, ctx, *, prefi
     labelled = trimesh.Trimesh(Vm, res.labelled_F, process=False)
     save_mesh(labelled, labels_path, face_labels=res.face_label,
               face_colors=label_colours(res.face_label, res.problem.n_labels))
-    render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
+    if ctx.wants_preview("all"):
+        render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, res.F, size=cfg.preview_size)
+    if not ctx.wants_preview("summary"):
+        return None
     return render_mesh_png(
-        ctx.path(f"{prefix}labels_preview", f"{prefix}labels.png"),
+        ctx.preview_path(f"{prefix}labels_preview", f"{prefix}labels.png"),
         Vm,
         res.labelled_F,
         face_colors=colours,
@@ -485,7 +495,9 @@ def run(cfg, ctx) -> None:
             rng=ctx.rng,
         )
     _statistics_outputs(an, V, F, center, scale, cfg, ctx)
-    before = render_mesh_png(ctx.path("before", "before.png"), V, F, size=cfg.preview_size)
+    before = None
+    if ctx.wants_preview("all") or (ctx.wants_preview("summary") and not cfg.analyze_only):
+        before = render_mesh_png(ctx.preview_path("before", "before.png"), V, F, size=cfg.preview_size)
     ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
     if cfg.analyze_only:
         return
@@ -528,4 +540,5 @@ def run(cfg, ctx) -> None:
             titles.append(
                 f"{prefix.rstrip('_') or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels"
             )
-        montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)
+        if ctx.wants_preview("summary"):
+            montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)

@@ -87,16 +87,17 @@ def preview_rep(path: Path, S: np.ndarray, title: str) -> None:
 def write_common(cfg, ctx, src, image, objective: Objective, targets) -> None:
     save_image(ctx.path("result", "result.png"), image)
     name = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}[cfg.symmetry.kind]
-    sig_in = sy.signal(src, cfg.symmetry.signals[0])
-    if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
-        rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
-    else:
-        rep_in = objective.represent(sig_in, standardize=True)
-    preview_rep(ctx.path("s_input", "s_input.png"), rep_in, f"{name} input")
-    if targets is not None:
-        preview_rep(ctx.path("s_target", "s_target.png"), targets[0], f"{name} target")
+    if ctx.wants_preview("all"):
+        sig_in = sy.signal(src, cfg.symmetry.signals[0])
+        if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
+            rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
+        else:
+            rep_in = objective.represent(sig_in, standardize=True)
+        preview_rep(ctx.path("s_input", "s_input.png"), rep_in, f"{name} input")
+        if targets is not None:
+            preview_rep(ctx.path("s_target", "s_target.png"), targets[0], f"{name} target")
     rep_out = objective.represent(sy.signal(image, cfg.symmetry.signals[0]), standardize=True)
-    preview_rep(ctx.path("s_result", "s_result.png"), rep_out, f"{name} result")
+    preview_rep(ctx.preview_path("s_result", "s_result.png"), rep_out, f"{name} result")
     if rep_out.ndim == 2:
         try:
             ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))

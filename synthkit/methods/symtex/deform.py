@@ -581,11 +581,14 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         np.save(ctx.path("sample_map", "sample_map.npy"), np.stack([mx, my], axis=2).astype(np.float32))
         if cfg.mode == "tile":
             save_image(ctx.path("optimized", "optimized.png"), optimized)
-            save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
-            save_image(ctx.path("tiled_optimized", "tiled_optimized_3x3.png"), np.tile(optimized, (3, 3, 1)))
-            save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))
             save_image(ctx.path("baseline", "baseline.png"), baseline)
-            save_image(ctx.path("tiled_baseline", "tiled_baseline_3x3.png"), np.tile(baseline, (3, 3, 1)))
+            if ctx.wants_preview("all"):
+                save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
+                save_image(ctx.path("tiled_optimized", "tiled_optimized_3x3.png"), np.tile(optimized, (3, 3, 1)))
+                save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))
+                save_image(ctx.path("tiled_baseline", "tiled_baseline_3x3.png"), np.tile(baseline, (3, 3, 1)))
+        if not ctx.wants_preview("summary"):
+            return
         if baseline is None:
             montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
         else:

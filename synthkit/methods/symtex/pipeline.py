@@ -172,11 +172,12 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         write_common(cfg, ctx, src, image, objective, targets)
         if cfg.mode != "quilt":
             save_image(ctx.path("baseline", "baseline.png"), baseline.image)
-            montage_png(
-                ctx.path("comparison", "comparison.png"),
-                [src, baseline.image, image],
-                titles=["source", "unguided", "guided"],
-            )
+            if ctx.wants_preview("summary"):
+                montage_png(
+                    ctx.path("comparison", "comparison.png"),
+                    [src, baseline.image, image],
+                    titles=["source", "unguided", "guided"],
+                )
 
 
 def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
@@ -203,5 +204,5 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
         write_common(cfg, ctx, src, image, objective, None)
         ks, vals = np.array(sorted(history)).T
         plot_curve_png(
-            ctx.path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm", title="lens search"
+            ctx.preview_path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm", title="lens search"
         )

@@ -12,8 +12,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
+import numba
 import numpy as np
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.io.images import save_image
 
 _VIEWS = {
@@ -45,15 +47,11 @@ def rasterize_mesh(
     view: str = "iso",
     size: int = 512,
     lines: np.ndarray | None = None,
-    max_samples: int | None = None,
 ) -> np.ndarray:
     """Render ``V (#V, 3)``, ``F (#F, 3)`` to an ``(size, size, 3) float32`` image in [0, 1].
 
     ``face_colors (#F, 3)`` in [0, 1] tint faces; ``lines (k, 2, 3)`` are segments drawn on top in
-    red. Triangles are covered by a regular barycentric grid of samples fine enough for their
-    pixel size; the nearest sample wins per pixel. Samples are processed in chunks, so memory stays
-    bounded; ``max_samples`` optionally caps their total for speed, at the price of holes in faces
-    larger than the coarsened sampling.
+    red. Each pixel shows the nearest face that holds its centre (:func:`_rasterize`, compiled).
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -83,19 +81,9 @@ def rasterize_mesh(
     colors = np.broadcast_to(colors, (len(F), 3)) * shade[:, None]
 
     pix = to_pixels(P)[F]
-    edge = np.linalg.norm(pix - np.roll(pix, 1, axis=1), axis=2).max(axis=1)
-    n_sub = np.clip(np.ceil(edge * 1.5).astype(np.int64), 1, None)
-    cost = (n_sub + 1) * (n_sub + 2) // 2
-    if max_samples is not None and cost.sum() > max_samples:
-        n_sub = np.clip((n_sub * np.sqrt(max_samples / cost.sum())).astype(np.int64), 1, None)
     depth = np.full(size * size, -np.inf)
     face_at = np.full(size * size, -1, dtype=np.int64)
-    for n in np.unique(n_sub):
-        faces = np.nonzero(n_sub == n)[0]
-        i, j = np.nonzero(np.add.outer(np.arange(n + 1), np.arange(n + 1)) <= n)
-        bary = np.stack([i, j, n - i - j], axis=1) / n
-        for chunk in np.array_split(faces, max(1, len(faces) * len(bary) // 2_000_000 + 1)):
-            _splat(bary, pix[chunk], tri[chunk, :, 2], chunk, size, depth, face_at)
+    _rasterize(np.ascontiguousarray(pix), np.ascontiguousarray(tri[:, :, 2]), size, depth, face_at)
     covered = face_at >= 0
     img.reshape(-1, 3)[covered] = colors[face_at[covered]]
     if lines is not None and len(lines):
@@ -108,30 +96,53 @@ def rasterize_mesh(
     return img
 
 
-def _splat(bary: np.ndarray, pix: np.ndarray, z: np.ndarray, faces: np.ndarray, size: int,
-           depth: np.ndarray, face_at: np.ndarray) -> None:
-    """Splat the samples ``bary (S, 3)`` of triangles ``pix (f, 3, 2)`` (pixels) with depths
-    ``z (f, 3)`` into the z-buffer ``depth (size*size,)`` / ``face_at`` (face index ``faces[i]``).
+_INSIDE_TOL = 1e-9
+"""Barycentric tolerance of the inside test: a pixel centre on a shared edge belongs to both faces."""
 
-    Per pixel the deepest sample wins, the first one (face order, then sample order) among equal
-    depths, and it replaces the buffer only when strictly nearer: the result of a stable sort by
-    pixel and depth, without the sort (one ``maximum.at`` and one ``minimum.at`` over the samples).
+
+@numba.njit(cache=NUMBA_CACHE)
+def _rasterize(pix, z, size, depth, face_at):  # pragma: no cover - compiled
+    """Z-buffer the triangles ``pix (f, 3, 2)`` (pixel coordinates, pixel centres at integers) with
+    vertex depths ``z (f, 3)`` into ``depth (size*size,)`` / ``face_at`` (face index), nearer = larger z.
+
+    A pixel takes the nearest face whose triangle holds its centre (the first face among equal
+    depths: a face replaces the buffer only when strictly nearer). A face that holds no pixel centre
+    (smaller than a pixel, or degenerate) still marks the pixel of its centroid, so thin parts stay
+    visible.
     """
-    pts = np.einsum("sk,fkd->fsd", bary, pix)  # einsum's sums: written out, they differ in the last bit
-    zs = np.einsum("sk,fk->fs", bary, z).ravel()
-    px = np.clip(np.round(pts[..., 0]).astype(np.int64), 0, size - 1)
-    py = np.clip(np.round(pts[..., 1]).astype(np.int64), 0, size - 1)
-    flat = (py * size + px).ravel()
-    best = np.full(size * size, -np.inf)
-    np.maximum.at(best, flat, zs)
-    level = np.nonzero(zs == best[flat])[0]
-    first = np.full(size * size, len(zs), dtype=np.int64)
-    np.minimum.at(first, flat[level], level)
-    pixels = np.nonzero(first < len(zs))[0]
-    sample = first[pixels]
-    closer = zs[sample] > depth[pixels]
-    depth[pixels[closer]] = zs[sample[closer]]
-    face_at[pixels[closer]] = faces[sample[closer] // len(bary)]
+    for f in range(pix.shape[0]):
+        x0, y0 = pix[f, 0, 0], pix[f, 0, 1]
+        x1, y1 = pix[f, 1, 0], pix[f, 1, 1]
+        x2, y2 = pix[f, 2, 0], pix[f, 2, 1]
+        z0, z1, z2 = z[f, 0], z[f, 1], z[f, 2]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        xmin = max(int(np.ceil(min(x0, x1, x2))), 0)
+        xmax = min(int(np.floor(max(x0, x1, x2))), size - 1)
+        ymin = max(int(np.ceil(min(y0, y1, y2))), 0)
+        ymax = min(int(np.floor(max(y0, y1, y2))), size - 1)
+        hit = False
+        if area != 0.0:
+            inv = 1.0 / area
+            for py in range(ymin, ymax + 1):
+                for px in range(xmin, xmax + 1):
+                    w0 = ((x1 - px) * (y2 - py) - (x2 - px) * (y1 - py)) * inv
+                    w1 = ((x2 - px) * (y0 - py) - (x0 - px) * (y2 - py)) * inv
+                    w2 = 1.0 - w0 - w1
+                    if w0 >= -_INSIDE_TOL and w1 >= -_INSIDE_TOL and w2 >= -_INSIDE_TOL:
+                        hit = True
+                        d = w0 * z0 + w1 * z1 + w2 * z2
+                        k = py * size + px
+                        if d > depth[k]:
+                            depth[k] = d
+                            face_at[k] = f
+        if not hit:
+            px = min(max(int(np.round((x0 + x1 + x2) / 3.0)), 0), size - 1)
+            py = min(max(int(np.round((y0 + y1 + y2) / 3.0)), 0), size - 1)
+            d = (z0 + z1 + z2) / 3.0
+            k = py * size + px
+            if d > depth[k]:
+                depth[k] = d
+                face_at[k] = f
 
 
 def _save(path: Path | str | None, img: np.ndarray) -> None:

@@ -59,3 +59,24 @@ def test_png_writers(tmp_path):
     assert plot.shape == (360, 480, 3) and (plot < 1).any()
     mont = montage_png(tmp_path / "m.png", [np.zeros((10, 20)), np.ones((5, 5, 3))], height=20)
     assert mont.shape == (20, 40 + 6 + 20, 3)
+
+
+def test_rasterizer_covers_pixel_centres_and_keeps_tiny_faces():
+    from synthkit.preview import _rasterize
+
+    size = 8
+    pix = np.array([[[1.0, 1.0], [5.0, 1.0], [1.0, 5.0]],  # right triangle: centres with x + y <= 6
+                    [[6.2, 6.2], [6.4, 6.2], [6.2, 6.4]]])  # holds no centre: marks its centroid's pixel
+    z = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    depth = np.full(size * size, -np.inf)
+    face_at = np.full(size * size, -1, dtype=np.int64)
+    _rasterize(pix, z, size, depth, face_at)
+    grid = face_at.reshape(size, size)
+    ys, xs = np.nonzero(grid == 0)
+    assert set(zip(xs.tolist(), ys.tolist(), strict=True)) == {
+        (x, y) for x in range(1, 6) for y in range(1, 6) if x + y <= 6
+    }
+    assert np.argwhere(grid == 1).tolist() == [[6, 6]]
+    # a nearer face drawn later replaces, an equally near one does not
+    _rasterize(pix[:1], z[:1] + 1.0, size, depth, face_at)
+    assert (face_at.reshape(size, size)[1:6, 1:6][grid[1:6, 1:6] == 0] == 0).all()

@@ -252,7 +252,7 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
     lib_xyz = preview_library(library_xyz, max(PREVIEW_FACES // n_max, 64))
     lib_abc = reorder_library(lib_xyz, axes)
     PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
-    small, large = {"size": 320, "max_samples": 900_000}, {"size": 512, "max_samples": 2_000_000}
+    small, large = {"size": 320}, {"size": 512}
     img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
     preview.image_png(ctx.path("preview_result", "result.png"), img_res)
     if not ctx.wants_preview("all"):

@@ -66,7 +66,14 @@ class RegionTermSection(StrictModel):
         "Default chosen by benchmarks/segmentation.py (README).",
     )
     weight: float = Field(
-        4.0, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
+        0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
+    )
+    concavity: float = Field(
+        1000.0,
+        ge=0,
+        le=1e6,
+        description="model: geodesic: extra length of a step across a concave edge, in mean edge lengths times "
+        "1 - cos(bending angle) (0 = plain edge-graph distance).",
     )
     clusters: int = Field(64, ge=1, le=1024, description="k-means clusters per region for model: color (paper: 64).")
 

@@ -30,7 +30,8 @@ __all__ = ["SegGraph", "build_graph", "boundary_cost", "face_labels_from_vertice
 class SegGraph:
     """A graph to cut: ``kind``, node ``points (n, 3)``, ``areas (n,)`` (divided by their mean),
     ``edges (E, 2) int64``, area-weighted eq. 1 ``weights (E,)``, ``lengths (E,)`` (the mesh edge each
-    graph edge crosses or follows) and ``mesh_edges (E, 2)`` (that mesh edge's vertices)."""
+    graph edge crosses or follows), ``mesh_edges (E, 2)`` (that mesh edge's vertices) and ``bend (E,)``
+    (that mesh edge's bending angle, ``pi - theta``: negative where concave)."""
 
     kind: str
     points: np.ndarray
@@ -39,6 +40,7 @@ class SegGraph:
     weights: np.ndarray
     lengths: np.ndarray
     mesh_edges: np.ndarray
+    bend: np.ndarray
 
     @property
     def n(self) -> int:
@@ -75,7 +77,7 @@ def build_graph(V, F, kind: str, *, eta: float = 1.0, gamma: float = 1.0) -> Seg
         cost = boundary_cost(np.pi - bend, lengths, mean_length=mean_length, eta=eta, gamma=gamma)
         weights = cost * 0.5 * (areas[pairs[:, 0]] + areas[pairs[:, 1]])
         points = V[F].mean(axis=1)
-        return SegGraph("face", points, areas, pairs, weights, lengths, pair_edges)
+        return SegGraph("face", points, areas, pairs, weights, lengths, pair_edges, bend)
     areas = _normalised(vertex_areas(V, F))
     n = len(V)
     keys = E[:, 0] * n + E[:, 1]
@@ -84,7 +86,7 @@ def build_graph(V, F, kind: str, *, eta: float = 1.0, gamma: float = 1.0) -> Seg
     mean_bend = np.bincount(idx, weights=bend, minlength=len(E)) / np.maximum(count, 1)
     cost = boundary_cost(np.pi - mean_bend, length_all, mean_length=mean_length, eta=eta, gamma=gamma)
     weights = cost * 0.5 * (areas[E[:, 0]] + areas[E[:, 1]])
-    return SegGraph("vertex", np.asarray(V, np.float64), areas, E, weights, length_all, E)
+    return SegGraph("vertex", np.asarray(V, np.float64), areas, E, weights, length_all, E, mean_bend)
 
 
 def face_labels_from_vertices(F, vertex_labels) -> np.ndarray:

@@ -4,8 +4,10 @@ Both models turn a per-region distance ``d (n, L)`` into the Lazy Snapping form
 ``E(p, l) = d_l / (d_l + min_{k != l} d_k)`` (0 at the region's own evidence, 1/2 where two regions
 are equally likely, 1 far away), scaled by ``weight`` and the node's normalised area:
 
-- ``geodesic``: d_l is the shortest-path length over the graph (edges weighted by the Euclidean
-  distance between node points) to region l's fixed nodes; a region absent from a node's
+- ``geodesic``: d_l is the shortest-path length over the graph to region l's fixed nodes, an
+  edge costing the Euclidean distance between its node points plus, where the mesh edge it
+  crosses is concave, ``concavity * d_mean * (1 - cos(bend))`` (the angular distance of Katz and
+  Tal 2003), so that distances grow across concave creases; a region absent from a node's
   connected component is infinitely far.
 - ``color``: d_l is the distance of the node's colour to the nearest of the k-means centres of
   region l's fixed nodes' colours (Li et al. 2004, K = 64).
@@ -35,10 +37,13 @@ def normalised_cost(d) -> np.ndarray:
     return np.where((d == 0) & (other == 0), 0.5, out)
 
 
-def geodesic_distances(points, edges, seeds, n_labels: int) -> np.ndarray:
-    """Shortest-path distance ``(n, L)`` from every node to each region's fixed nodes."""
+def geodesic_distances(points, edges, seeds, n_labels: int, *, extra=None) -> np.ndarray:
+    """Shortest-path distance ``(n, L)`` from every node to each region's fixed nodes; ``extra (E,)``
+    lengthens the edges (the concavity penalty)."""
     n = len(points)
     w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1) + 1e-12
+    if extra is not None:
+        w = w + extra
     G = sp.csr_matrix((w, (edges[:, 0], edges[:, 1])), shape=(n, n))
     out = np.full((n, n_labels), np.inf)
     for label in range(n_labels):

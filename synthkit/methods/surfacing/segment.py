@@ -37,7 +37,8 @@ class Options:
     eta: float = 1.0
     gamma: float = 1.0
     region_model: str = "geodesic"
-    region_weight: float = 4.0
+    region_weight: float = 0.5
+    concavity: float = 1000.0
     clusters: int = 64
     multires: bool = True
     coarsest_nodes: int = 8000
@@ -72,7 +73,8 @@ def region_costs(graph: SegGraph, seeds, n_labels: int, opt: Options, *, colors=
     if opt.region_model == "none" or opt.region_weight == 0:
         return np.zeros((graph.n, n_labels))
     if opt.region_model == "geodesic":
-        d = regions.geodesic_distances(graph.points, graph.edges, seeds, n_labels)
+        extra = opt.concavity * graph.lengths.mean() * np.where(graph.bend < 0, 1 - np.cos(graph.bend), 0.0)
+        d = regions.geodesic_distances(graph.points, graph.edges, seeds, n_labels, extra=extra)
     elif opt.region_model == "color":
         if colors is None:
             raise ValueError("region model 'color' needs vertex colours or a texture, and the mesh has neither")

@@ -52,7 +52,10 @@ CONFIGS = {
     "geodesic-plain": Options(concavity=0.0),
     "default-vertex": Options(graph="vertex"),
     "default": Options(),
+    "default-multires": Options(coarsest_nodes=2000, compare_single_level=True),
 }
+"""Configs scored; ``default-multires`` forces the hierarchy down to 2000 nodes (PSB meshes have 3k-31k
+faces) and compares it with the single-level cut on the same strokes."""
 
 
 def _graph(V, F):
@@ -160,9 +163,12 @@ def run_quality(args, names) -> dict:
                 for name in names:
                     t = time.perf_counter()
                     res = segment(V, F, owner, np.full(len(F), -1), L, CONFIGS[name], rng=0)
-                    results[name] = (res.face_labels, time.perf_counter() - t)
-                for name, (labels, seconds) in results.items():
+                    results[name] = (res.face_labels, time.perf_counter() - t, res)
+                for name, (labels, seconds, *res) in results.items():
                     sc = measures.scores(V, F, labels, src)
+                    if res and res[0].single_level:
+                        sc["multires_cost_ratio"] = res[0].cut_cost / res[0].single_level["cut_cost"]
+                        sc["multires_face_agreement"] = res[0].single_level["face_agreement"]
                     sc["ri_all"] = float(np.mean([measures.rand_index_error(labels, s) for s in segs]))
                     sc["seconds"] = seconds
                     sc["model"] = mid
@@ -203,6 +209,13 @@ def _summarise(rows, models, human, args):
             if name != "voronoi":
                 record(AREA, f"{protocol}_{name}_models_below_voronoi", float(wins), "models",
                        goal={"disc": 6, "body": 7}.get(protocol) if name == "default" else None)
+            ratios = [r["multires_cost_ratio"] for r in rs if "multires_cost_ratio" in r]
+            agree = [r["multires_face_agreement"] for r in rs if "multires_cost_ratio" in r]
+            if ratios:
+                print(f"{'':14s} multiresolution / single-level cut cost: max {max(ratios):.4f}, mean {np.mean(ratios):.4f};"
+                      f" face agreement: min {min(agree):.4f}, mean {np.mean(agree):.4f}")
+                record(AREA, f"{protocol}_{name}_cut_cost_ratio_max", float(max(ratios)), "1", goal=1.01)
+                record(AREA, f"{protocol}_{name}_face_disagreement_max", float(1 - min(agree)), "1", goal=0.01)
 
 
 def _subdivided(target: int):

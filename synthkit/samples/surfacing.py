@@ -55,11 +55,15 @@ def voxel_surface(occ, spacing: float = 1.0) -> tuple[np.ndarray, np.ndarray, np
 
 
 def crease_boxes(n: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """An L of two boxes: part 0 is ``[0, 2] x [0, 1] x [0, 1]``, part 1 ``[0, 1] x [1, 2] x [0, 1]``;
-    the concave crease is the line x = 1, y = 1. ``n`` cells per unit."""
-    occ = np.zeros((2 * n, 2 * n, n), np.int64)
-    occ[:, :n, :] = 1
-    occ[:n, n:, :] = 2
+    """An L of two boxes: part 0 is ``[0, 2] x [0, 1.5] x [0, 1]``, part 1 ``[0, 1] x [1.5, 2.5] x [0, 1]``;
+    the concave crease is the line x = 1, y = 1.5, and the cheapest cut continues it along y = 1.5
+    (length 1 on each flat side, against 1.5 along x = 1). ``n`` (even) cells per unit."""
+    if n % 2:
+        raise ValueError(f"n must be even, got {n}")
+    h = 3 * n // 2
+    occ = np.zeros((2 * n, h + n, n), np.int64)
+    occ[:, :h, :] = 1
+    occ[:n, h:, :] = 2
     return voxel_surface(occ, 1.0 / n)
 
 
@@ -84,12 +88,25 @@ def disc_sphere(subdivisions: int = 4, radius_deg: float = 35.0) -> tuple[np.nda
 
 
 def part_centre_vertices(V, F, part) -> list[int]:
-    """Per part, the vertex of its faces nearest the part's mean face centre (a stroke in its body)."""
+    """Per part, its deepest interior vertex (all incident faces in the part, farthest on the edge
+    graph from the part's boundary): a stroke in the body of the part."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import dijkstra
+
+    from synthkit.core.mesh import vertex_graph_edges
+
+    E = vertex_graph_edges(F)
+    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    G = sp.csr_matrix((w, (E[:, 0], E[:, 1])), shape=(len(V), len(V)))
     out = []
     for p in range(int(part.max()) + 1):
-        verts = np.unique(F[part == p])
-        centre = V[F[part == p]].mean(axis=(0, 1))
-        out.append(int(verts[np.argmin(np.linalg.norm(V[verts] - centre, axis=1))]))
+        inside = np.zeros(len(V), bool)
+        outside = np.zeros(len(V), bool)
+        inside[F[part == p].ravel()] = True
+        outside[F[part != p].ravel()] = True
+        rim = np.flatnonzero(inside & outside)
+        depth = dijkstra(G, directed=False, indices=rim, min_only=True) if len(rim) else np.zeros(len(V))
+        out.append(int(np.argmax(np.where(inside & ~outside, depth, -1.0))))
     return out
 
 

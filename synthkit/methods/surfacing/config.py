@@ -83,11 +83,16 @@ class MultiresSection(StrictModel):
 
     enabled: bool = Field(True, description="Use the hierarchy when the graph has more than coarsest_nodes nodes.")
     coarsest_nodes: int = Field(
-        8000, ge=100, le=1_000_000, description="Stop coarsening at this many vertices (paper: thousands to 10^4)."
+        8000, ge=100, le=1_000_000,
+        description="Stop coarsening at this many graph nodes (paper: thousands to 10^4 vertices; a face graph has "
+        "about two nodes per vertex).",
     )
     ratio: float = Field(0.25, gt=0.01, lt=1, description="Vertices kept from one level to the next coarser one.")
     max_levels: int = Field(4, ge=1, le=4, description="At most this many levels including the finest (paper: 2-4).")
     band_rings: int = Field(2, ge=1, le=20, description="Rings around the coarser cut left free at each finer level.")
+    crease_deg: float = Field(
+        30.0, ge=0, le=180, description="No cluster spans a concave edge bent more than this (degrees; 180 = off)."
+    )
 
 
 class SurfacingConfig(RunConfig):

@@ -43,7 +43,7 @@ def options_of(cfg: SurfacingConfig) -> Options:
     return Options(
         graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
         region_weight=r.weight, concavity=r.concavity, clusters=r.clusters, multires=m.enabled, coarsest_nodes=m.coarsest_nodes,
-        ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings, compare_single_level=cfg.compare_single_level,
+        ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings, crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
     )
 
 
@@ -121,7 +121,7 @@ def _metrics(cfg: SurfacingConfig, mesh, seg: Segmentation, cut: np.ndarray) -> 
     out = {
         "regions": regions, "graph": cfg.graph, "region_model": cfg.region_term.model, "solver": seg.solver,
         "graph_nodes": seg.graph.n, "graph_edges": int(len(seg.graph.edges)), "cut_cost": seg.cut_cost,
-        "energy": seg.energy, "cut_length": float(np.linalg.norm(V[cut[:, 0]] - V[cut[:, 1]], axis=1).sum()),
+        "boundary_cost": seg.boundary_cost, "cut_length": float(np.linalg.norm(V[cut[:, 0]] - V[cut[:, 1]], axis=1).sum()),
         "cut_edges": int(len(cut)), "levels": levels, "unstroked_components": seg.unstroked_components,
     }
     if seg.single_level is not None:

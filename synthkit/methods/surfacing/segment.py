@@ -45,6 +45,7 @@ class Options:
     ratio: float = 0.25
     max_levels: int = 4
     band_rings: int = 2
+    crease_deg: float = 30.0
     compare_single_level: bool = False
 
 
@@ -52,7 +53,8 @@ class Options:
 class Segmentation:
     """Result: ``face_labels (#F,)``, ``vertex_labels (#V,)``, the graph, its ``seeds (n,)`` and
     ``labels (n,)``, per-level ``levels`` stats (finest first, each with a ``free_faces (#F,) bool``
-    mask), ``cut_cost`` (boundary energy), ``energy`` (whole), the solver name, timings."""
+    mask), ``cut_cost`` (the cost of the graph cut: boundary plus region terms, the energy
+    minimised), ``boundary_cost`` (its boundary part), the solver name, timings."""
 
     face_labels: np.ndarray
     vertex_labels: np.ndarray
@@ -61,7 +63,7 @@ class Segmentation:
     labels: np.ndarray
     levels: list[dict]
     cut_cost: float
-    energy: float
+    boundary_cost: float
     solver: str
     unstroked_components: int
     timings: dict = field(default_factory=dict)
@@ -111,10 +113,12 @@ def segment(V, F, vertex_owner, face_owner, n_labels: int, opt: Options, *, colo
     t = time.perf_counter()
     maps = []
     if opt.multires and graph.n > opt.coarsest_nodes:
-        maps = lod.lod_maps(V, F, opt.graph, coarsest=opt.coarsest_nodes, ratio=opt.ratio, max_levels=opt.max_levels)
+        per_vertex = 2 if opt.graph == "face" else 1  # a closed mesh has about twice as many faces as vertices
+        maps = lod.lod_maps(V, F, opt.graph, coarsest=max(opt.coarsest_nodes // per_vertex, 4), ratio=opt.ratio,
+                            max_levels=opt.max_levels)
     timings["hierarchy"] = time.perf_counter() - t
     t = time.perf_counter()
-    problem = Problem(unary, graph.edges, graph.weights, seeds)
+    problem = Problem(unary, graph.edges, graph.weights, seeds, graph.bend < -np.radians(opt.crease_deg))
     labels, levels = solve_multires(problem, maps, band_rings=opt.band_rings, rng=rng)
     timings["cut"] = time.perf_counter() - t
     for st in levels:
@@ -126,7 +130,7 @@ def segment(V, F, vertex_owner, face_owner, n_labels: int, opt: Options, *, colo
         seconds = time.perf_counter() - t
         fl = _to_faces(F, graph, single)
         result.single_level = {
-            "cut_cost": cut_cost(single, graph.edges, graph.weights),
+            "cut_cost": _energy(unary, graph, single),
             "seconds": seconds,
             "face_agreement": float(np.mean(fl == result.face_labels)),
         }
@@ -136,10 +140,14 @@ def segment(V, F, vertex_owner, face_owner, n_labels: int, opt: Options, *, colo
 def _result(V, F, graph, seeds, labels, unary, n_labels, levels, n_unstroked, timings) -> Segmentation:
     fl = _to_faces(F, graph, labels)
     vl = vertex_labels_from_faces(V, F, fl, n_labels) if graph.kind == "face" else labels
-    cc = cut_cost(labels, graph.edges, graph.weights)
-    energy = cc + float(unary[np.arange(graph.n), labels].sum())
     solver = "s-t min cut (exact)" if n_labels == 2 else "alpha-expansion (Potts, within 2x of optimum)"
-    return Segmentation(fl, vl, graph, seeds, labels, levels, cc, energy, solver, n_unstroked, timings)
+    return Segmentation(fl, vl, graph, seeds, labels, levels, _energy(unary, graph, labels),
+                        cut_cost(labels, graph.edges, graph.weights), solver, n_unstroked, timings)
+
+
+def _energy(unary, graph: SegGraph, labels) -> float:
+    """Boundary plus region cost of ``labels`` (the cost of the corresponding graph cut)."""
+    return cut_cost(labels, graph.edges, graph.weights) + float(unary[np.arange(graph.n), labels].sum())
 
 
 def cut_edges(V, F, face_labels) -> np.ndarray:

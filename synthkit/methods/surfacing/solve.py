@@ -9,8 +9,9 @@ Potts pairwise terms with per-edge weights, within a factor 2 of the optimum).
 Multiresolution: ``maps[k]`` sends the nodes of level k to those of level k + 1 (level 0 the
 finest). A coarse problem is the exact contraction of the finer one: node costs and the weights of
 edges joining two clusters are summed, so a coarse labelling costs what its lifting costs. A
-cluster holding fixed nodes of two regions is split by region first (its free nodes form one more
-cluster). The coarsest level is solved whole; at each finer level only the free nodes within
+cluster is first split into the connected pieces its inner edges leave when barrier edges (sharp
+concave creases) are removed, so that no cluster hides a crease the cut may follow, then a cluster
+holding fixed nodes of two regions is split by region (its free nodes form one more cluster). The coarsest level is solved whole; at each finer level only the free nodes within
 ``band_rings`` rings of the lifted cut take part, the others keep their coarse labels and enter
 the band's problem as node costs.
 """
@@ -18,25 +19,27 @@ the band's problem as node costs.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from synthkit.core.graphcut import alpha_expansion, mincut
 
-__all__ = ["Problem", "solve_labels", "cut_cost", "contract", "solve_multires", "band_nodes"]
+__all__ = ["Problem", "solve_labels", "cut_cost", "contract", "solve_multires", "band_nodes", "adjacency"]
 
 
 @dataclass
 class Problem:
-    """One level: ``unary (n, L)`` finite, ``edges (E, 2)``, ``weights (E,)``, ``seeds (n,)``."""
+    """One level: ``unary (n, L)`` finite, ``edges (E, 2)``, ``weights (E,)``, ``seeds (n,)`` and
+    optionally ``barrier (E,) bool``, edges no cluster may contain (kept at every coarser level)."""
 
     unary: np.ndarray
     edges: np.ndarray
     weights: np.ndarray
     seeds: np.ndarray
-    stats: dict = field(default_factory=dict)
+    barrier: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -82,6 +85,28 @@ def _split_conflicts(cluster: np.ndarray, seeds: np.ndarray, n_labels: int) -> t
     return new.astype(np.int64), uniq // (n_labels + 1)
 
 
+def _split_barriers(cluster: np.ndarray, p: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Split each cluster that contains a barrier edge into the connected pieces its non-barrier
+    inner edges leave; returns new ``cluster (n,)`` and ``origin (n_new,)`` (identity maps when no
+    cluster contains a barrier)."""
+    e = p.edges
+    inner = cluster[e[:, 0]] == cluster[e[:, 1]]
+    cut = np.zeros(int(cluster.max()) + 1, bool)
+    if p.barrier is not None:
+        cut[cluster[e[inner & p.barrier, 0]]] = True
+    if not cut.any():
+        return cluster, np.arange(len(cut))
+    keep = inner & ~(p.barrier & inner)
+    keep |= inner & ~cut[cluster[e[:, 0]]]
+    A = sp.coo_matrix((np.ones(int(keep.sum())), (e[keep, 0], e[keep, 1])), shape=(p.n, p.n))
+    _, comp = connected_components(A, directed=False)
+    key = np.where(cut[cluster], comp + len(cut), cluster)
+    uniq, new = np.unique(key, return_inverse=True)
+    origin = np.zeros(len(uniq), np.int64)
+    origin[new] = cluster
+    return new.astype(np.int64), origin
+
+
 def contract(p: Problem, cluster: np.ndarray) -> Problem:
     """The coarse problem whose nodes are the clusters ``cluster (n,)`` of ``p``'s nodes."""
     nc = int(cluster.max()) + 1
@@ -94,17 +119,26 @@ def contract(p: Problem, cluster: np.ndarray) -> Problem:
     key, inv = np.unique(e[keep, 0] * nc + e[keep, 1], return_inverse=True)
     weights = np.bincount(inv, weights=p.weights[keep], minlength=len(key))
     edges = np.stack([key // nc, key % nc], axis=1)
-    return Problem(unary, edges, weights, seeds)
+    barrier = None
+    if p.barrier is not None:
+        barrier = np.bincount(inv, weights=p.barrier[keep], minlength=len(key)) > 0
+    return Problem(unary, edges, weights, seeds, barrier)
 
 
-def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int) -> np.ndarray:
+def adjacency(n: int, edges: np.ndarray) -> sp.csr_matrix:
+    """Symmetric ``(n, n)`` boolean adjacency of ``edges``."""
+    return sp.csr_matrix((np.ones(2 * len(edges), bool), (edges.ravel(), edges[:, ::-1].ravel())), shape=(n, n))
+
+
+def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int, A=None) -> np.ndarray:
     """Nodes ``(n,) bool`` within ``rings`` rings of an edge whose ends differ in ``labels`` (ring 1
-    is the cut edges' ends); rings grow from the cut only."""
+    is the cut edges' ends); rings grow from the cut only, over the adjacency ``A`` (built when
+    not given)."""
     cut = labels[edges[:, 0]] != labels[edges[:, 1]]
     band = np.zeros(n, bool)
     band[edges[cut].ravel()] = True
     if rings > 1 and band.any():
-        A = sp.csr_matrix((np.ones(2 * len(edges), bool), (edges.ravel(), edges[:, ::-1].ravel())), shape=(n, n))
+        A = adjacency(n, edges) if A is None else A
         frontier = np.flatnonzero(band)
         for _ in range(rings - 1):
             nb = np.unique(A[frontier].indices)
@@ -113,13 +147,10 @@ def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int) -> np.
     return band
 
 
-def _refine(p: Problem, labels: np.ndarray, rings: int, rng) -> tuple[np.ndarray, dict]:
-    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels."""
-    free = band_nodes(p.n, p.edges, labels, rings) & (p.seeds < 0)
+def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng) -> tuple[np.ndarray, int]:
+    """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
+    the number of edges of the graph cut solved."""
     idx = np.flatnonzero(free)
-    stats = {"nodes": p.n, "free_nodes": int(len(idx)), "edges": 0, "free": free}
-    if not len(idx):
-        return labels, stats
     local = np.full(p.n, -1, np.int64)
     local[idx] = np.arange(len(idx))
     f0, f1 = free[p.edges[:, 0]], free[p.edges[:, 1]]
@@ -131,11 +162,44 @@ def _refine(p: Problem, labels: np.ndarray, rings: int, rng) -> tuple[np.ndarray
         w = p.weights[rim]
         np.add.at(unary, node, w[:, None])
         np.add.at(unary, (node, other), -w)
-    sub_edges = local[p.edges[inner]]
-    stats["edges"] = int(len(sub_edges))
     out = labels.copy()
+    sub_edges = local[p.edges[inner]]
     out[idx] = solve_labels(unary, sub_edges, p.weights[inner], np.full(len(idx), -1), init=labels[idx], rng=rng)
-    return out, stats
+    return out, int(len(sub_edges))
+
+
+def _refine(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32) -> tuple[np.ndarray, dict]:
+    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. When
+    the new cut reaches the band's outer ring, the band moves onto it and is solved again (at most
+    ``max_moves`` times), so a cut can slide past the band of its first guess."""
+    seen = np.zeros(p.n, bool)
+    stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0}
+    A = adjacency(p.n, p.edges)
+    for _ in range(max_moves):
+        free = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
+        if not free.any():
+            break
+        new, n_edges = _band_solve(p, labels, free, rng)
+        seen |= free
+        stats["edges"] += n_edges
+        stats["bands"] += 1
+        changed = new != labels
+        labels = new
+        outer = free & ~band_nodes(p.n, p.edges, labels, rings, A)
+        if not changed.any() or not (changed & (outer | _rim(p, free))).any():
+            break
+    stats["free_nodes"] = int(seen.sum())
+    stats["free"] = seen
+    return labels, stats
+
+
+def _rim(p: Problem, free: np.ndarray) -> np.ndarray:
+    """Free nodes with a neighbour outside ``free``."""
+    e = p.edges
+    cross = free[e[:, 0]] != free[e[:, 1]]
+    rim = np.zeros(p.n, bool)
+    rim[e[cross].ravel()] = True
+    return rim & free
 
 
 def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rng=None):
@@ -146,9 +210,10 @@ def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rn
     levels, clusters = [fine], []
     maps = list(maps)
     for k in range(len(maps)):
-        cluster, origin = _split_conflicts(maps[k], levels[-1].seeds, L)
+        cluster, origin = _split_barriers(maps[k], levels[-1])
+        cluster, origin2 = _split_conflicts(cluster, levels[-1].seeds, L)
         if k + 1 < len(maps):
-            maps[k + 1] = maps[k + 1][origin]
+            maps[k + 1] = maps[k + 1][origin[origin2]]
         clusters.append(cluster)
         levels.append(contract(levels[-1], cluster))
     to_level = [np.arange(fine.n)]

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -198,7 +198,9 @@ def _summarise(rows, models, human, args):
             if proto != protocol:
                 continue
             pm = _per_model(rs)
-            mean = lambda k: float(np.nanmean([r[k] for r in rs]))  # noqa: E731
+            def mean(key, rs=rs):
+                return float(np.nanmean([r[key] for r in rs]))
+
             wins = sum(pm[m] < base[m] for m in models) if name != "voronoi" else 0
             print(f"{name:14s} {mean('rand_index_error'):7.3f} {mean('ri_all'):7.3f} {mean('cut_discrepancy'):6.3f} "
                   f"{mean('hamming'):6.3f} {mean('gce'):6.3f} {mean('lce'):6.3f} {wins:4d} {mean('seconds'):6.2f}  "
@@ -212,8 +214,8 @@ def _summarise(rows, models, human, args):
             ratios = [r["multires_cost_ratio"] for r in rs if "multires_cost_ratio" in r]
             agree = [r["multires_face_agreement"] for r in rs if "multires_cost_ratio" in r]
             if ratios:
-                print(f"{'':14s} multiresolution / single-level cut cost: max {max(ratios):.4f}, mean {np.mean(ratios):.4f};"
-                      f" face agreement: min {min(agree):.4f}, mean {np.mean(agree):.4f}")
+                print(f"{'':14s} multiresolution / single-level cut cost: max {max(ratios):.4f}, "
+                      f"mean {np.mean(ratios):.4f}; face agreement: min {min(agree):.4f}, mean {np.mean(agree):.4f}")
                 record(AREA, f"{protocol}_{name}_cut_cost_ratio_max", float(max(ratios)), "1", goal=1.01)
                 record(AREA, f"{protocol}_{name}_face_disagreement_max", float(1 - min(agree)), "1", goal=0.01)
 

@@ -17,7 +17,7 @@ from synthkit.io.segmentation import read_seg
 from synthkit.methods.surfacing import measures
 from synthkit.methods.surfacing.graph import boundary_cost, build_graph, face_labels_from_vertices
 from synthkit.methods.surfacing.regions import normalised_cost
-from synthkit.methods.surfacing.segment import Options, chain_edges, segment
+from synthkit.methods.surfacing.segment import Options, chain_edges, cut_edges, segment
 from synthkit.methods.surfacing.solve import Problem, contract, cut_cost, solve_labels
 from synthkit.methods.surfacing.strokes import graph_seeds
 from synthkit.samples import surfacing as sample
@@ -43,7 +43,7 @@ def owners(V, F, vertex_sets=(), face_sets=()):
 def crease():
     V, F, part = sample.crease_boxes()
     C = V[F].mean(axis=1)
-    caps = [np.flatnonzero(np.isclose(C[:, 0], 2.0)), np.flatnonzero(np.isclose(C[:, 1], 2.0))]
+    caps = [np.flatnonzero(np.isclose(C[:, 0], 2.0)), np.flatnonzero(np.isclose(C[:, 1], 2.5))]
     return V, F, part, caps
 
 
@@ -152,11 +152,9 @@ def test_crease_cut_runs_exactly_along_the_concave_crease(crease):
     res = segment(V, F, vo, fo, 2, Options(region_model="none"))
     np.testing.assert_array_equal(res.face_labels, part)
     assert res.solver.startswith("s-t min cut")
-    # the cut: the crease line x = y = 1 and its straight continuation y = 1 over the flat sides
-    from synthkit.methods.surfacing.segment import cut_edges
-
+    # the cut: the crease line x = 1, y = 1.5 and its straight continuation y = 1.5 over the flat sides
     cut = cut_edges(V, F, res.face_labels)
-    assert np.allclose(V[cut.ravel(), 1], 1.0)
+    assert np.allclose(V[cut.ravel(), 1], 1.5)
 
 
 def test_three_or_more_parts_recovered(figure):
@@ -174,23 +172,28 @@ def test_paper_energy_shrinks_around_small_strokes(figure):
     assert min(iou(res.face_labels, part, k) for k in range(4)) < 0.5
 
 
-@pytest.mark.parametrize("graph", ["face", "vertex"])
-def test_multires_equals_single_level(figure, crease, graph):
+def test_multires_equals_single_level(figure):
     V, F, part, strokes = figure
     vo, fo = owners(V, F, vertex_sets=[[v] for v in strokes])
-    res = segment(V, F, vo, fo, 4, Options(graph=graph, coarsest_nodes=300, compare_single_level=True))
+    res = segment(V, F, vo, fo, 4, Options(coarsest_nodes=600, compare_single_level=True))
     assert len(res.levels) == 3
     assert all(st["free_nodes"] < st["nodes"] / 2 for st in res.levels[:-1])
-    if graph == "face":
-        assert res.single_level["face_agreement"] >= 0.99
-        assert res.cut_cost == pytest.approx(res.single_level["cut_cost"], rel=0.01)
-    V, F, part, caps = crease
-    vo, fo = owners(V, F, face_sets=caps)
-    res = segment(V, F, vo, fo, 2, Options(graph=graph, region_model="none", coarsest_nodes=100,
-                                           compare_single_level=True))
-    assert len(res.levels) >= 2
     assert res.single_level["face_agreement"] >= 0.99
     assert res.cut_cost == pytest.approx(res.single_level["cut_cost"], rel=0.01)
+
+
+def test_multires_equals_single_level_on_the_crease():
+    V, F, part = sample.crease_boxes(16)
+    C = V[F].mean(axis=1)
+    caps = [np.flatnonzero(np.isclose(C[:, 0], 2.0)), np.flatnonzero(np.isclose(C[:, 1], 2.5))]
+    vo, fo = owners(V, F, face_sets=caps)
+    res = segment(V, F, vo, fo, 2, Options(coarsest_nodes=4000, compare_single_level=True))
+    assert len(res.levels) == 2 and res.levels[0]["free_nodes"] < len(F) / 4
+    assert res.cut_cost == pytest.approx(res.single_level["cut_cost"], rel=1e-9)
+    assert res.single_level["face_agreement"] >= 0.99
+    # the paper's energy, single level, at this resolution too
+    paper = segment(V, F, vo, fo, 2, Options(region_model="none", multires=False))
+    np.testing.assert_array_equal(paper.face_labels, part)
 
 
 def test_unstroked_piece_gets_the_nearest_region():

@@ -42,8 +42,9 @@ def options_of(cfg: SurfacingConfig) -> Options:
     m, r = cfg.multires, cfg.region_term
     return Options(
         graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
-        region_weight=r.weight, concavity=r.concavity, clusters=r.clusters, multires=m.enabled, coarsest_nodes=m.coarsest_nodes,
-        ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings, crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
+        region_weight=r.weight, concavity=r.concavity, clusters=r.clusters, multires=m.enabled,
+        coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
+        crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
     )
 
 
@@ -121,7 +122,8 @@ def _metrics(cfg: SurfacingConfig, mesh, seg: Segmentation, cut: np.ndarray) -> 
     out = {
         "regions": regions, "graph": cfg.graph, "region_model": cfg.region_term.model, "solver": seg.solver,
         "graph_nodes": seg.graph.n, "graph_edges": int(len(seg.graph.edges)), "cut_cost": seg.cut_cost,
-        "boundary_cost": seg.boundary_cost, "cut_length": float(np.linalg.norm(V[cut[:, 0]] - V[cut[:, 1]], axis=1).sum()),
+        "boundary_cost": seg.boundary_cost,
+        "cut_length": float(np.linalg.norm(V[cut[:, 0]] - V[cut[:, 1]], axis=1).sum()),
         "cut_edges": int(len(cut)), "levels": levels, "unstroked_components": seg.unstroked_components,
     }
     if seg.single_level is not None:
@@ -139,7 +141,8 @@ def _export(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray)
     write_labels_ply(ctx.path("labels_ply", "labels.ply"), V, F, seg.face_labels, vl, colors[seg.face_labels], vcol)
     write_seg(ctx.path("labels_seg", "labels.seg"), seg.face_labels)
     write_polylines_obj(ctx.path("cut", "cut.obj"), V, chain_edges(cut))
-    suffix = cfg.input.suffix.lower() if cfg.input.suffix.lower() in (".obj", ".ply", ".off", ".stl", ".glb") else ".ply"
+    suffix = cfg.input.suffix.lower()
+    suffix = suffix if suffix in (".obj", ".ply", ".off", ".stl", ".glb") else ".ply"
     for k, region in enumerate(cfg.regions):
         sel = np.flatnonzero(seg.face_labels == k)
         if not len(sel):

@@ -11,9 +11,13 @@ finest). A coarse problem is the exact contraction of the finer one: node costs 
 edges joining two clusters are summed, so a coarse labelling costs what its lifting costs. A
 cluster is first split into the connected pieces its inner edges leave when barrier edges (sharp
 concave creases) are removed, so that no cluster hides a crease the cut may follow, then a cluster
-holding fixed nodes of two regions is split by region (its free nodes form one more cluster). The coarsest level is solved whole; at each finer level only the free nodes within
+holding fixed nodes of two regions is split by region (its free nodes form one more cluster).
+The coarsest level is solved whole; at each finer level only the free nodes within
 ``band_rings`` rings of the lifted cut take part, the others keep their coarse labels and enter
-the band's problem as node costs.
+the band's problem as node costs; when the new cut reaches the band's edge, the band moves onto
+it and is solved again. The coarse cut can only run where clusters meet: with boundary costs
+alone, whose cheapest cuts are often nearly tied, a coarse cut can settle in a parallel place the
+bands cannot leave (see the README's figures).
 """
 
 from __future__ import annotations

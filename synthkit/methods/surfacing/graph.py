@@ -8,7 +8,7 @@ faces sharing a mesh edge), whose cuts run along mesh edges. Edge weights are eq
 
 with theta the interior dihedral angle of the mesh edge (pi flat, above pi concave, below pi
 convex; ``pi - bending`` of :func:`synthkit.core.mesh.dihedral_angles`), d_ij the mesh edge's
-length and d_mean the mean mesh edge length, so that concave creases are cheap to cut (the minima
+length and d_mean the mean length of the faces' edges (an interior edge counted from both faces), so that concave creases are cheap to cut (the minima
 rule). Every cost is multiplied by the mean area of its two nodes' neighbourhoods divided by the
 mean node area (vertex graph: barycentric vertex areas; face graph: face areas), as the paper
 weights all costs by area. A vertex-graph edge's theta is the mean over its face pairs (boundary
@@ -21,7 +21,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synthkit.core.mesh import dihedral_angles, face_adjacency, face_areas, vertex_areas, vertex_graph_edges
+from synthkit.core.mesh import (
+    dihedral_angles,
+    edge_lengths,
+    face_adjacency,
+    face_areas,
+    vertex_areas,
+    vertex_graph_edges,
+)
 
 __all__ = ["SegGraph", "build_graph", "boundary_cost", "face_labels_from_vertices", "vertex_labels_from_faces"]
 
@@ -68,9 +75,7 @@ def build_graph(V, F, kind: str, *, eta: float = 1.0, gamma: float = 1.0) -> Seg
         raise ValueError(f"graph kind must be 'vertex' or 'face', got {kind!r}")
     pairs, bend = dihedral_angles(V, F)
     _, pair_edges = face_adjacency(F)
-    E = vertex_graph_edges(F)
-    length_all = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
-    mean_length = float(length_all.mean())
+    mean_length = float(edge_lengths(V, F).mean())
     if kind == "face":
         areas = _normalised(face_areas(V, F))
         lengths = np.linalg.norm(V[pair_edges[:, 0]] - V[pair_edges[:, 1]], axis=1)
@@ -79,6 +84,8 @@ def build_graph(V, F, kind: str, *, eta: float = 1.0, gamma: float = 1.0) -> Seg
         points = V[F].mean(axis=1)
         return SegGraph("face", points, areas, pairs, weights, lengths, pair_edges, bend)
     areas = _normalised(vertex_areas(V, F))
+    E = vertex_graph_edges(F)
+    length_all = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
     n = len(V)
     keys = E[:, 0] * n + E[:, 1]
     idx = np.searchsorted(keys, pair_edges[:, 0] * n + pair_edges[:, 1])

@@ -27,7 +27,7 @@ __all__ = ["normalised_cost", "geodesic_distances", "color_distances"]
 def normalised_cost(d) -> np.ndarray:
     """``d_l / (d_l + min_{k != l} d_k)`` of ``d (n, L)`` (infinite distances allowed; 0/0 -> 1/2)."""
     d = np.asarray(d, dtype=np.float64)
-    order = np.sort(d, axis=1)
+    order = np.partition(d, 1, axis=1) if d.shape[1] > 2 else np.sort(d, axis=1)
     other = np.where(d == order[:, :1], order[:, 1:2], order[:, :1])
     with np.errstate(invalid="ignore", divide="ignore"):
         out = d / (d + other)

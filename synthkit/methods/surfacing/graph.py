@@ -8,11 +8,12 @@ faces sharing a mesh edge), whose cuts run along mesh edges. Edge weights are eq
 
 with theta the interior dihedral angle of the mesh edge (pi flat, above pi concave, below pi
 convex; ``pi - bending`` of :func:`synthkit.core.mesh.dihedral_angles`), d_ij the mesh edge's
-length and d_mean the mean length of the faces' edges (an interior edge counted from both faces), so that concave creases are cheap to cut (the minima
-rule). Every cost is multiplied by the mean area of its two nodes' neighbourhoods divided by the
-mean node area (vertex graph: barycentric vertex areas; face graph: face areas), as the paper
-weights all costs by area. A vertex-graph edge's theta is the mean over its face pairs (boundary
-edges count as flat); at a non-manifold edge every pair of its faces is one face-graph edge.
+length and d_mean the mean length of the faces' edges (an interior edge counted from both faces),
+so that concave creases are cheap to cut (the minima rule). Every cost is multiplied by the mean
+area of its two nodes' neighbourhoods divided by the mean node area (vertex graph: barycentric
+vertex areas; face graph: face areas), as the paper weights all costs by area. A vertex-graph
+edge's theta is the mean over its face pairs (boundary edges count as flat); at a non-manifold edge
+every pair of its faces is one face-graph edge.
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ import numpy as np
 from synthkit.core.mesh import (
     dihedral_angles,
     edge_lengths,
-    face_adjacency,
     face_areas,
     vertex_areas,
     vertex_graph_edges,
@@ -69,12 +69,22 @@ def _normalised(a: np.ndarray) -> np.ndarray:
     return a / m
 
 
+def _shared_edges(F: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """The mesh edge ``(k, 2)`` (sorted vertex pair) shared by each face pair ``pairs (k, 2)``."""
+    a, b = F[pairs[:, 0]], F[pairs[:, 1]]
+    shared = (a[:, :, None] == b[:, None, :]).any(axis=2)
+    first = np.argmax(shared, axis=1)
+    last = 2 - np.argmax(shared[:, ::-1], axis=1)
+    rows = np.arange(len(a))
+    return np.sort(np.stack([a[rows, first], a[rows, last]], axis=1), axis=1)
+
+
 def build_graph(V, F, kind: str, *, eta: float = 1.0, gamma: float = 1.0) -> SegGraph:
     """The vertex or face graph of ``V``, ``F`` with area-weighted eq. 1 edge weights."""
     if kind not in ("vertex", "face"):
         raise ValueError(f"graph kind must be 'vertex' or 'face', got {kind!r}")
     pairs, bend = dihedral_angles(V, F)
-    _, pair_edges = face_adjacency(F)
+    pair_edges = _shared_edges(np.asarray(F, np.int64), pairs)
     mean_length = float(edge_lengths(V, F).mean())
     if kind == "face":
         areas = _normalised(face_areas(V, F))

@@ -173,14 +173,17 @@ def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng) -> tuple[
 
 
 def _refine(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32) -> tuple[np.ndarray, dict]:
-    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. When
-    the new cut reaches the band's outer ring, the band moves onto it and is solved again (at most
-    ``max_moves`` times), so a cut can slide past the band of its first guess."""
+    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. Where
+    the new labels change on the band's rim (or leave the band), the new cut's band within ``3
+    rings`` of those nodes is solved again, so a cut can slide past the band of its first guess
+    while each further band stays local; once nothing moves, the whole band of the cut is solved
+    once more, and the process goes on until that changes nothing (at most ``max_moves`` bands)."""
     seen = np.zeros(p.n, bool)
     stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0}
     A = adjacency(p.n, p.edges)
+    free = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
+    whole = True
     for _ in range(max_moves):
-        free = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
         if not free.any():
             break
         new, n_edges = _band_solve(p, labels, free, rng)
@@ -189,12 +192,29 @@ def _refine(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32
         stats["bands"] += 1
         changed = new != labels
         labels = new
-        outer = free & ~band_nodes(p.n, p.edges, labels, rings, A)
-        if not changed.any() or not (changed & (outer | _rim(p, free))).any():
+        band = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
+        moved = np.flatnonzero(changed & ((free & ~band) | _rim(p, free)))
+        if len(moved):
+            free, whole = band & _grow(A, moved, 3 * rings), False  # the new cut's band where it moved
+        elif whole:
             break
+        else:
+            free, whole = band, True  # settled locally: check with the whole band once more
     stats["free_nodes"] = int(seen.sum())
     stats["free"] = seen
     return labels, stats
+
+
+def _grow(A: sp.csr_matrix, start: np.ndarray, rings: int) -> np.ndarray:
+    """Nodes ``(n,) bool`` within ``rings`` rings of the nodes ``start``."""
+    out = np.zeros(A.shape[0], bool)
+    out[start] = True
+    frontier = start
+    for _ in range(rings):
+        nb = np.unique(A[frontier].indices)
+        frontier = nb[~out[nb]]
+        out[frontier] = True
+    return out
 
 
 def _rim(p: Problem, free: np.ndarray) -> np.ndarray:

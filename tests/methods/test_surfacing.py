@@ -329,7 +329,7 @@ BAD = {
                               "regions: vertex 5 is stroked for regions 'a' and 'b'"),
     "region without strokes": ("regions:\n  - {name: a, vertices: [0]}\n  - {name: b}\n", 2,
                                "regions[1] (b): region has no strokes"),
-    "one region": ("regions:\n  - {name: a, vertices: [0]}\n", 2, "regions: List should have at least 2 items"),
+    "one region": ("regions:\n  - {name: a, vertices: [0]}\n", 2, "mode segment needs at least two regions (got 1)"),
     "colour without colours": ("region_term: {model: color}\nregions:\n  - {name: a, vertices: [0]}\n"
                                "  - {name: b, vertices: [7]}\n", 2, "region_term.model: color"),
 }
@@ -384,3 +384,100 @@ def test_psb_body_strokes_beat_voronoi_on_the_table():
     ours = measures.rand_index_error(res.face_labels, segs[0])
     base = measures.rand_index_error(bench.voronoi(V, F, owner, L), segs[0])
     assert ours <= 0.05 < base
+
+
+# ------------------------------------------------------------------------------------------------
+# painted strokes through a rendered view
+
+
+def painted_view(samples, tmp_path, vertex_groups, rgbs, *, view="front", size=256):
+    """Render ``view`` of the figure through the CLI (mode: views), paint one pixel (3x3) at the
+    projected position of each vertex of each group in its colour; return the PNG path and camera."""
+    from synthkit.io.images import load_image, save_image
+    from synthkit.methods.surfacing import views
+
+    cfg = write_config(samples, f"mode: views\ninput: surfacing-figure.ply\nviews: {{size: {size}, names: [{view}]}}\n",
+                       name=f"views-{view}")
+    out = tmp_path / "views"
+    result = invoke(cfg, out)
+    assert result.exit_code == 0, result.stderr
+    img = load_image(out / "views" / f"{view}.png")
+    cam_doc = json.loads((out / "views" / f"{view}.json").read_text())
+    V = trimesh.load(samples / "surfacing-figure.ply", process=False).vertices
+    cam = views.camera(V, view, size)
+    assert np.allclose(cam.rotation, cam_doc["rotation"]) and cam.scale == pytest.approx(cam_doc["scale"])
+    for group, rgb in zip(vertex_groups, rgbs, strict=True):
+        for x, y in np.round(cam.to_pixels(V[group])[0]).astype(int):
+            img[y, x] = np.asarray(rgb) / 255.0
+    path = tmp_path / f"painted-{view}.png"
+    save_image(path, img)
+    return path
+
+
+def visible_front_vertices(samples, size=256):
+    from synthkit.methods.surfacing import views
+
+    mesh = trimesh.load(samples / "surfacing-figure.ply", process=False)
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    cam = views.camera(V, "front", size)
+    face_at = views.face_id_buffer(V, F, cam)
+    pix = np.round(cam.to_pixels(V)[0]).astype(int)
+    inner = (V[:, 0] > 3.1) & (V[:, 0] < 5.9) & (V[:, 1] > 0.1) & (V[:, 1] < 4.9)
+    front = np.flatnonzero(np.isclose(V[:, 2], 2.0) & inner & (pix[:, 0] % 7 == 0))  # the body's front face
+    seen = [v for v in front if v in F[face_at[pix[v, 1], pix[v, 0]]]]
+    return np.array(seen[:6]), np.flatnonzero(np.isclose(V[:, 2], 1.75) & (V[:, 1] > 5.2))[:4]
+
+
+def test_image_strokes_select_the_same_vertices_as_vertex_strokes(samples, tmp_path):
+    body, head = visible_front_vertices(samples)
+    assert len(body) >= 3 and len(head) >= 2
+    png = painted_view(samples, tmp_path, [body, head], [(255, 0, 0), (0, 0, 255)])
+    from synthkit.io.images import load_image
+    from synthkit.methods.surfacing import views
+
+    mesh = trimesh.load(samples / "surfacing-figure.ply", process=False)
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    cam = views.camera(V, "front", 256)
+    face_at = views.face_id_buffer(V, F, cam)
+    sets = views.image_strokes(load_image(png), views.render(V, F, face_at, cam), face_at, V, F, cam,
+                               np.array([[1.0, 0, 0], [0, 0, 1.0]]), tolerance=0.1)
+    np.testing.assert_array_equal(sets[0], np.sort(body))
+    np.testing.assert_array_equal(sets[1], np.sort(head))
+    # the same through the CLI: painted strokes and vertex strokes give the same labels
+    base = "input: surfacing-figure.ply\npreview_size: 64\n"
+    by_image = write_config(samples, base + f"""images:
+  - {{image: {png}, view: front, colors: {{body: [255, 0, 0], head: [0, 0, 255]}}}}
+views: {{size: 256}}
+regions:
+  - {{name: body}}
+  - {{name: head}}
+""", name="by-image")
+    by_index = write_config(samples, base + f"""regions:
+  - {{name: body, vertices: {body.tolist()}}}
+  - {{name: head, vertices: {head.tolist()}}}
+""", name="by-index")
+    for cfg, out in ((by_image, tmp_path / "a"), (by_index, tmp_path / "b")):
+        result = invoke(cfg, out)
+        assert result.exit_code == 0, result.stderr
+    assert (tmp_path / "a" / "labels.seg").read_bytes() == (tmp_path / "b" / "labels.seg").read_bytes()
+
+
+def test_bad_painted_images(samples, tmp_path):
+    body, head = visible_front_vertices(samples)
+    png = painted_view(samples, tmp_path, [body, head], [(255, 0, 0), (0, 200, 0)])
+    cases = [
+        ("views: {size: 128}\n", "images[0].image", "but view 'front' renders 128x128 (views.size)"),
+        ("views: {size: 256}\n", "images[0].image", "colour [0, 200, 0] at pixel"),
+    ]
+    for k, (extra, key, message) in enumerate(cases):
+        cfg = write_config(samples, f"""input: surfacing-figure.ply
+{extra}images:
+  - {{image: {png}, view: front, colors: {{body: [255, 0, 0], head: [0, 0, 255]}}}}
+regions:
+  - {{name: body}}
+  - {{name: head}}
+""", name=f"bad-image-{k}")
+        result = invoke(cfg, tmp_path / f"o{k}")
+        assert result.exit_code == 2, result.stderr
+        line = result.stderr.strip()
+        assert len(line.splitlines()) == 1 and key in line and message in line, line

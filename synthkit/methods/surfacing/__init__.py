@@ -8,3 +8,8 @@ adds the optional region term; :mod:`.lod` builds the quadric level-of-detail hi
 :mod:`.solve` cuts it (s-t min cut for two regions, alpha-expansion for more, refined in bands);
 :mod:`.segment` ties them together over arrays; :mod:`.pipeline` reads, runs and writes.
 """
+
+CLI_FLAGS = {
+    "--render-views": ("views.render=true", "Also write the named views and their cameras, to paint strokes on.")
+}
+"""Extra boolean options of ``synthkit surface-by-numbers``: flag -> (--set override, help)."""

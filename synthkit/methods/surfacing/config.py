@@ -13,7 +13,10 @@ from pydantic import Field, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
 
-__all__ = ["CONFIG", "SurfacingConfig", "Region", "BoundarySection", "RegionTermSection", "MultiresSection"]
+__all__ = [
+    "CONFIG", "SurfacingConfig", "Region", "ImageStrokes", "ViewsSection", "BoundarySection", "RegionTermSection",
+    "MultiresSection",
+]
 
 Point3 = tuple[float, float, float]
 
@@ -47,6 +50,35 @@ class Region(StrictModel):
         if value is not None and any(not 0 <= c <= 255 for c in value):
             raise ValueError(f"colour components must lie in [0, 255], got {list(value)}")
         return value
+
+
+ViewName = Literal["front", "back", "left", "right", "top", "bottom", "iso"]
+
+
+class ImageStrokes(StrictModel):
+    """A PNG painted over the render of a named view (``views/<view>.png`` of a run with
+    ``views.render: true`` or ``mode: views``), one colour per region, read back through the
+    face-ID buffer of the same camera."""
+
+    image: InputFile = Field(description="The painted PNG, the size of the view (views.size).")
+    view: ViewName = Field(description="The view it was painted over.")
+    colors: dict[str, tuple[int, int, int]] = Field(
+        min_length=1, description="Region name -> the RGB (0-255) its strokes are painted in."
+    )
+    tolerance: float = Field(
+        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour."
+    )
+
+
+class ViewsSection(StrictModel):
+    """Renders of the named views with their cameras, for painting strokes."""
+
+    render: bool = Field(False, description="Write views/<view>.png and views/<view>.json (CLI --render-views).")
+    size: int = Field(512, ge=64, le=4096, description="Side of the view renders in pixels (and of painted PNGs).")
+    names: list[ViewName] = Field(
+        default_factory=lambda: ["front", "back", "left", "right", "top", "bottom", "iso"],
+        min_length=1, description="Views to render.",
+    )
 
 
 class BoundarySection(StrictModel):
@@ -99,9 +131,15 @@ class SurfacingConfig(RunConfig):
     """``synthkit surface-by-numbers``: region-centric segmentation by graph cut (mode: segment)."""
 
     method: Literal["surface-by-numbers"] = "surface-by-numbers"
-    mode: Literal["segment"] = Field("segment", description="What to do; only segment exists so far.")
+    mode: Literal["segment", "views"] = Field(
+        "segment", description="segment = cut the mesh into the stroked regions; views = only write the view renders."
+    )
     input: InputFile = Field(description="Input mesh (OBJ, PLY, GLB, OFF, STL).")
-    regions: list[Region] = Field(min_length=2, description="The regions, each with its strokes (at least two).")
+    regions: list[Region] = Field(
+        default_factory=list, description="The regions, each with its strokes (at least two for mode: segment)."
+    )
+    images: list[ImageStrokes] = Field(default_factory=list, description="Painted views adding strokes to regions.")
+    views: ViewsSection = Field(default_factory=ViewsSection)
     graph: Literal["vertex", "face"] = Field(
         "face",
         description="vertex = the paper's graph (3.2), one node per vertex, faces by the corner-majority rule; "
@@ -122,6 +160,12 @@ class SurfacingConfig(RunConfig):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"region names must be unique, got {', '.join(dup)} twice")
+        if self.mode == "segment" and len(names) < 2:
+            raise ValueError(f"regions: mode segment needs at least two regions (got {len(names)})")
+        for k, item in enumerate(self.images):
+            unknown = sorted(set(item.colors) - set(names))
+            if unknown:
+                raise ValueError(f"images[{k}].colors: {unknown[0]!r} is not a region (regions: {', '.join(names)})")
         return self
 
 

@@ -7,22 +7,29 @@ Stages (``report.json`` ``timings``): ``load``, ``strokes``, ``graph`` (graph, c
 Outputs: ``labels.ply`` (int32 ``label`` and a region colour on every face and vertex),
 ``labels.seg`` (one face label per line), ``regions/<name><suffix>`` (one mesh per region in the
 input's format), ``cut.obj`` (the boundary as OBJ ``l`` polylines), ``regions.png`` (four views,
-strokes darker, cut in red) and ``level_<k>.png`` (free band of each level in grey, Fig. 3).
+strokes darker, cut in red) and ``level_<k>.png`` (free band of each level in grey, Fig. 3); with
+``views.render`` (``--render-views``) or ``mode: views``, ``views/<view>.png`` renders to paint
+strokes on and ``views/<view>.json`` their cameras (``mode: views`` stops there).
 
 Errors: a stroke index out of range, a stroke point off the surface, a vertex or face stroked for
-two regions, a region without strokes and ``region_term.model: color`` on a mesh without colours
-are config errors (exit 2) naming the key and value; a mesh without faces is an input error (exit 3).
+two regions, a region without strokes, a painted PNG of the wrong size or with a colour that maps
+to no region, and ``region_term.model: color`` on a mesh without colours are config errors (exit 2)
+naming the key and value; a mesh without faces or an unreadable PNG is an input error (exit 3).
 """
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import trimesh
 
 from synthkit import preview
 from synthkit.errors import ConfigError
+from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.io.segmentation import write_labels_ply, write_polylines_obj, write_seg
+from synthkit.methods.surfacing import views
 from synthkit.methods.surfacing.config import SurfacingConfig
 from synthkit.methods.surfacing.segment import Options, Segmentation, chain_edges, cut_edges, segment
 from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
@@ -64,9 +71,47 @@ def mesh_colors(mesh: trimesh.Trimesh) -> np.ndarray | None:
     return np.asarray(visual.vertex_colors, np.float64)[:, :3] / 255.0
 
 
-def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+class ViewCache:
+    """Camera, face-ID buffer and render of each named view of one mesh, made on first use."""
+
+    def __init__(self, mesh: trimesh.Trimesh, size: int):
+        self.V, self.F, self.size = np.asarray(mesh.vertices), np.asarray(mesh.faces), size
+        self._views: dict = {}
+
+    def __getitem__(self, name: str):
+        if name not in self._views:
+            cam = views.camera(self.V, name, self.size)
+            face_at = views.face_id_buffer(self.V, self.F, cam)
+            self._views[name] = (cam, face_at, views.render(self.V, self.F, face_at, cam))
+        return self._views[name]
+
+
+def _image_sets(cfg: SurfacingConfig, cache: ViewCache) -> list[np.ndarray]:
+    """Vertices stroked per region by the painted images."""
+    names = [r.name for r in cfg.regions]
+    out = [np.zeros(0, np.int64) for _ in names]
+    for k, item in enumerate(cfg.images):
+        img = load_image(item.image)
+        cam, face_at, rendered = cache[item.view]
+        if img.shape[:2] != face_at.shape:
+            raise ConfigError(f"images[{k}].image: {item.image} is {img.shape[1]}x{img.shape[0]} pixels, but view "
+                              f"'{item.view}' renders {cam.size}x{cam.size} (views.size)")
+        colors = np.full((len(names), 3), np.nan)
+        for name, rgb in item.colors.items():
+            colors[names.index(name)] = np.asarray(rgb) / 255.0
+        try:
+            sets = views.image_strokes(img, rendered, face_at, cache.V, cache.F, cam, colors,
+                                       tolerance=item.tolerance)
+        except ValueError as exc:
+            raise ConfigError(f"images[{k}].image: {item.image}: {exc}") from None
+        out = [np.union1d(a, b) for a, b in zip(out, sets, strict=True)]
+    return out
+
+
+def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh, cache: ViewCache) -> tuple[np.ndarray, np.ndarray]:
     """Owners of stroked vertices ``(#V,)`` and faces ``(#F,)``; ConfigError naming the key."""
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    from_images = _image_sets(cfg, cache)
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
     step = 0.5 * float(mesh.edges_unique_length.mean())
     vsets, fsets = [], []
@@ -85,8 +130,9 @@ def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh) -> tuple[np.nda
                 v = np.union1d(v, snap_polyline(mesh, line, step=step, tolerance=cfg.points_tolerance * diag))
             except ValueError as exc:
                 raise ConfigError(f"{key}.points[{j}]: {exc}") from None
+        v = np.union1d(v, from_images[k])
         if not len(v) and not len(f):
-            raise ConfigError(f"{key} ({region.name}): region has no strokes (give vertices, faces or points)")
+            raise ConfigError(f"{key} ({region.name}): region has no strokes (give vertices, faces, points or images)")
         vsets.append(v)
         fsets.append(f)
     try:
@@ -174,12 +220,26 @@ def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarra
         preview.montage_png(ctx.path(f"preview_level_{k}", f"level_{k}.png"), [img], titles=[title], height=size)
 
 
+def _write_views(cfg: SurfacingConfig, ctx, cache: ViewCache) -> None:
+    for name in cfg.views.names:
+        cam, _, rendered = cache[name]
+        save_image(ctx.path(f"view_{name}", f"views/{name}.png"), rendered)
+        ctx.path(f"camera_{name}", f"views/{name}.json").write_text(json.dumps(cam.to_json(), indent=1) + "\n")
+    ctx.metrics["views"] = list(cfg.views.names)
+
+
 def run(cfg: SurfacingConfig, ctx) -> None:
-    """Run the segmentation of ``cfg`` into ``ctx.out_dir``."""
+    """Run ``cfg`` (mode segment, or mode views: only the view renders) into ``ctx.out_dir``."""
     with ctx.stage("load"):
         mesh = load_mesh(cfg.input)
+    cache = ViewCache(mesh, cfg.views.size)
+    if cfg.mode == "views" or cfg.views.render:
+        with ctx.stage("views"):
+            _write_views(cfg, ctx, cache)
+        if cfg.mode == "views":
+            return
     with ctx.stage("strokes"):
-        vertex_owner, face_owner = resolve_strokes(cfg, mesh)
+        vertex_owner, face_owner = resolve_strokes(cfg, mesh, cache)
     seg = _segment(cfg, ctx, mesh, vertex_owner, face_owner)
     for name, seconds in seg.timings.items():
         ctx.timings[name] = ctx.timings.get(name, 0.0) + seconds

@@ -481,3 +481,16 @@ regions:
         assert result.exit_code == 2, result.stderr
         line = result.stderr.strip()
         assert len(line.splitlines()) == 1 and key in line and message in line, line
+
+
+def test_collapse_map_equals_the_replayed_one():
+    import fast_simplification
+
+    from synthkit.methods.surfacing.lod import collapse
+
+    m = trimesh.creation.icosphere(3)
+    V, F = np.asarray(m.vertices), np.asarray(m.faces, np.int64)
+    Vc, Fc, vmap = collapse(V, F, 0.25)
+    _, _, coll = fast_simplification.simplify(V, F, target_reduction=0.75, return_collapses=True)
+    np.testing.assert_array_equal(vmap, fast_simplification.replay_simplification(V, F, coll)[2])
+    assert vmap.max() + 1 == len(Vc)

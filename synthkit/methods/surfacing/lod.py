@@ -1,7 +1,7 @@
 """Static level-of-detail hierarchy of ``V (#V, 3)``, ``F (#F, 3)`` with fine-to-coarse node maps (3.5).
 
-Each level is a quadric-error simplification (Garland and Heckbert) of the previous one by fast-
-simplification, whose collapse sequence gives every vertex the coarse vertex it merged into.
+Each level is a quadric-error simplification (Garland and Heckbert) of the previous one by
+fast-simplification, whose collapse sequence gives every vertex the coarse vertex it merged into.
 Unreferenced vertices are stripped before simplifying and then mapped to their nearest coarse
 vertex. On the face graph, a face belongs to the coarse vertex held by at least two of its corners'
 images (else the smallest of them). Coarse vertices that receive no node are dropped, so every map

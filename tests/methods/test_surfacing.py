@@ -494,3 +494,18 @@ def test_collapse_map_equals_the_replayed_one():
     _, _, coll = fast_simplification.simplify(V, F, target_reduction=0.75, return_collapses=True)
     np.testing.assert_array_equal(vmap, fast_simplification.replay_simplification(V, F, coll)[2])
     assert vmap.max() + 1 == len(Vc)
+
+
+def test_render_views_flag_writes_every_view_with_its_camera(samples, tmp_path):
+    cfg = write_config(samples, "input: surfacing-crease.ply\npreview_size: 64\nviews: {size: 96}\n"
+                                "regions:\n  - {name: a, vertices: [0]}\n  - {name: b, vertices: [300]}\n",
+                       name="render-views")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["surface-by-numbers", str(cfg), "--out", str(out), "--no-progress",
+                                      "--render-views"])
+    assert result.exit_code == 0, result.stderr
+    for view in ("front", "back", "left", "right", "top", "bottom", "iso"):
+        cam = json.loads((out / "views" / f"{view}.json").read_text())
+        assert cam["view"] == view and cam["size"] == 96
+        assert (out / "views" / f"{view}.png").is_file()
+    assert (out / "labels.seg").is_file()

@@ -6,7 +6,10 @@ meet along concave creases exactly on mesh edges and every face knows its part (
 
 - ``surfacing-crease.ply``: two boxes glued along one concave crease (an L), parts 0 and 1;
 - ``surfacing-figure.ply``: a body with a head and two arms (four parts), the bundled example;
-- ``surfacing-disc.ply``: a sphere with vertex colours, a red disc around +Z on white.
+- ``surfacing-disc.ply``: a sphere with vertex colours, a red disc around +Z on white;
+- ``surfacing-figure-front.png``: the figure's ``front`` view (256 pixels) as surface-by-numbers
+  renders it, with round dabs painted on the body (red), head (blue) and arms (green, purple), as
+  a user would paint them in an image editor.
 
 Each ``<name>.truth.json`` holds the face parts and a stroke vertex near the middle of each part.
 """
@@ -121,12 +124,37 @@ def _write(out_dir: Path, name: str, V, F, part, colors=None) -> list[Path]:
     return [path, tpath]
 
 
+PAINT = {"body": ((4.5, 2.0, 2.0), (220, 40, 40)), "head": ((4.5, 5.75, 1.75), (40, 60, 220)),
+         "left_arm": ((1.5, 4.0, 1.5), (40, 180, 60)), "right_arm": ((7.5, 4.0, 1.5), (160, 60, 170))}
+"""Region -> (a point of it facing the front view, the RGB its dab is painted in)."""
+
+
+def painted_front(V, F, *, size: int = 256, radius: int = 4) -> np.ndarray:
+    """The ``front`` render of ``V``, ``F`` with a round dab of each :data:`PAINT` colour, uint8 RGB."""
+    from synthkit.methods.surfacing import views
+
+    cam = views.camera(V, "front", size)
+    img = views.render(V, F, views.face_id_buffer(V, F, cam), cam)
+    img = np.round(img * 255).astype(np.uint8)
+    yy, xx = np.mgrid[:size, :size]
+    for point, rgb in PAINT.values():
+        (x, y), = cam.to_pixels(np.array([point]))[0]
+        img[(xx - x) ** 2 + (yy - y) ** 2 <= radius**2] = rgb
+    return img
+
+
 def generate(out_dir: Path) -> list[Path]:
-    """Write the three samples and their truth files into ``out_dir``."""
+    """Write the samples and their truth files into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = _write(out_dir, "surfacing-crease", *crease_boxes())
-    written += _write(out_dir, "surfacing-figure", *figure())
+    V, F, part = figure()
+    written += _write(out_dir, "surfacing-figure", V, F, part)
+    from synthkit.io.images import save_image
+
+    png = out_dir / "surfacing-figure-front.png"
+    save_image(png, painted_front(V, F))
+    written.append(png)
     V, F, colors = disc_sphere()
     part = (colors[F][:, :, 1] < 100).all(axis=1).astype(np.int64)
     written += _write(out_dir, "surfacing-disc", V, F, part, colors)

@@ -14,7 +14,10 @@ regions stays free).
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 __all__ = ["check_indices", "snap_polyline", "stroke_sets", "graph_seeds", "assign_unstroked_components"]
 
@@ -98,10 +101,6 @@ def assign_unstroked_components(points, edges, seeds) -> tuple[np.ndarray, int]:
     """Fix every node of a connected component without strokes to the region of the stroke nearest
     to it (Euclidean, over all the component's nodes). Returns the new seeds and the number of such
     components. ``points (n, 3)``, ``edges (E, 2)``, ``seeds (n,)``."""
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     n = len(points)
     A = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
     n_comp, comp = connected_components(A, directed=False)

@@ -151,9 +151,24 @@ def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int, A=None
     return band
 
 
-def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng) -> tuple[np.ndarray, int]:
+def _nearby_labels(A: sp.csr_matrix, idx: np.ndarray, labels: np.ndarray, n_labels: int, hops: int) -> np.ndarray:
+    """``(k, L) bool``: the labels found within ``hops`` steps of each node ``idx (k,)`` (its own included)."""
+    n = A.shape[0]
+    onehot = sp.csr_matrix((np.ones(n, bool), (np.arange(n), labels)), shape=(n, n_labels))
+    reach = (A[idx] @ onehot + onehot[idx]).astype(bool)
+    inner = A[idx][:, idx]
+    for _ in range(hops - 1):
+        reach = (inner @ reach + reach).astype(bool)
+    return reach.toarray()
+
+
+def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr_matrix,
+                hops: int = 3) -> tuple[np.ndarray, int]:
     """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
-    the number of edges of the graph cut solved."""
+    the number of edges of the graph cut solved. The new labels are kept only when they lower the
+    band's energy (equal-cost alternatives leave the labels as they were). With three or more
+    labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
+    runs between), so that each expansion move involves only the nodes near its label."""
     idx = np.flatnonzero(free)
     local = np.full(p.n, -1, np.int64)
     local[idx] = np.arange(len(idx))
@@ -166,9 +181,16 @@ def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng) -> tuple[
         w = p.weights[rim]
         np.add.at(unary, node, w[:, None])
         np.add.at(unary, (node, other), -w)
+    if unary.shape[1] > 2:
+        unary[~_nearby_labels(A, idx, labels, unary.shape[1], hops)] = np.inf
+    sub_edges, sub_w = local[p.edges[inner]], p.weights[inner]
+    new = solve_labels(unary, sub_edges, sub_w, np.full(len(idx), -1), init=labels[idx], rng=rng)
+    rows = np.arange(len(idx))
+    before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub_edges, sub_w)
+    after = unary[rows, new].sum() + cut_cost(new, sub_edges, sub_w)
     out = labels.copy()
-    sub_edges = local[p.edges[inner]]
-    out[idx] = solve_labels(unary, sub_edges, p.weights[inner], np.full(len(idx), -1), init=labels[idx], rng=rng)
+    if after < before - 1e-9 * max(abs(before), 1.0):  # keep only strict improvements: ties do not drift
+        out[idx] = new
     return out, int(len(sub_edges))
 
 
@@ -186,7 +208,7 @@ def _refine(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32
     for _ in range(max_moves):
         if not free.any():
             break
-        new, n_edges = _band_solve(p, labels, free, rng)
+        new, n_edges = _band_solve(p, labels, free, rng, A)
         seen |= free
         stats["edges"] += n_edges
         stats["bands"] += 1

@@ -509,3 +509,14 @@ def test_render_views_flag_writes_every_view_with_its_camera(samples, tmp_path):
         assert cam["view"] == view and cam["size"] == 96
         assert (out / "views" / f"{view}.png").is_file()
     assert (out / "labels.seg").is_file()
+
+
+def test_colours_come_from_the_texture_at_the_uvs():
+    from synthkit.io.meshes import load_mesh
+    from synthkit.methods.surfacing.pipeline import mesh_colors
+
+    mesh = load_mesh(Path(__file__).resolve().parents[2] / "data-samples" / "wall_door.obj")
+    colors = mesh_colors(mesh)
+    assert colors.shape == (len(mesh.vertices), 3) and 0 <= colors.min() and colors.max() <= 1
+    assert len(np.unique(np.round(colors, 3), axis=0)) > 2  # sampled from the image, not one flat colour
+    assert mesh_colors(trimesh.creation.box()) is None

@@ -1,7 +1,7 @@
 """``synthkit surface-by-numbers`` run (mode: segment): load, strokes, segmentation, outputs.
 
 Stages (``report.json`` ``timings``): ``load``, ``strokes``, ``graph`` (graph, costs, region term),
-``hierarchy`` (LOD maps), ``cut`` (all levels), ``single_level`` (with ``compare_single_level``),
+``hierarchy`` (LOD maps), ``cut`` (all levels), ``single_level`` (with ``compare_single_level``), ``views``,
 ``export``, ``previews``.
 
 Outputs: ``labels.ply`` (int32 ``label`` and a region colour on every face and vertex),

@@ -162,17 +162,13 @@ def _nearby_labels(A: sp.csr_matrix, idx: np.ndarray, labels: np.ndarray, n_labe
     return reach.toarray()
 
 
-def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr_matrix,
-                hops: int = 3) -> tuple[np.ndarray, int]:
-    """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
-    the number of edges of the graph cut solved. The new labels are kept only when they lower the
-    band's energy (equal-cost alternatives leave the labels as they were). With three or more
-    labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
-    runs between), so that each expansion move involves only the nodes near its label."""
-    idx = np.flatnonzero(free)
+def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray) -> tuple[Problem, np.ndarray]:
+    """The problem of the nodes ``mask (n,) bool`` with every other node held at ``labels``: the
+    edges to held nodes become node costs. Returns it and the nodes' indices ``(k,)``."""
+    idx = np.flatnonzero(mask)
     local = np.full(p.n, -1, np.int64)
     local[idx] = np.arange(len(idx))
-    f0, f1 = free[p.edges[:, 0]], free[p.edges[:, 1]]
+    f0, f1 = mask[p.edges[:, 0]], mask[p.edges[:, 1]]
     inner = f0 & f1
     unary = p.unary[idx].copy()
     for a, b in ((0, 1), (1, 0)):
@@ -181,25 +177,55 @@ def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr
         w = p.weights[rim]
         np.add.at(unary, node, w[:, None])
         np.add.at(unary, (node, other), -w)
+    return Problem(unary, local[p.edges[inner]], p.weights[inner], p.seeds[idx]), idx
+
+
+def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr_matrix,
+                hops: int = 3) -> tuple[np.ndarray, int]:
+    """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
+    the number of edges of the graph cut solved. The new labels are kept only when they lower the
+    band's energy (equal-cost alternatives leave the labels as they were). With three or more
+    labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
+    runs between), so that each expansion move involves only the nodes near its label."""
+    sub, idx = _subproblem(p, labels, free)
+    unary = sub.unary
     if unary.shape[1] > 2:
         unary[~_nearby_labels(A, idx, labels, unary.shape[1], hops)] = np.inf
-    sub_edges, sub_w = local[p.edges[inner]], p.weights[inner]
-    new = solve_labels(unary, sub_edges, sub_w, np.full(len(idx), -1), init=labels[idx], rng=rng)
+    new = solve_labels(unary, sub.edges, sub.weights, np.full(len(idx), -1), init=labels[idx], rng=rng)
     rows = np.arange(len(idx))
-    before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub_edges, sub_w)
-    after = unary[rows, new].sum() + cut_cost(new, sub_edges, sub_w)
+    before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub.edges, sub.weights)
+    after = unary[rows, new].sum() + cut_cost(new, sub.edges, sub.weights)
     out = labels.copy()
     if after < before - 1e-9 * max(abs(before), 1.0):  # keep only strict improvements: ties do not drift
         out[idx] = new
-    return out, int(len(sub_edges))
+    return out, int(len(sub.edges))
 
 
-def _refine(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32) -> tuple[np.ndarray, dict]:
-    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. Where
-    the new labels change on the band's rim (or leave the band), the new cut's band within ``3
-    rings`` of those nodes is solved again, so a cut can slide past the band of its first guess
-    while each further band stays local; once nothing moves, the whole band of the cut is solved
-    once more, and the process goes on until that changes nothing (at most ``max_moves`` bands)."""
+def _refine(p: Problem, labels: np.ndarray, rings: int, rng, *, reach: int = 8) -> tuple[np.ndarray, dict]:
+    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. The
+    bands move inside the nodes within ``reach * rings`` rings of the first band (:func:`_slide`),
+    so the work grows with the length of the cut, not with the size of the graph."""
+    A = adjacency(p.n, p.edges)
+    band = band_nodes(p.n, p.edges, labels, rings, A)
+    seen = np.zeros(p.n, bool)
+    stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0, "free": seen}
+    if not band.any():
+        return labels, stats
+    sub, idx = _subproblem(p, labels, _grow(A, np.flatnonzero(band), reach * rings))
+    sub_labels, stats = _slide(sub, labels[idx], rings, rng)
+    out = labels.copy()
+    out[idx] = sub_labels
+    seen[idx] = stats["free"]
+    stats.update(nodes=p.n, free=seen)
+    return out, stats
+
+
+def _slide(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32) -> tuple[np.ndarray, dict]:
+    """Bands around the cut of ``labels`` solved in turn. Where the new labels change on the band's
+    rim (or leave the band), the new cut's band within ``3 rings`` of those nodes is solved again,
+    so a cut can slide past the band of its first guess while each further band stays local; once
+    nothing moves, the whole band of the cut is solved once more, and the process goes on until
+    that changes nothing (at most ``max_moves`` bands)."""
     seen = np.zeros(p.n, bool)
     stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0}
     A = adjacency(p.n, p.edges)

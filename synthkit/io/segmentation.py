@@ -1,0 +1,70 @@
+"""Segmentation files: labelled PLY meshes, Princeton ``.seg`` face labels, OBJ polylines.
+
+All writes are atomic (a temporary file beside the target, then renamed).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from synthkit.errors import InputError
+
+__all__ = ["write_labels_ply", "write_seg", "read_seg", "write_polylines_obj"]
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def write_labels_ply(path, V, F, face_labels, vertex_labels, face_colors, vertex_colors) -> None:
+    """Binary PLY of ``V (#V, 3)``, ``F (#F, 3)`` with int32 ``label`` and uchar ``red green blue``
+    on both vertices (``vertex_labels (#V,)``, ``vertex_colors (#V, 3) uint8``) and faces
+    (``face_labels (#F,)``, ``face_colors (#F, 3) uint8``)."""
+    V = np.asarray(V)
+    F = np.asarray(F)
+    vrec = np.empty(len(V), dtype=[("xyz", "<f4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
+    vrec["xyz"], vrec["label"], vrec["rgb"] = V, vertex_labels, vertex_colors
+    frec = np.empty(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
+    frec["n"], frec["idx"], frec["label"], frec["rgb"] = 3, F, face_labels, face_colors
+    rgb = "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\nproperty int label\n{rgb}"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int label\n{rgb}end_header\n"
+    )
+    _atomic_write(Path(path), header.encode("ascii") + vrec.tobytes() + frec.tobytes())
+
+
+def write_seg(path, face_labels) -> None:
+    """One integer face label per line (the Princeton Segmentation Benchmark's ``.seg``)."""
+    labels = np.asarray(face_labels, np.int64).reshape(-1)
+    _atomic_write(Path(path), "".join(f"{v}\n" for v in labels.tolist()).encode("ascii"))
+
+
+def read_seg(path, n_faces: int | None = None) -> np.ndarray:
+    """Face labels ``(#F,) int64`` of a ``.seg`` file; InputError when unreadable or of the wrong length."""
+    path = Path(path)
+    try:
+        labels = np.loadtxt(path, dtype=np.int64, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read segmentation: {exc}".splitlines()[0]) from None
+    if n_faces is not None and len(labels) != n_faces:
+        raise InputError(f"{path}: {len(labels)} labels for {n_faces} faces")
+    return labels
+
+
+def write_polylines_obj(path, V, polylines) -> None:
+    """OBJ with the vertices ``V (#V, 3)`` that ``polylines`` (index arrays) use, one ``l`` record each."""
+    V = np.asarray(V, np.float64)
+    used = np.unique(np.concatenate(polylines)) if polylines else np.zeros(0, np.int64)
+    remap = np.full(len(V), -1, np.int64)
+    remap[used] = np.arange(1, len(used) + 1)
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V[used].tolist()]
+    lines += ["l " + " ".join(map(str, remap[p].tolist())) + "\n" for p in polylines]
+    _atomic_write(Path(path), "".join(lines).encode("ascii"))

@@ -1,0 +1,15 @@
+"""Segment a mesh into the regions stroked by the user, by graph cut (Zelinka and Garland).
+
+Surfacing by numbers, section 3: region-centric interactive surface segmentation (mode: segment).
+
+Stages: :mod:`.strokes` turns vertex, face and polyline strokes into fixed nodes; :mod:`.graph`
+builds the vertex or face graph with the area-weighted boundary cost of eq. 1; :mod:`.regions`
+adds the optional region term; :mod:`.lod` builds the quadric level-of-detail hierarchy and
+:mod:`.solve` cuts it (s-t min cut for two regions, alpha-expansion for more, refined in bands);
+:mod:`.segment` ties them together over arrays; :mod:`.pipeline` reads, runs and writes.
+"""
+
+CLI_FLAGS = {
+    "--render-views": ("views.render=true", "Also write the named views and their cameras, to paint strokes on.")
+}
+"""Extra boolean options of ``synthkit surface-by-numbers``: flag -> (--set override, help)."""

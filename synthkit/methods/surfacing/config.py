@@ -1,0 +1,172 @@
+"""Config schema of ``synthkit surface-by-numbers`` (Zelinka and Garland, section 3).
+
+Paper defaults: eta = gamma = 1 (eq. 1), no region model (3.4), two to four levels of detail with a
+coarsest level of thousands of vertices (3.5). Strokes replace the paper's mouse strokes: per
+region, vertex or face indices and polylines in model units snapped to the surface.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from synthkit.config import InputFile, RunConfig, StrictModel
+
+__all__ = [
+    "CONFIG", "SurfacingConfig", "Region", "ImageStrokes", "ViewsSection", "BoundarySection", "RegionTermSection",
+    "MultiresSection",
+]
+
+Point3 = tuple[float, float, float]
+
+
+class Region(StrictModel):
+    """One region the user wants, with the strokes inside its body (any mix of the three kinds)."""
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$", description="Region name (file names, report).")
+    color: tuple[int, int, int] | None = Field(
+        None, description="RGB 0-255 of the region in previews and labels.ply; null = a palette colour."
+    )
+    vertices: list[int] = Field(default_factory=list, description="Stroked vertex indices (0-based).")
+    faces: list[int] = Field(default_factory=list, description="Stroked face indices (0-based).")
+    points: list[list[Point3]] = Field(
+        default_factory=list,
+        description="Polylines [[x, y, z], ...] in model units (one polyline, or a list of them), sampled "
+        "densely and snapped to the surface.",
+    )
+
+    @field_validator("points", mode="before")
+    @classmethod
+    def _one_or_many(cls, value):
+        if isinstance(value, list) and value and isinstance(value[0], list | tuple):
+            if value[0] and isinstance(value[0][0], int | float):
+                return [value]
+        return value
+
+    @field_validator("color")
+    @classmethod
+    def _rgb(cls, value):
+        if value is not None and any(not 0 <= c <= 255 for c in value):
+            raise ValueError(f"colour components must lie in [0, 255], got {list(value)}")
+        return value
+
+
+ViewName = Literal["front", "back", "left", "right", "top", "bottom", "iso"]
+
+
+class ImageStrokes(StrictModel):
+    """A PNG painted over the render of a named view (``views/<view>.png`` of a run with
+    ``views.render: true`` or ``mode: views``), one colour per region, read back through the
+    face-ID buffer of the same camera."""
+
+    image: InputFile = Field(description="The painted PNG, the size of the view (views.size).")
+    view: ViewName = Field(description="The view it was painted over.")
+    colors: dict[str, tuple[int, int, int]] = Field(
+        min_length=1, description="Region name -> the RGB (0-255) its strokes are painted in."
+    )
+    tolerance: float = Field(
+        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour."
+    )
+
+
+class ViewsSection(StrictModel):
+    """Renders of the named views with their cameras, for painting strokes."""
+
+    render: bool = Field(False, description="Write views/<view>.png and views/<view>.json (CLI --render-views).")
+    size: int = Field(512, ge=64, le=4096, description="Side of the view renders in pixels (and of painted PNGs).")
+    names: list[ViewName] = Field(
+        default_factory=lambda: ["front", "back", "left", "right", "top", "bottom", "iso"],
+        min_length=1, description="Views to render.",
+    )
+
+
+class BoundarySection(StrictModel):
+    """Boundary cost, eq. 1: e_ij = eta (2 pi - theta_ij) / 2 pi + gamma d_ij / d_mean."""
+
+    eta: float = Field(1.0, ge=0, le=100, description="Weight of the dihedral-angle term (paper: 1).")
+    gamma: float = Field(1.0, ge=0, le=100, description="Weight of the edge-length term (paper: 1).")
+
+
+class RegionTermSection(StrictModel):
+    """Region cost (3.4): none (the paper), geodesic distance to the strokes, or stroke colours."""
+
+    model: Literal["none", "geodesic", "color"] = Field(
+        "geodesic",
+        description="none = boundary costs only (the paper's choice); geodesic = normalised edge-graph distance "
+        "to each region's strokes; color = k-means of each region's stroked colours (Lazy Snapping). "
+        "Default chosen by benchmarks/segmentation.py (README).",
+    )
+    weight: float = Field(
+        0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
+    )
+    concavity: float = Field(
+        1000.0,
+        ge=0,
+        le=1e6,
+        description="model: geodesic: extra length of a step across a concave edge, in mean edge lengths times "
+        "1 - cos(bending angle) (0 = plain edge-graph distance).",
+    )
+    clusters: int = Field(64, ge=1, le=1024, description="k-means clusters per region for model: color (paper: 64).")
+
+
+class MultiresSection(StrictModel):
+    """Multiresolution solve (3.5): quadric LOD hierarchy, coarse cut, bands of free nodes."""
+
+    enabled: bool = Field(True, description="Use the hierarchy when the graph has more than coarsest_nodes nodes.")
+    coarsest_nodes: int = Field(
+        8000, ge=100, le=1_000_000,
+        description="Stop coarsening at this many graph nodes (paper: thousands to 10^4 vertices; a face graph has "
+        "about two nodes per vertex).",
+    )
+    ratio: float = Field(0.25, gt=0.01, lt=1, description="Vertices kept from one level to the next coarser one.")
+    max_levels: int = Field(4, ge=1, le=4, description="At most this many levels including the finest (paper: 2-4).")
+    band_rings: int = Field(2, ge=1, le=20, description="Rings around the coarser cut left free at each finer level.")
+    crease_deg: float = Field(
+        30.0, ge=0, le=180, description="No cluster spans a concave edge bent more than this (degrees; 180 = off)."
+    )
+
+
+class SurfacingConfig(RunConfig):
+    """``synthkit surface-by-numbers``: region-centric segmentation by graph cut (mode: segment)."""
+
+    method: Literal["surface-by-numbers"] = "surface-by-numbers"
+    mode: Literal["segment", "views"] = Field(
+        "segment", description="segment = cut the mesh into the stroked regions; views = only write the view renders."
+    )
+    input: InputFile = Field(description="Input mesh (OBJ, PLY, GLB, OFF, STL).")
+    regions: list[Region] = Field(
+        default_factory=list, description="The regions, each with its strokes (at least two for mode: segment)."
+    )
+    images: list[ImageStrokes] = Field(default_factory=list, description="Painted views adding strokes to regions.")
+    views: ViewsSection = Field(default_factory=ViewsSection)
+    graph: Literal["vertex", "face"] = Field(
+        "face",
+        description="vertex = the paper's graph (3.2), one node per vertex, faces by the corner-majority rule; "
+        "face = the dual graph, one node per face, cut along mesh edges. Default chosen by the benchmark.",
+    )
+    boundary: BoundarySection = Field(default_factory=BoundarySection)
+    region_term: RegionTermSection = Field(default_factory=RegionTermSection)
+    multires: MultiresSection = Field(default_factory=MultiresSection)
+    points_tolerance: float = Field(
+        0.01, gt=0, le=1, description="Farthest a stroke point may lie from the surface (share of bbox diagonal)."
+    )
+    compare_single_level: bool = Field(False, description="Also solve on the full graph and report its cut cost.")
+    preview_size: int = Field(512, ge=64, le=4096, description="Side of the PNG previews in pixels.")
+
+    @model_validator(mode="after")
+    def _unique_names(self):
+        names = [r.name for r in self.regions]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"region names must be unique, got {', '.join(dup)} twice")
+        if self.mode == "segment" and len(names) < 2:
+            raise ValueError(f"regions: mode segment needs at least two regions (got {len(names)})")
+        for k, item in enumerate(self.images):
+            unknown = sorted(set(item.colors) - set(names))
+            if unknown:
+                raise ValueError(f"images[{k}].colors: {unknown[0]!r} is not a region (regions: {', '.join(names)})")
+        return self
+
+
+CONFIG = SurfacingConfig

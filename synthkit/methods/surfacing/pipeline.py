@@ -1,0 +1,253 @@
+"""``synthkit surface-by-numbers`` run (mode: segment): load, strokes, segmentation, outputs.
+
+Stages (``report.json`` ``timings``): ``load``, ``strokes``, ``graph`` (graph, costs, region term),
+``hierarchy`` (LOD maps), ``cut`` (all levels), ``single_level`` (with ``compare_single_level``), ``views``,
+``export``, ``previews``.
+
+Outputs: ``labels.ply`` (int32 ``label`` and a region colour on every face and vertex),
+``labels.seg`` (one face label per line), ``regions/<name><suffix>`` (one mesh per region in the
+input's format), ``cut.obj`` (the boundary as OBJ ``l`` polylines), ``regions.png`` (four views,
+strokes darker, cut in red) and ``level_<k>.png`` (free band of each level in grey, Fig. 3); with
+``views.render`` (``--render-views``) or ``mode: views``, ``views/<view>.png`` renders to paint
+strokes on and ``views/<view>.json`` their cameras (``mode: views`` stops there).
+
+Errors: a stroke index out of range, a stroke point off the surface, a vertex or face stroked for
+two regions, a region without strokes, a painted PNG of the wrong size or with a colour that maps
+to no region, and ``region_term.model: color`` on a mesh without colours are config errors (exit 2)
+naming the key and value; a mesh without faces or an unreadable PNG is an input error (exit 3).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import trimesh
+
+from synthkit import preview
+from synthkit.errors import ConfigError
+from synthkit.io.images import load_image, save_image
+from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.io.segmentation import write_labels_ply, write_polylines_obj, write_seg
+from synthkit.methods.surfacing import views
+from synthkit.methods.surfacing.config import SurfacingConfig
+from synthkit.methods.surfacing.segment import Options, Segmentation, chain_edges, cut_edges, segment
+from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
+
+__all__ = ["run", "options_of", "region_colors", "mesh_colors", "resolve_strokes"]
+
+PALETTE = np.array(
+    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
+     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165]], dtype=np.uint8
+)
+BYTES_PER_NODE = 1500
+"""Peak bytes per graph node over the graph, hierarchy and cuts (measured about 1 kB at 1M faces)."""
+
+
+def options_of(cfg: SurfacingConfig) -> Options:
+    """Solver options from the config."""
+    m, r = cfg.multires, cfg.region_term
+    return Options(
+        graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
+        region_weight=r.weight, concavity=r.concavity, clusters=r.clusters, multires=m.enabled,
+        coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
+        crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
+    )
+
+
+def region_colors(cfg: SurfacingConfig) -> np.ndarray:
+    """``(L, 3) uint8`` colour of each region (its ``color`` or the palette's)."""
+    return np.array([r.color if r.color is not None else PALETTE[k % len(PALETTE)]
+                     for k, r in enumerate(cfg.regions)], dtype=np.uint8)
+
+
+def mesh_colors(mesh: trimesh.Trimesh) -> np.ndarray | None:
+    """``(#V, 3)`` float RGB in [0, 1] from vertex colours or the texture at the UVs; None without."""
+    visual = mesh.visual
+    if visual.kind == "texture":
+        visual = visual.to_color()
+    if visual.kind != "vertex":
+        return None
+    return np.asarray(visual.vertex_colors, np.float64)[:, :3] / 255.0
+
+
+class ViewCache:
+    """Camera, face-ID buffer and render of each named view of one mesh, made on first use."""
+
+    def __init__(self, mesh: trimesh.Trimesh, size: int):
+        self.V, self.F, self.size = np.asarray(mesh.vertices), np.asarray(mesh.faces), size
+        self._views: dict = {}
+
+    def __getitem__(self, name: str):
+        if name not in self._views:
+            cam = views.camera(self.V, name, self.size)
+            face_at = views.face_id_buffer(self.V, self.F, cam)
+            self._views[name] = (cam, face_at, views.render(self.V, self.F, face_at, cam))
+        return self._views[name]
+
+
+def _image_sets(cfg: SurfacingConfig, cache: ViewCache) -> list[np.ndarray]:
+    """Vertices stroked per region by the painted images."""
+    names = [r.name for r in cfg.regions]
+    out = [np.zeros(0, np.int64) for _ in names]
+    for k, item in enumerate(cfg.images):
+        img = load_image(item.image)
+        cam, face_at, rendered = cache[item.view]
+        if img.shape[:2] != face_at.shape:
+            raise ConfigError(f"images[{k}].image: {item.image} is {img.shape[1]}x{img.shape[0]} pixels, but view "
+                              f"'{item.view}' renders {cam.size}x{cam.size} (views.size)")
+        colors = np.full((len(names), 3), np.nan)
+        for name, rgb in item.colors.items():
+            colors[names.index(name)] = np.asarray(rgb) / 255.0
+        try:
+            sets = views.image_strokes(img, rendered, face_at, cache.V, cache.F, cam, colors,
+                                       tolerance=item.tolerance)
+        except ValueError as exc:
+            raise ConfigError(f"images[{k}].image: {item.image}: {exc}") from None
+        out = [np.union1d(a, b) for a, b in zip(out, sets, strict=True)]
+    return out
+
+
+def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh, cache: ViewCache) -> tuple[np.ndarray, np.ndarray]:
+    """Owners of stroked vertices ``(#V,)`` and faces ``(#F,)``; ConfigError naming the key."""
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    from_images = _image_sets(cfg, cache)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    step = 0.5 * float(mesh.edges_unique_length.mean())
+    vsets, fsets = [], []
+    for k, region in enumerate(cfg.regions):
+        key = f"regions[{k}]"
+        try:
+            v = check_indices(region.vertices, len(V), "vertex")
+        except ValueError as exc:
+            raise ConfigError(f"{key}.vertices: {exc}") from None
+        try:
+            f = check_indices(region.faces, len(F), "face")
+        except ValueError as exc:
+            raise ConfigError(f"{key}.faces: {exc}") from None
+        for j, line in enumerate(region.points):
+            try:
+                v = np.union1d(v, snap_polyline(mesh, line, step=step, tolerance=cfg.points_tolerance * diag))
+            except ValueError as exc:
+                raise ConfigError(f"{key}.points[{j}]: {exc}") from None
+        v = np.union1d(v, from_images[k])
+        if not len(v) and not len(f):
+            raise ConfigError(f"{key} ({region.name}): region has no strokes (give vertices, faces, points or images)")
+        vsets.append(v)
+        fsets.append(f)
+    try:
+        return stroke_sets(len(V), len(F), vsets, fsets, [r.name for r in cfg.regions])
+    except ValueError as exc:
+        raise ConfigError(f"regions: {exc}") from None
+
+
+def _segment(cfg: SurfacingConfig, ctx, mesh, vertex_owner, face_owner) -> Segmentation:
+    opt = options_of(cfg)
+    n_nodes = len(mesh.faces) if cfg.graph == "face" else len(mesh.vertices)
+    ctx.budget.require("input", cfg.input, n_nodes, "graph nodes", bytes_each=BYTES_PER_NODE)
+    colors = mesh_colors(mesh) if opt.region_model == "color" else None
+    if opt.region_model == "color" and colors is None:
+        raise ConfigError(f"region_term.model: color: {cfg.input} has no vertex colours and no texture")
+    try:
+        return segment(np.asarray(mesh.vertices), np.asarray(mesh.faces), vertex_owner, face_owner,
+                       len(cfg.regions), opt, colors=colors, rng=ctx.rng)
+    except ValueError as exc:
+        raise ConfigError(f"regions: {exc}") from None
+
+
+def _metrics(cfg: SurfacingConfig, mesh, seg: Segmentation, cut: np.ndarray) -> dict:
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    area = mesh.area_faces
+    regions = []
+    for k, region in enumerate(cfg.regions):
+        sel = seg.face_labels == k
+        regions.append({"name": region.name, "faces": int(sel.sum()),
+                        "vertices": int(len(np.unique(F[sel]))) if sel.any() else 0,
+                        "area_share": float(area[sel].sum() / area.sum())})
+    levels = [{k: v for k, v in st.items() if k != "free_faces"} for st in seg.levels]
+    out = {
+        "regions": regions, "graph": cfg.graph, "region_model": cfg.region_term.model, "solver": seg.solver,
+        "graph_nodes": seg.graph.n, "graph_edges": int(len(seg.graph.edges)), "cut_cost": seg.cut_cost,
+        "boundary_cost": seg.boundary_cost,
+        "cut_length": float(np.linalg.norm(V[cut[:, 0]] - V[cut[:, 1]], axis=1).sum()),
+        "cut_edges": int(len(cut)), "levels": levels, "unstroked_components": seg.unstroked_components,
+    }
+    if seg.single_level is not None:
+        out["single_level_cut_cost"] = seg.single_level["cut_cost"]
+        out["single_level_face_agreement"] = seg.single_level["face_agreement"]
+        out["single_level_seconds"] = seg.single_level["seconds"]
+    return out
+
+
+def _export(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray) -> None:
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    colors = region_colors(cfg)
+    vl = seg.vertex_labels
+    vcol = np.where(vl[:, None] >= 0, colors[np.maximum(vl, 0)], 0).astype(np.uint8)
+    write_labels_ply(ctx.path("labels_ply", "labels.ply"), V, F, seg.face_labels, vl, colors[seg.face_labels], vcol)
+    write_seg(ctx.path("labels_seg", "labels.seg"), seg.face_labels)
+    write_polylines_obj(ctx.path("cut", "cut.obj"), V, chain_edges(cut))
+    suffix = cfg.input.suffix.lower()
+    suffix = suffix if suffix in (".obj", ".ply", ".off", ".stl", ".glb") else ".ply"
+    for k, region in enumerate(cfg.regions):
+        sel = np.flatnonzero(seg.face_labels == k)
+        if not len(sel):
+            continue
+        part = mesh.submesh([sel], append=True, repair=False)
+        save_mesh(part, ctx.path(f"region_{region.name}", f"regions/{region.name}{suffix}"))
+
+
+def _stroked_faces(F, seg: Segmentation) -> np.ndarray:
+    if seg.graph.kind == "face":
+        return seg.seeds >= 0
+    return (seg.seeds[F] >= 0).any(axis=1)
+
+
+def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray) -> None:
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    base = region_colors(cfg).astype(np.float64)[seg.face_labels] / 255.0
+    base[_stroked_faces(F, seg)] *= 0.45
+    lines = V[cut] if len(cut) else None
+    views = ("front", "side", "top", "iso")
+    size = cfg.preview_size
+    imgs = [preview.rasterize_mesh(V, F, face_colors=base, view=v, size=size, lines=lines) for v in views]
+    preview.montage_png(ctx.path("preview_regions", "regions.png"), imgs, titles=list(views), height=size)
+    for k, st in enumerate(seg.levels):
+        col = region_colors(cfg).astype(np.float64)[seg.face_labels] / 255.0
+        col[st["free_faces"]] = 0.75
+        img = preview.rasterize_mesh(V, F, face_colors=col, view="iso", size=size)
+        title = f"level {k}: {st['free_nodes']} of {st['nodes']} nodes free"
+        preview.montage_png(ctx.path(f"preview_level_{k}", f"level_{k}.png"), [img], titles=[title], height=size)
+
+
+def _write_views(cfg: SurfacingConfig, ctx, cache: ViewCache) -> None:
+    for name in cfg.views.names:
+        cam, _, rendered = cache[name]
+        save_image(ctx.path(f"view_{name}", f"views/{name}.png"), rendered)
+        ctx.path(f"camera_{name}", f"views/{name}.json").write_text(json.dumps(cam.to_json(), indent=1) + "\n")
+    ctx.metrics["views"] = list(cfg.views.names)
+
+
+def run(cfg: SurfacingConfig, ctx) -> None:
+    """Run ``cfg`` (mode segment, or mode views: only the view renders) into ``ctx.out_dir``."""
+    with ctx.stage("load"):
+        mesh = load_mesh(cfg.input)
+    cache = ViewCache(mesh, cfg.views.size)
+    if cfg.mode == "views" or cfg.views.render:
+        with ctx.stage("views"):
+            _write_views(cfg, ctx, cache)
+        if cfg.mode == "views":
+            return
+    with ctx.stage("strokes"):
+        vertex_owner, face_owner = resolve_strokes(cfg, mesh, cache)
+    seg = _segment(cfg, ctx, mesh, vertex_owner, face_owner)
+    for name, seconds in seg.timings.items():
+        ctx.timings[name] = ctx.timings.get(name, 0.0) + seconds
+    if seg.single_level is not None:
+        ctx.timings["single_level"] = seg.single_level["seconds"]
+    cut = cut_edges(np.asarray(mesh.vertices), np.asarray(mesh.faces), seg.face_labels)
+    ctx.metrics.update(_metrics(cfg, mesh, seg, cut))
+    with ctx.stage("export"):
+        _export(cfg, ctx, mesh, seg, cut)
+    with ctx.stage("previews"):
+        _previews(cfg, ctx, mesh, seg, cut)

@@ -1,0 +1,305 @@
+"""Labelling a graph ``edges (E, 2)``, ``weights (E,)`` with region costs ``unary (n, L)`` and fixed
+nodes ``seeds (n,)`` (-1 free): single level and multiresolution (section 3.5).
+
+Energy: ``sum_p unary[p, l_p] + sum_(p,q) weights[pq] [l_p != l_q]`` with every fixed node held to
+its region. Two regions are solved exactly by one s-t min cut (:func:`synthkit.core.graphcut.mincut`),
+three or more by alpha-expansion on the same costs (:func:`synthkit.core.graphcut.alpha_expansion`,
+Potts pairwise terms with per-edge weights, within a factor 2 of the optimum).
+
+Multiresolution: ``maps[k]`` sends the nodes of level k to those of level k + 1 (level 0 the
+finest). A coarse problem is the exact contraction of the finer one: node costs and the weights of
+edges joining two clusters are summed, so a coarse labelling costs what its lifting costs. A
+cluster is first split into the connected pieces its inner edges leave when barrier edges (sharp
+concave creases) are removed, so that no cluster hides a crease the cut may follow, then a cluster
+holding fixed nodes of two regions is split by region (its free nodes form one more cluster).
+The coarsest level is solved whole; at each finer level only the free nodes within
+``band_rings`` rings of the lifted cut take part, the others keep their coarse labels and enter
+the band's problem as node costs; when the new cut reaches the band's edge, the band moves onto
+it and is solved again. The coarse cut can only run where clusters meet: with boundary costs
+alone, whose cheapest cuts are often nearly tied, a coarse cut can settle in a parallel place the
+bands cannot leave (see the README's figures).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from synthkit.core.graphcut import alpha_expansion, mincut
+
+__all__ = ["Problem", "solve_labels", "cut_cost", "contract", "solve_multires", "band_nodes", "adjacency"]
+
+
+@dataclass
+class Problem:
+    """One level: ``unary (n, L)`` finite, ``edges (E, 2)``, ``weights (E,)``, ``seeds (n,)`` and
+    optionally ``barrier (E,) bool``, edges no cluster may contain (kept at every coarser level)."""
+
+    unary: np.ndarray
+    edges: np.ndarray
+    weights: np.ndarray
+    seeds: np.ndarray
+    barrier: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.seeds)
+
+
+def solve_labels(unary, edges, weights, seeds, *, init=None, rng=None) -> np.ndarray:
+    """Optimal (two regions) or alpha-expansion (more) labels ``(n,) int64``."""
+    u = np.array(unary, dtype=np.float64)
+    u -= u.min(axis=1, keepdims=True)  # a constant per node: the same minimiser, costs >= 0 for the cut
+    n, n_labels = u.shape
+    fixed = np.flatnonzero(seeds >= 0)
+    own = u[fixed, seeds[fixed]]
+    u[fixed] = np.inf
+    u[fixed, seeds[fixed]] = own
+    if n_labels == 2:
+        side, _ = mincut(n, edges, weights, weights, u[:, 1], u[:, 0])
+        return side.astype(np.int64)
+    w = np.asarray(weights, np.float64)
+
+    def potts(eidx, la, lb):
+        return w[eidx] * (la != lb)
+
+    if init is not None:
+        init = np.where(seeds >= 0, seeds, init)
+    return alpha_expansion(u, edges, potts, init=init, rng=rng).labels
+
+
+def cut_cost(labels, edges, weights) -> float:
+    """Sum of the weights of the edges whose ends have different labels."""
+    return float(np.asarray(weights)[labels[edges[:, 0]] != labels[edges[:, 1]]].sum())
+
+
+def _split_conflicts(cluster: np.ndarray, seeds: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Split clusters holding fixed nodes of two regions; returns new ``cluster (n,)`` and the old
+    cluster of each new one ``origin (n_new,)``."""
+    s = seeds >= 0
+    pairs = np.unique(cluster[s] * n_labels + seeds[s])
+    counts = np.bincount(pairs // n_labels, minlength=int(cluster.max()) + 1)
+    conflicted = counts[cluster] > 1
+    key = cluster * (n_labels + 1) + np.where(conflicted, seeds + 1, 0)
+    uniq, new = np.unique(key, return_inverse=True)
+    return new.astype(np.int64), uniq // (n_labels + 1)
+
+
+def _split_barriers(cluster: np.ndarray, p: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Split each cluster that contains a barrier edge into the connected pieces its non-barrier
+    inner edges leave; returns new ``cluster (n,)`` and ``origin (n_new,)`` (identity maps when no
+    cluster contains a barrier)."""
+    e = p.edges
+    inner = cluster[e[:, 0]] == cluster[e[:, 1]]
+    cut = np.zeros(int(cluster.max()) + 1, bool)
+    if p.barrier is not None:
+        cut[cluster[e[inner & p.barrier, 0]]] = True
+    if not cut.any():
+        return cluster, np.arange(len(cut))
+    keep = inner & ~(p.barrier & inner)
+    keep |= inner & ~cut[cluster[e[:, 0]]]
+    A = sp.coo_matrix((np.ones(int(keep.sum())), (e[keep, 0], e[keep, 1])), shape=(p.n, p.n))
+    _, comp = connected_components(A, directed=False)
+    key = np.where(cut[cluster], comp + len(cut), cluster)
+    uniq, new = np.unique(key, return_inverse=True)
+    origin = np.zeros(len(uniq), np.int64)
+    origin[new] = cluster
+    return new.astype(np.int64), origin
+
+
+def contract(p: Problem, cluster: np.ndarray) -> Problem:
+    """The coarse problem whose nodes are the clusters ``cluster (n,)`` of ``p``'s nodes."""
+    nc = int(cluster.max()) + 1
+    L = p.unary.shape[1]
+    unary = np.stack([np.bincount(cluster, weights=p.unary[:, k], minlength=nc) for k in range(L)], axis=1)
+    seeds = np.full(nc, -1, np.int64)
+    np.maximum.at(seeds, cluster, p.seeds)
+    e = np.sort(cluster[p.edges], axis=1)
+    keep = e[:, 0] != e[:, 1]
+    key, inv = np.unique(e[keep, 0] * nc + e[keep, 1], return_inverse=True)
+    weights = np.bincount(inv, weights=p.weights[keep], minlength=len(key))
+    edges = np.stack([key // nc, key % nc], axis=1)
+    barrier = None
+    if p.barrier is not None:
+        barrier = np.bincount(inv, weights=p.barrier[keep], minlength=len(key)) > 0
+    return Problem(unary, edges, weights, seeds, barrier)
+
+
+def adjacency(n: int, edges: np.ndarray) -> sp.csr_matrix:
+    """Symmetric ``(n, n)`` boolean adjacency of ``edges``."""
+    return sp.csr_matrix((np.ones(2 * len(edges), bool), (edges.ravel(), edges[:, ::-1].ravel())), shape=(n, n))
+
+
+def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int, A=None) -> np.ndarray:
+    """Nodes ``(n,) bool`` within ``rings`` rings of an edge whose ends differ in ``labels`` (ring 1
+    is the cut edges' ends); rings grow from the cut only, over the adjacency ``A`` (built when
+    not given)."""
+    cut = labels[edges[:, 0]] != labels[edges[:, 1]]
+    band = np.zeros(n, bool)
+    band[edges[cut].ravel()] = True
+    if rings > 1 and band.any():
+        A = adjacency(n, edges) if A is None else A
+        frontier = np.flatnonzero(band)
+        for _ in range(rings - 1):
+            nb = np.unique(A[frontier].indices)
+            frontier = nb[~band[nb]]
+            band[frontier] = True
+    return band
+
+
+def _nearby_labels(A: sp.csr_matrix, idx: np.ndarray, labels: np.ndarray, n_labels: int, hops: int) -> np.ndarray:
+    """``(k, L) bool``: the labels found within ``hops`` steps of each node ``idx (k,)`` (its own included)."""
+    n = A.shape[0]
+    onehot = sp.csr_matrix((np.ones(n, bool), (np.arange(n), labels)), shape=(n, n_labels))
+    reach = (A[idx] @ onehot + onehot[idx]).astype(bool)
+    inner = A[idx][:, idx]
+    for _ in range(hops - 1):
+        reach = (inner @ reach + reach).astype(bool)
+    return reach.toarray()
+
+
+def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray) -> tuple[Problem, np.ndarray]:
+    """The problem of the nodes ``mask (n,) bool`` with every other node held at ``labels``: the
+    edges to held nodes become node costs. Returns it and the nodes' indices ``(k,)``."""
+    idx = np.flatnonzero(mask)
+    local = np.full(p.n, -1, np.int64)
+    local[idx] = np.arange(len(idx))
+    f0, f1 = mask[p.edges[:, 0]], mask[p.edges[:, 1]]
+    inner = f0 & f1
+    unary = p.unary[idx].copy()
+    for a, b in ((0, 1), (1, 0)):
+        rim = np.flatnonzero((f0 if a == 0 else f1) & ~(f1 if a == 0 else f0))
+        node, other = local[p.edges[rim, a]], labels[p.edges[rim, b]]
+        w = p.weights[rim]
+        np.add.at(unary, node, w[:, None])
+        np.add.at(unary, (node, other), -w)
+    return Problem(unary, local[p.edges[inner]], p.weights[inner], p.seeds[idx]), idx
+
+
+def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr_matrix,
+                hops: int = 3) -> tuple[np.ndarray, int]:
+    """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
+    the number of edges of the graph cut solved. The new labels are kept only when they lower the
+    band's energy (equal-cost alternatives leave the labels as they were). With three or more
+    labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
+    runs between), so that each expansion move involves only the nodes near its label."""
+    sub, idx = _subproblem(p, labels, free)
+    unary = sub.unary
+    if unary.shape[1] > 2:
+        unary[~_nearby_labels(A, idx, labels, unary.shape[1], hops)] = np.inf
+    new = solve_labels(unary, sub.edges, sub.weights, np.full(len(idx), -1), init=labels[idx], rng=rng)
+    rows = np.arange(len(idx))
+    before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub.edges, sub.weights)
+    after = unary[rows, new].sum() + cut_cost(new, sub.edges, sub.weights)
+    out = labels.copy()
+    if after < before - 1e-9 * max(abs(before), 1.0):  # keep only strict improvements: ties do not drift
+        out[idx] = new
+    return out, int(len(sub.edges))
+
+
+def _refine(p: Problem, labels: np.ndarray, rings: int, rng, *, reach: int = 8) -> tuple[np.ndarray, dict]:
+    """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. The
+    bands move inside the nodes within ``reach * rings`` rings of the first band (:func:`_slide`),
+    so the work grows with the length of the cut, not with the size of the graph."""
+    A = adjacency(p.n, p.edges)
+    band = band_nodes(p.n, p.edges, labels, rings, A)
+    seen = np.zeros(p.n, bool)
+    stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0, "free": seen}
+    if not band.any():
+        return labels, stats
+    sub, idx = _subproblem(p, labels, _grow(A, np.flatnonzero(band), reach * rings))
+    sub_labels, stats = _slide(sub, labels[idx], rings, rng)
+    out = labels.copy()
+    out[idx] = sub_labels
+    seen[idx] = stats["free"]
+    stats.update(nodes=p.n, free=seen)
+    return out, stats
+
+
+def _slide(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32) -> tuple[np.ndarray, dict]:
+    """Bands around the cut of ``labels`` solved in turn. Where the new labels change on the band's
+    rim (or leave the band), the new cut's band within ``3 rings`` of those nodes is solved again,
+    so a cut can slide past the band of its first guess while each further band stays local; once
+    nothing moves, the whole band of the cut is solved once more, and the process goes on until
+    that changes nothing (at most ``max_moves`` bands)."""
+    seen = np.zeros(p.n, bool)
+    stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0}
+    A = adjacency(p.n, p.edges)
+    free = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
+    whole = True
+    for _ in range(max_moves):
+        if not free.any():
+            break
+        new, n_edges = _band_solve(p, labels, free, rng, A)
+        seen |= free
+        stats["edges"] += n_edges
+        stats["bands"] += 1
+        changed = new != labels
+        labels = new
+        band = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
+        moved = np.flatnonzero(changed & ((free & ~band) | _rim(p, free)))
+        if len(moved):
+            free, whole = band & _grow(A, moved, 3 * rings), False  # the new cut's band where it moved
+        elif whole:
+            break
+        else:
+            free, whole = band, True  # settled locally: check with the whole band once more
+    stats["free_nodes"] = int(seen.sum())
+    stats["free"] = seen
+    return labels, stats
+
+
+def _grow(A: sp.csr_matrix, start: np.ndarray, rings: int) -> np.ndarray:
+    """Nodes ``(n,) bool`` within ``rings`` rings of the nodes ``start``."""
+    out = np.zeros(A.shape[0], bool)
+    out[start] = True
+    frontier = start
+    for _ in range(rings):
+        nb = np.unique(A[frontier].indices)
+        frontier = nb[~out[nb]]
+        out[frontier] = True
+    return out
+
+
+def _rim(p: Problem, free: np.ndarray) -> np.ndarray:
+    """Free nodes with a neighbour outside ``free``."""
+    e = p.edges
+    cross = free[e[:, 0]] != free[e[:, 1]]
+    rim = np.zeros(p.n, bool)
+    rim[e[cross].ravel()] = True
+    return rim & free
+
+
+def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rng=None):
+    """Labels ``(n,)`` of ``fine`` through the hierarchy ``maps``; also a list of per-level stats
+    (finest first): ``nodes``, ``free_nodes``, ``edges`` (of the graph cut solved), ``seconds`` and
+    ``free (n,) bool`` (the level's free nodes, seen from the finest nodes)."""
+    L = fine.unary.shape[1]
+    levels, clusters = [fine], []
+    maps = list(maps)
+    for k in range(len(maps)):
+        cluster, origin = _split_barriers(maps[k], levels[-1])
+        cluster, origin2 = _split_conflicts(cluster, levels[-1].seeds, L)
+        if k + 1 < len(maps):
+            maps[k + 1] = maps[k + 1][origin[origin2]]
+        clusters.append(cluster)
+        levels.append(contract(levels[-1], cluster))
+    to_level = [np.arange(fine.n)]
+    for cluster in clusters:
+        to_level.append(cluster[to_level[-1]])
+    top = levels[-1]
+    t0 = time.perf_counter()
+    labels = solve_labels(top.unary, top.edges, top.weights, top.seeds, rng=rng)
+    stats = [{"nodes": top.n, "free_nodes": int((top.seeds < 0).sum()), "edges": int(len(top.edges)),
+              "seconds": time.perf_counter() - t0, "free": (top.seeds < 0)[to_level[-1]]}]
+    for k in range(len(maps) - 1, -1, -1):
+        t0 = time.perf_counter()
+        labels, st = _refine(levels[k], labels[clusters[k]], band_rings, rng)
+        st["seconds"] = time.perf_counter() - t0
+        st["free"] = st["free"][to_level[k]]
+        stats.append(st)
+    return labels, stats[::-1]

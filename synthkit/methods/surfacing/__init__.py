@@ -13,3 +13,9 @@ CLI_FLAGS = {
     "--render-views": ("views.render=true", "Also write the named views and their cameras, to paint strokes on.")
 }
 """Extra boolean options of ``synthkit surface-by-numbers``: flag -> (--set override, help)."""
+
+SET_EXAMPLE = "boundary.eta=2"
+"""A real key of this method, shown in ``--set``'s help."""
+
+INIT_VALUES = {"regions": [{"name": "a", "vertices": [0]}, {"name": "b", "vertices": [1]}]}
+"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""

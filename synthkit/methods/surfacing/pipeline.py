@@ -204,6 +204,10 @@ def _stroked_faces(F, seg: Segmentation) -> np.ndarray:
 
 
 def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray) -> None:
+    """``regions.png`` (the summary preview: four views, strokes darker, the cut in red) and one
+    ``level_<k>.png`` per level with its free band (Fig. 3)."""
+    if not ctx.wants_preview("summary"):
+        return
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     base = region_colors(cfg).astype(np.float64)[seg.face_labels] / 255.0
     base[_stroked_faces(F, seg)] *= 0.45
@@ -212,6 +216,8 @@ def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarra
     size = cfg.preview_size
     imgs = [preview.rasterize_mesh(V, F, face_colors=base, view=v, size=size, lines=lines) for v in views]
     preview.montage_png(ctx.path("preview_regions", "regions.png"), imgs, titles=list(views), height=size)
+    if not ctx.wants_preview("all"):
+        return
     for k, st in enumerate(seg.levels):
         col = region_colors(cfg).astype(np.float64)[seg.face_labels] / 255.0
         col[st["free_faces"]] = 0.75

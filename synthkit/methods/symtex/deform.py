@@ -541,59 +541,70 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "moves_rejected_by_stretch": opt.rejected_stretch,
         "moves_rejected_by_sharpness": opt.rejected_accept,
     }
-    baseline = None
-    optimized = None
+    baseline = optimized = None
     if cfg.mode == "tile":
-        tc = cfg.tile
-        with ctx.stage("blend"):
-            optimized = toroidal_blend(image, spacing=tc.mvc_spacing)
-        with ctx.stage("baseline"):
-            baseline = toroidal_blend(src, spacing=tc.mvc_spacing)
-        hf_input = high_frequency_energy(src)
-        input_objective = objective.value(src)
-        candidates = {
-            "optimized": _tile_candidate(optimized, src, objective, hf_view, metrics["max_stretch"]),
-            "baseline": _tile_candidate(baseline, src, objective, hf_input, 1.0),
-            "input": _tile_candidate(src, src, objective, hf_input, 1.0),
-        }
-        choice = choose_tile(candidates, input_objective)
-        image = {"optimized": optimized, "baseline": baseline, "input": src}[choice]
-        chosen = candidates[choice]
-        metrics.update(
-            objective_warped=end,
-            objective_end=chosen["objective"],
-            objective_optimized=candidates["optimized"]["objective"],
-            baseline_objective=candidates["baseline"]["objective"],
-            input_objective=input_objective,
-            seam_ratio=chosen["seam_ratio"],
-            seam_band_ratio=chosen["seam_band_ratio"],
-            seam_ratio_input=candidates["input"]["seam_ratio"],
-            baseline_seam_ratio=candidates["baseline"]["seam_ratio"],
-            optimized_seam_ratio=candidates["optimized"]["seam_ratio"],
-            sharpness=chosen["sharpness"],
-            tile_choice=choice,
-            tile_candidates=candidates,
-            tile_size=list(image.shape[:2]),
-        )
+        image, optimized, baseline = _tile_result(cfg, ctx, src, image, objective, hf_view, metrics)
     ctx.metrics.update(metrics)
     with ctx.stage("write"):
         write_common(cfg, ctx, src, image, objective, targets)
         np.save(ctx.path("sample_map", "sample_map.npy"), np.stack([mx, my], axis=2).astype(np.float32))
-        if cfg.mode == "tile":
-            save_image(ctx.path("optimized", "optimized.png"), optimized)
-            save_image(ctx.path("baseline", "baseline.png"), baseline)
-            if ctx.wants_preview("all"):
-                save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
-                save_image(ctx.path("tiled_optimized", "tiled_optimized_3x3.png"), np.tile(optimized, (3, 3, 1)))
-                save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))
-                save_image(ctx.path("tiled_baseline", "tiled_baseline_3x3.png"), np.tile(baseline, (3, 3, 1)))
-        if not ctx.wants_preview("summary"):
-            return
-        if baseline is None:
-            montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
-        else:
-            montage_png(
-                ctx.path("comparison", "comparison.png"),
-                [src, baseline, optimized],
-                titles=["input", "blended, not optimized", "optimized"],
-            )
+        _write_deform_images(ctx, src, image, optimized, baseline)
+
+
+def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict):
+    """Blend the warped tile and the input toroidally and return ``(result, optimized, baseline)``,
+    the result chosen by :func:`choose_tile`; the figures of every candidate go to ``metrics``."""
+    tc = cfg.tile
+    with ctx.stage("blend"):
+        optimized = toroidal_blend(image, spacing=tc.mvc_spacing)
+    with ctx.stage("baseline"):
+        baseline = toroidal_blend(src, spacing=tc.mvc_spacing)
+    hf_input = high_frequency_energy(src)
+    input_objective = objective.value(src)
+    candidates = {
+        "optimized": _tile_candidate(optimized, src, objective, hf_view, metrics["max_stretch"]),
+        "baseline": _tile_candidate(baseline, src, objective, hf_input, 1.0),
+        "input": _tile_candidate(src, src, objective, hf_input, 1.0),
+    }
+    choice = choose_tile(candidates, input_objective)
+    result = {"optimized": optimized, "baseline": baseline, "input": src}[choice]
+    chosen = candidates[choice]
+    metrics.update(
+        objective_warped=metrics["objective_end"],
+        objective_end=chosen["objective"],
+        objective_optimized=candidates["optimized"]["objective"],
+        baseline_objective=candidates["baseline"]["objective"],
+        input_objective=input_objective,
+        seam_ratio=chosen["seam_ratio"],
+        seam_band_ratio=chosen["seam_band_ratio"],
+        seam_ratio_input=candidates["input"]["seam_ratio"],
+        baseline_seam_ratio=candidates["baseline"]["seam_ratio"],
+        optimized_seam_ratio=candidates["optimized"]["seam_ratio"],
+        sharpness=chosen["sharpness"],
+        tile_choice=choice,
+        tile_candidates=candidates,
+        tile_size=list(result.shape[:2]),
+    )
+    return result, optimized, baseline
+
+
+def _write_deform_images(ctx, src, image, optimized, baseline) -> None:
+    """The tile images (``optimized``/``baseline`` None outside tile), tilings and ``comparison.png``."""
+    if optimized is not None:
+        save_image(ctx.path("optimized", "optimized.png"), optimized)
+        save_image(ctx.path("baseline", "baseline.png"), baseline)
+        if ctx.wants_preview("all"):
+            save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
+            save_image(ctx.path("tiled_optimized", "tiled_optimized_3x3.png"), np.tile(optimized, (3, 3, 1)))
+            save_image(ctx.path("tiled_input", "tiled_input_3x3.png"), np.tile(src, (3, 3, 1)))
+            save_image(ctx.path("tiled_baseline", "tiled_baseline_3x3.png"), np.tile(baseline, (3, 3, 1)))
+    if not ctx.wants_preview("summary"):
+        return
+    if baseline is None:
+        montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
+    else:
+        montage_png(
+            ctx.path("comparison", "comparison.png"),
+            [src, baseline, optimized],
+            titles=["input", "blended, not optimized", "optimized"],
+        )

@@ -19,6 +19,8 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import descriptor_distances
@@ -536,52 +538,16 @@ def merge_coplanar_faces(
     lab = np.zeros(m, np.int64) if face_label is None else np.asarray(face_label, dtype=np.int64).reshape(-1)
     if m == 0:
         return F, np.arange(0)
-    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    area2 = np.linalg.norm(cr, axis=1)
-    nrm = np.divide(cr, area2[:, None], out=np.zeros_like(cr), where=area2[:, None] > 0)
-    off = np.einsum("ij,ij->i", nrm, V[F[:, 0]])
-    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    fid = np.tile(np.arange(m), 3)
-    _, inv, counts = np.unique(E, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.reshape(-1)
-    order = np.argsort(inv, kind="stable")
-    two = counts[inv[order]] == 2
-    first = order[two][0::2]
-    second = order[two][1::2]
-    a, b = fid[first], fid[second]
-    same = (
-        (lab[a] == lab[b])
-        & (area2[a] > 0)
-        & (area2[b] > 0)
-        & (np.einsum("ij,ij->i", nrm[a], nrm[b]) >= 1 - 1e-9)
-        & (np.abs(off[a] - off[b]) <= tol)
-    )
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    G = sp.coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
-    ncomp, comp = connected_components(G, directed=False)
+    comp, area2, nrm = _coplanar_regions(V, F, lab, tol)
+    ncomp = int(comp.max()) + 1
     sizes = np.bincount(comp, minlength=ncomp)
     # vertices touching at most two regions: removable from those regions' loops where straight
     vc = np.unique(np.stack([F.reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
     n_regions = np.bincount(vc[:, 0], minlength=len(V))
     members = np.argsort(comp, kind="stable")
     starts = np.r_[0, np.cumsum(sizes)]
-    region_loops = {}
-    for c in range(ncomp):
-        faces = members[starts[c] : starts[c + 1]]
-        if area2[faces[0]] > 0:
-            region_loops[c] = boundary_loops(F[faces])
-
-    def collinear(loop) -> np.ndarray:
-        """``(len(loop),) bool``: the vertex lies strictly between its two loop neighbours, within ``tol``."""
-        P, Q, X = V[np.roll(loop, 1)], V[np.roll(loop, -1)], V[loop]
-        d = Q - P
-        ln = np.linalg.norm(d, axis=1)
-        t = np.einsum("ij,ij->i", X - P, d) / np.where(ln > 0, ln, 1.0)
-        off_line = np.linalg.norm(X - P - t[:, None] * d / np.where(ln > 0, ln, 1.0)[:, None], axis=1)
-        return (ln > 0) & (t > 0) & (t < ln) & (off_line <= tol)
-
+    region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
+    region_loops = {c: boundary_loops(F[f]) for c, f in region_faces.items() if area2[f[0]] > 0}
     locked = n_regions > 2  # a vertex is dropped only where every loop through it runs straight
     for _ in range(4):
         seen = np.zeros(len(V), np.int64)
@@ -589,34 +555,19 @@ def merge_coplanar_faces(
         for loops in region_loops.values():
             for lp in loops:
                 np.add.at(seen, lp, 1)
-                np.add.at(straight_in, lp[collinear(lp)], 1)
+                np.add.at(straight_in, lp[_collinear(V, lp, tol)], 1)
         drop = (seen > 0) & (straight_in == seen) & ~locked
         keep = np.ones(m, bool)
         new_faces, new_src = [], []
         failed = False
         for c, loops in region_loops.items():
-            faces = members[starts[c] : starts[c + 1]]
-            kept_loops = [lp[~drop[lp]] for lp in loops]
-            if len(faces) < 3 and not any(drop[lp].any() for lp in loops):
+            faces = region_faces[c]
+            drops_here = any(drop[lp].any() for lp in loops)
+            if len(faces) < 3 and not drops_here:
                 continue  # nothing to gain
-            tris = np.zeros((0, 3), np.int64)
-            if all(len(lp) >= 3 for lp in kept_loops):
-                n = nrm[faces[0]]
-                u = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
-                u /= np.linalg.norm(u)
-                w = np.cross(n, u)
-                P2 = np.zeros((len(V), 2))
-                verts = np.unique(F[faces])
-                P2[verts] = np.stack([V[verts] @ u, V[verts] @ w], axis=1)
-                tris = triangulate_polygons(P2, kept_loops)
-            ok = 0 < len(tris) <= len(faces)
-            if ok:
-                t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])
-                total = area2[faces].sum()
-                same_area = abs(np.linalg.norm(t2, axis=1).sum() - total) <= 1e-9 * total
-                ok = bool(np.all(t2 @ nrm[faces[0]] > 0)) and same_area
-            if not ok:
-                if any(drop[lp].any() for lp in loops):
+            tris = _retriangulate(V, F, faces, [lp[~drop[lp]] for lp in loops], nrm, area2)
+            if tris is None:
+                if drops_here:
                     for lp in loops:
                         locked[lp] = True
                     failed = True
@@ -631,3 +582,63 @@ def merge_coplanar_faces(
     F2 = np.concatenate([F[keep]] + new_faces) if new_faces else F
     src = np.concatenate([np.flatnonzero(keep)] + new_src) if new_faces else np.arange(m)
     return F2, src
+
+
+def _coplanar_regions(V, F, lab, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Connected regions of coplanar faces of one label: ``(comp (m,), area2 (m,) twice the face
+    areas, nrm (m, 3) unit normals)``. Two faces join when they share an edge used by exactly
+    those two, have the same label, non-zero areas, normals within ``1e-9`` and plane offsets
+    within ``tol``."""
+    m = len(F)
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    area2 = np.linalg.norm(cr, axis=1)
+    nrm = np.divide(cr, area2[:, None], out=np.zeros_like(cr), where=area2[:, None] > 0)
+    off = np.einsum("ij,ij->i", nrm, V[F[:, 0]])
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    fid = np.tile(np.arange(m), 3)
+    _, inv, counts = np.unique(E, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    order = np.argsort(inv, kind="stable")
+    two = counts[inv[order]] == 2
+    a, b = fid[order[two][0::2]], fid[order[two][1::2]]
+    same = (
+        (lab[a] == lab[b])
+        & (area2[a] > 0)
+        & (area2[b] > 0)
+        & (np.einsum("ij,ij->i", nrm[a], nrm[b]) >= 1 - 1e-9)
+        & (np.abs(off[a] - off[b]) <= tol)
+    )
+    G = sp.coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
+    _, comp = connected_components(G, directed=False)
+    return comp, area2, nrm
+
+
+def _collinear(V, loop: np.ndarray, tol: float) -> np.ndarray:
+    """``(len(loop),) bool``: the loop vertex lies strictly between its two loop neighbours, within ``tol``."""
+    P, Q, X = V[np.roll(loop, 1)], V[np.roll(loop, -1)], V[loop]
+    d = Q - P
+    ln = np.linalg.norm(d, axis=1)
+    t = np.einsum("ij,ij->i", X - P, d) / np.where(ln > 0, ln, 1.0)
+    off_line = np.linalg.norm(X - P - t[:, None] * d / np.where(ln > 0, ln, 1.0)[:, None], axis=1)
+    return (ln > 0) & (t > 0) & (t < ln) & (off_line <= tol)
+
+
+def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2) -> np.ndarray | None:
+    """Ear-clipping triangulation ``(k, 3)`` of a flat region's boundary ``loops`` (its ``faces``),
+    or None unless it has at most as many faces, the region's orientation and the same area."""
+    if not all(len(lp) >= 3 for lp in loops):
+        return None
+    n = nrm[faces[0]]
+    u = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+    u /= np.linalg.norm(u)
+    w = np.cross(n, u)
+    P2 = np.zeros((len(V), 2))
+    verts = np.unique(F[faces])
+    P2[verts] = np.stack([V[verts] @ u, V[verts] @ w], axis=1)
+    tris = triangulate_polygons(P2, loops)
+    if not 0 < len(tris) <= len(faces):
+        return None
+    t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])
+    total = area2[faces].sum()
+    same_area = abs(np.linalg.norm(t2, axis=1).sum() - total) <= 1e-9 * total
+    return tris if bool(np.all(t2 @ n > 0)) and same_area else None

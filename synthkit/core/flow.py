@@ -249,133 +249,153 @@ def _bk(first, head, sister, rcap, tr):  # pragma: no cover
                 cur = -1  # every arc of this node has been looked at
         if mid < 0:
             break
+
         time += 1
-
-        # --- augmentation along source -> ... -> s_end -> mid -> t_end -> ... -> sink
-        s_end = head[sister[mid]]
-        t_end = head[mid]
-        bottleneck = rcap[mid]
-        k = s_end
-        while parent[k] != _TERMINAL:
-            a = sister[parent[k]]
-            if rcap[a] < bottleneck:
-                bottleneck = rcap[a]
-            k = head[parent[k]]
-        if tr[k] < bottleneck:
-            bottleneck = tr[k]
-        k = t_end
-        while parent[k] != _TERMINAL:
-            a = parent[k]
-            if rcap[a] < bottleneck:
-                bottleneck = rcap[a]
-            k = head[a]
-        if -tr[k] < bottleneck:
-            bottleneck = -tr[k]
-        rcap[mid] -= bottleneck
-        rcap[sister[mid]] += bottleneck
-        oh = 0
-        ot = 0
-        k = s_end
-        while parent[k] != _TERMINAL:
-            a = parent[k]
-            up = head[a]
-            rcap[a] += bottleneck
-            rcap[sister[a]] -= bottleneck
-            if rcap[sister[a]] <= 0.0:
-                rcap[sister[a]] = 0.0
-                parent[k] = _ORPHAN
-                orphans[ot] = k
-                ot = ot + 1 if ot < n else 0
-            k = up
-        tr[k] -= bottleneck
-        if tr[k] <= 0.0:
-            tr[k] = 0.0
-            parent[k] = _ORPHAN
-            orphans[ot] = k
-            ot = ot + 1 if ot < n else 0
-        k = t_end
-        while parent[k] != _TERMINAL:
-            a = parent[k]
-            up = head[a]
-            rcap[sister[a]] += bottleneck
-            rcap[a] -= bottleneck
-            if rcap[a] <= 0.0:
-                rcap[a] = 0.0
-                parent[k] = _ORPHAN
-                orphans[ot] = k
-                ot = ot + 1 if ot < n else 0
-            k = up
-        tr[k] += bottleneck
-        if tr[k] >= 0.0:
-            tr[k] = 0.0
-            parent[k] = _ORPHAN
-            orphans[ot] = k
-            ot = ot + 1 if ot < n else 0
-
-        # --- adoption: give each orphan a parent in its own tree that still leads to a terminal
-        while oh != ot:
-            i = orphans[oh]
-            oh = oh + 1 if oh < n else 0
-            t = tree[i]
-            best = -1
-            best_d = _FAR
-            for a in range(first[i], first[i + 1]):
-                ok = rcap[sister[a]] > 0.0 if t == 1 else rcap[a] > 0.0
-                if not ok:
-                    continue
-                j = head[a]
-                if tree[j] != t or parent[j] == _NONE:
-                    continue
-                d = 0
-                k = j
-                while True:
-                    if stamp[k] == time:
-                        d += dist[k]
-                        break
-                    d += 1
-                    if parent[k] == _TERMINAL:
-                        stamp[k] = time
-                        dist[k] = 1
-                        break
-                    if parent[k] == _ORPHAN:
-                        d = _FAR
-                        break
-                    k = head[parent[k]]
-                if d < _FAR:
-                    if d < best_d:
-                        best = a
-                        best_d = d
-                    k = j
-                    while stamp[k] != time:
-                        stamp[k] = time
-                        dist[k] = d
-                        d -= 1
-                        k = head[parent[k]]
-            if best >= 0:
-                parent[i] = best
-                stamp[i] = time
-                dist[i] = best_d + 1
-                continue
-            # no parent: i becomes free; its neighbours in the tree may grow into it again
-            tree[i] = 0
-            parent[i] = _NONE
-            for a in range(first[i], first[i + 1]):
-                j = head[a]
-                if tree[j] != t:
-                    continue
-                feeds = rcap[sister[a]] > 0.0 if t == 1 else rcap[a] > 0.0
-                if feeds and not queued[j]:
-                    queue[qt] = j
-                    qt = qt + 1 if qt < n else 0
-                    queued[j] = True
-                pa = parent[j]
-                if pa >= 0 and head[pa] == i:
-                    parent[j] = _ORPHAN
-                    orphans[ot] = j
-                    ot = ot + 1 if ot < n else 0
-            if cur == i:
-                cur = -1
+        ot = _augment(mid, head, sister, parent, rcap, tr, orphans)
+        qt, cur = _adopt(first, head, sister, rcap, parent, tree, stamp, dist, queue, queued, orphans, ot, qt, cur,
+                         time)
     return tree == 2
+
+
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _augment(mid, head, sister, parent, rcap, tr, orphans):  # pragma: no cover
+    """BK augmentation along source -> ... -> s_end -> ``mid`` -> t_end -> ... -> sink by the path's
+    bottleneck; the nodes whose parent arc (or terminal link) it saturates become orphans, written
+    from the start of ``orphans``. Returns how many (the orphan FIFO's tail)."""
+    n = len(tr)
+    s_end = head[sister[mid]]
+    t_end = head[mid]
+    bottleneck = rcap[mid]
+    k = s_end
+    while parent[k] != _TERMINAL:
+        a = sister[parent[k]]
+        if rcap[a] < bottleneck:
+            bottleneck = rcap[a]
+        k = head[parent[k]]
+    if tr[k] < bottleneck:
+        bottleneck = tr[k]
+    k = t_end
+    while parent[k] != _TERMINAL:
+        a = parent[k]
+        if rcap[a] < bottleneck:
+            bottleneck = rcap[a]
+        k = head[a]
+    if -tr[k] < bottleneck:
+        bottleneck = -tr[k]
+    rcap[mid] -= bottleneck
+    rcap[sister[mid]] += bottleneck
+    ot = 0
+    k = s_end
+    while parent[k] != _TERMINAL:
+        a = parent[k]
+        up = head[a]
+        rcap[a] += bottleneck
+        rcap[sister[a]] -= bottleneck
+        if rcap[sister[a]] <= 0.0:
+            rcap[sister[a]] = 0.0
+            parent[k] = _ORPHAN
+            orphans[ot] = k
+            ot = ot + 1 if ot < n else 0
+        k = up
+    tr[k] -= bottleneck
+    if tr[k] <= 0.0:
+        tr[k] = 0.0
+        parent[k] = _ORPHAN
+        orphans[ot] = k
+        ot = ot + 1 if ot < n else 0
+    k = t_end
+    while parent[k] != _TERMINAL:
+        a = parent[k]
+        up = head[a]
+        rcap[sister[a]] += bottleneck
+        rcap[a] -= bottleneck
+        if rcap[a] <= 0.0:
+            rcap[a] = 0.0
+            parent[k] = _ORPHAN
+            orphans[ot] = k
+            ot = ot + 1 if ot < n else 0
+        k = up
+    tr[k] += bottleneck
+    if tr[k] >= 0.0:
+        tr[k] = 0.0
+        parent[k] = _ORPHAN
+        orphans[ot] = k
+        ot = ot + 1 if ot < n else 0
+    return ot
+
+
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _adopt(first, head, sister, rcap, parent, tree, stamp, dist, queue, queued, orphans, ot, qt, cur,
+           time):  # pragma: no cover
+    """BK adoption of the ``ot`` orphans: each takes the parent in its own tree nearest a terminal
+    (distances cached by ``stamp``/``dist`` at ``time``), or becomes free, its tree neighbours
+    re-activated and its children orphaned. Returns the active queue's tail and the node being
+    grown (-1 when that node became free)."""
+    n = len(tree)
+    oh = 0
+    while oh != ot:
+        i = orphans[oh]
+        oh = oh + 1 if oh < n else 0
+        t = tree[i]
+        best = -1
+        best_d = _FAR
+        for a in range(first[i], first[i + 1]):
+            ok = rcap[sister[a]] > 0.0 if t == 1 else rcap[a] > 0.0
+            if not ok:
+                continue
+            j = head[a]
+            if tree[j] != t or parent[j] == _NONE:
+                continue
+            d = 0
+            k = j
+            while True:
+                if stamp[k] == time:
+                    d += dist[k]
+                    break
+                d += 1
+                if parent[k] == _TERMINAL:
+                    stamp[k] = time
+                    dist[k] = 1
+                    break
+                if parent[k] == _ORPHAN:
+                    d = _FAR
+                    break
+                k = head[parent[k]]
+            if d < _FAR:
+                if d < best_d:
+                    best = a
+                    best_d = d
+                k = j
+                while stamp[k] != time:
+                    stamp[k] = time
+                    dist[k] = d
+                    d -= 1
+                    k = head[parent[k]]
+        if best >= 0:
+            parent[i] = best
+            stamp[i] = time
+            dist[i] = best_d + 1
+            continue
+        # no parent: i becomes free; its neighbours in the tree may grow into it again
+        tree[i] = 0
+        parent[i] = _NONE
+        for a in range(first[i], first[i + 1]):
+            j = head[a]
+            if tree[j] != t:
+                continue
+            feeds = rcap[sister[a]] > 0.0 if t == 1 else rcap[a] > 0.0
+            if feeds and not queued[j]:
+                queue[qt] = j
+                qt = qt + 1 if qt < n else 0
+                queued[j] = True
+            pa = parent[j]
+            if pa >= 0 and head[pa] == i:
+                parent[j] = _ORPHAN
+                orphans[ot] = j
+                ot = ot + 1 if ot < n else 0
+        if cur == i:
+            cur = -1
+    return qt, cur
 
 
 @numba.njit(cache=NUMBA_CACHE, nogil=True)

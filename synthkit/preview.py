@@ -12,10 +12,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
-import numba
 import numpy as np
 
-from synthkit.core.flow import NUMBA_CACHE
 from synthkit.io.images import save_image
 
 _VIEWS = {
@@ -51,7 +49,7 @@ def rasterize_mesh(
     """Render ``V (#V, 3)``, ``F (#F, 3)`` to an ``(size, size, 3) float32`` image in [0, 1].
 
     ``face_colors (#F, 3)`` in [0, 1] tint faces; ``lines (k, 2, 3)`` are segments drawn on top in
-    red. Each pixel shows the nearest face that holds its centre (:func:`_rasterize`, compiled).
+    red. Each pixel shows the nearest face that holds its centre (:func:`_rasterize`).
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -71,21 +69,12 @@ def rasterize_mesh(
         xy = (points[:, :2] - lo) * scale + offset
         return np.stack([xy[:, 0], size - 1 - xy[:, 1]], axis=1)
 
-    tri = P[F]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.divide(normals, norm, out=np.zeros_like(normals), where=norm > 0)
-    light = np.array([0.35, 0.55, 0.76])
-    shade = 0.35 + 0.65 * np.abs(normals @ light)
-    colors = _BASE_COLOR[None, :] if face_colors is None else np.asarray(face_colors, dtype=np.float64)
-    colors = np.broadcast_to(colors, (len(F), 3)) * shade[:, None]
-
-    pix = to_pixels(P)[F]
+    pix = to_pixels(P)
     depth = np.full(size * size, -np.inf)
     face_at = np.full(size * size, -1, dtype=np.int64)
-    _rasterize(np.ascontiguousarray(pix), np.ascontiguousarray(tri[:, :, 2]), size, depth, face_at)
+    _rasterize(pix[F], P[F, 2], size, depth, face_at)
     covered = face_at >= 0
-    img.reshape(-1, 3)[covered] = colors[face_at[covered]]
+    img.reshape(-1, 3)[covered] = _shaded_colors(P, F, face_colors, face_at[covered])
     if lines is not None and len(lines):
         segs = np.asarray(lines, dtype=np.float64).reshape(-1, 3) @ R.T
         seg_pix = to_pixels(segs).reshape(-1, 2, 2)
@@ -99,50 +88,130 @@ def rasterize_mesh(
 _INSIDE_TOL = 1e-9
 """Barycentric tolerance of the inside test: a pixel centre on a shared edge belongs to both faces."""
 
+_PAIRS_PER_CHUNK = 1 << 21
+"""Bounding-box pixels of the faces rasterized at once by :func:`_rasterize` (bounds its memory)."""
 
-@numba.njit(cache=NUMBA_CACHE)
-def _rasterize(pix, z, size, depth, face_at):  # pragma: no cover - compiled
+_LIGHT = np.array([0.35, 0.55, 0.76])
+_NO_FACE = np.iinfo(np.int64).max
+
+
+def _shaded_colors(P: np.ndarray, F: np.ndarray, face_colors, faces: np.ndarray) -> np.ndarray:
+    """Two-sided Lambert colours ``(k, 3)`` of the faces ``faces (k,)`` of ``P (#V, 3)`` (camera
+    coordinates), ``F (#F, 3)``; only the faces that cover a pixel are shaded."""
+    used = np.zeros(len(F), bool)
+    used[faces] = True
+    uniq = np.flatnonzero(used)
+    inv = np.cumsum(used)[faces] - 1
+    tri = P[F[uniq]]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, norm, out=np.zeros_like(normals), where=norm > 0)
+    shade = 0.35 + 0.65 * np.abs(normals @ _LIGHT)
+    colors = _BASE_COLOR if face_colors is None else np.asarray(face_colors, np.float64)
+    base = np.broadcast_to(colors, (len(F), 3))[uniq]
+    return (base * shade[:, None])[inv]
+
+
+def _rasterize(pix, z, size, depth, face_at) -> None:
     """Z-buffer the triangles ``pix (f, 3, 2)`` (pixel coordinates, pixel centres at integers) with
     vertex depths ``z (f, 3)`` into ``depth (size*size,)`` / ``face_at`` (face index), nearer = larger z.
 
-    A pixel takes the nearest face whose triangle holds its centre (the first face among equal
-    depths: a face replaces the buffer only when strictly nearer). A face that holds no pixel centre
-    (smaller than a pixel, or degenerate) still marks the pixel of its centroid, so thin parts stay
-    visible.
+    A pixel takes the nearest face whose triangle holds its centre; among equal depths the first
+    face, and a face replaces what the buffers already hold only when strictly nearer. A face that
+    holds no pixel centre (smaller than a pixel, or degenerate) still marks the pixel of its
+    centroid, so thin parts stay visible. Faces with a non-finite coordinate are skipped.
+
+    Vectorised (:func:`_centre_candidates`): faces go in chunks whose bounding boxes hold at most
+    :data:`_PAIRS_PER_CHUNK` pixels, and the nearest per pixel is taken by ``np.maximum.at``. Numpy
+    only: a process that draws previews pays no compiler start-up (numba's costs 0.3-0.4 s).
     """
-    for f in range(pix.shape[0]):
-        x0, y0 = pix[f, 0, 0], pix[f, 0, 1]
-        x1, y1 = pix[f, 1, 0], pix[f, 1, 1]
-        x2, y2 = pix[f, 2, 0], pix[f, 2, 1]
-        z0, z1, z2 = z[f, 0], z[f, 1], z[f, 2]
+    pix = np.asarray(pix, np.float64)
+    z = np.asarray(z, np.float64)
+    cols = [np.ascontiguousarray(c) for c in (pix[:, 0, 0], pix[:, 1, 0], pix[:, 2, 0],
+                                                pix[:, 0, 1], pix[:, 1, 1], pix[:, 2, 1],
+                                                z[:, 0], z[:, 1], z[:, 2])]
+    x0, x1, x2, y0, y1, y2, z0, z1, z2 = cols
+    with np.errstate(invalid="ignore", over="ignore"):
+        valid = np.isfinite(x0 + x1 + x2 + y0 + y1 + y2 + z0 + z1 + z2)
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        xmin = max(int(np.ceil(min(x0, x1, x2))), 0)
-        xmax = min(int(np.floor(max(x0, x1, x2))), size - 1)
-        ymin = max(int(np.ceil(min(y0, y1, y2))), 0)
-        ymax = min(int(np.floor(max(y0, y1, y2))), size - 1)
-        hit = False
-        if area != 0.0:
-            inv = 1.0 / area
-            for py in range(ymin, ymax + 1):
-                for px in range(xmin, xmax + 1):
-                    w0 = ((x1 - px) * (y2 - py) - (x2 - px) * (y1 - py)) * inv
-                    w1 = ((x2 - px) * (y0 - py) - (x0 - px) * (y2 - py)) * inv
-                    w2 = 1.0 - w0 - w1
-                    if w0 >= -_INSIDE_TOL and w1 >= -_INSIDE_TOL and w2 >= -_INSIDE_TOL:
-                        hit = True
-                        d = w0 * z0 + w1 * z1 + w2 * z2
-                        k = py * size + px
-                        if d > depth[k]:
-                            depth[k] = d
-                            face_at[k] = f
-        if not hit:
-            px = min(max(int(np.round((x0 + x1 + x2) / 3.0)), 0), size - 1)
-            py = min(max(int(np.round((y0 + y1 + y2) / 3.0)), 0), size - 1)
-            d = (z0 + z1 + z2) / 3.0
-            k = py * size + px
-            if d > depth[k]:
-                depth[k] = d
-                face_at[k] = f
+        lo_x, lo_y = (np.clip(np.ceil(np.minimum(np.minimum(a, b), c)), 0, size) for a, b, c in
+                      ((x0, x1, x2), (y0, y1, y2)))
+        hi_x, hi_y = (np.clip(np.floor(np.maximum(np.maximum(a, b), c)), -1, size - 1) for a, b, c in
+                      ((x0, x1, x2), (y0, y1, y2)))
+    span_x = np.where(valid, np.maximum(hi_x - lo_x + 1, 0), 0).astype(np.int64)
+    span_y = np.where(valid, np.maximum(hi_y - lo_y + 1, 0), 0).astype(np.int64)
+    count = np.where(area != 0, span_x * span_y, 0)
+    box = (lo_x.astype(np.int64), lo_y.astype(np.int64), span_x, span_y)
+    best_d = np.full(size * size, -np.inf)
+    best_f = np.full(size * size, _NO_FACE)
+    hit = np.zeros(len(pix), bool)
+    ends = np.cumsum(count)
+    start = 0
+    while start < len(pix):
+        stop = max(int(np.searchsorted(ends, ends[start] - count[start] + _PAIRS_PER_CHUNK, "right")), start + 1)
+        k, d, f = _centre_candidates(cols, area, box, count, start, stop, size)
+        hit[f] = True
+        _keep_nearest(best_d, best_f, k, d, f)
+        start = stop
+    miss = np.flatnonzero(valid & ~hit)
+    cx = np.clip(np.round((x0[miss] + x1[miss] + x2[miss]) / 3.0), 0, size - 1).astype(np.int64)
+    cy = np.clip(np.round((y0[miss] + y1[miss] + y2[miss]) / 3.0), 0, size - 1).astype(np.int64)
+    _keep_nearest(best_d, best_f, cy * size + cx, (z0[miss] + z1[miss] + z2[miss]) / 3.0, miss)
+    nearer = best_d > depth
+    depth[nearer] = best_d[nearer]
+    face_at[nearer] = best_f[nearer]
+
+
+def _centre_candidates(cols, area, box, count, start, stop, size):
+    """Pixel centres inside faces ``start..stop-1`` (``cols``: the nine ``(f,)`` columns x0..x2,
+    y0..y2, z0..z2; ``box``: bounding-box corner and size): pixel index ``k``, depth ``d`` and face
+    ``f``, each ``(m,)``.
+
+    Row by row: on a row ``py`` each barycentric weight is affine in ``px``, ``w_i = a_i px + b_i``,
+    so the centres with every ``w_i >= -tol`` form one span, found from the three bounds; the depth
+    is affine along the span too. The work is one step per (face, row) and one per covered pixel.
+    """
+    x0, x1, x2, y0, y1, y2, z0, z1, z2 = cols
+    lo_x, lo_y, span_x, span_y = box
+    rows = np.where(count[start:stop] > 0, span_y[start:stop], 0)
+    f = np.repeat(np.arange(start, stop), rows)
+    if not len(f):
+        return f, np.zeros(0), f
+    py = (lo_y[f] + np.arange(len(f)) - np.repeat(np.cumsum(rows) - rows, rows)).astype(np.float64)
+    inv = 1.0 / area[f]
+    a0, a1 = (y1[f] - y2[f]) * inv, (y2[f] - y0[f]) * inv
+    b0 = (x1[f] * (y2[f] - py) - x2[f] * (y1[f] - py)) * inv
+    b1 = (x2[f] * (y0[f] - py) - x0[f] * (y2[f] - py)) * inv
+    first = lo_x[f].astype(np.float64)
+    last = first + span_x[f] - 1
+    for a, b in ((a0, b0), (a1, b1), (-(a0 + a1), 1.0 - b0 - b1)):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            edge = (-_INSIDE_TOL - b) / a
+        first = np.where(a > 0, np.maximum(first, np.ceil(edge)), first)
+        last = np.where(a < 0, np.minimum(last, np.floor(edge)), last)
+        last = np.where((a == 0) & (b < -_INSIDE_TOL), first - 1, last)
+    n_px = np.maximum(last - first + 1, 0).astype(np.int64)
+    slope = a0 * z0[f] + a1 * z1[f] - (a0 + a1) * z2[f]
+    offset = b0 * z0[f] + b1 * z1[f] + (1.0 - b0 - b1) * z2[f]
+    runs = np.flatnonzero(n_px)
+    f, n_px = f[runs], n_px[runs]
+    px = np.repeat(first[runs], n_px) + (np.arange(int(n_px.sum())) - np.repeat(np.cumsum(n_px) - n_px, n_px))
+    d = np.repeat(slope[runs], n_px) * px + np.repeat(offset[runs], n_px)
+    k = np.repeat(py[runs].astype(np.int64) * size, n_px) + px.astype(np.int64)
+    return k, d, np.repeat(f, n_px)
+
+
+def _keep_nearest(best_d, best_f, k, d, f) -> None:
+    """Merge candidates ``k, d, f (m,)`` into the per-pixel ``best_d``, ``best_f`` in place: the
+    larger depth wins, and among equal depths the smaller face index (earlier merges hold smaller
+    faces, so a tie with what is held keeps it)."""
+    if not len(k):
+        return
+    before = best_d[k]
+    np.maximum.at(best_d, k, d)
+    best_f[k[d > before]] = _NO_FACE  # a nearer face arrived: forget the one held
+    at_top = d == best_d[k]
+    np.minimum.at(best_f, k[at_top], f[at_top])
 
 
 def _save(path: Path | str | None, img: np.ndarray) -> None:

@@ -32,7 +32,7 @@ from synthkit.methods.petri.net import (
 )
 
 VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
-PREVIEW_FACES = 40_000
+PREVIEW_FACES = 400_000
 """Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
 
 

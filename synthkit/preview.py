@@ -79,8 +79,8 @@ def rasterize_mesh(
         segs = np.asarray(lines, dtype=np.float64).reshape(-1, 3) @ R.T
         seg_pix = to_pixels(segs).reshape(-1, 2, 2)
         canvas = np.ascontiguousarray(img)
-        for a, b in np.round(seg_pix).astype(np.int64):
-            cv2.line(canvas, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), (0.85, 0.1, 0.1), 2, cv2.LINE_AA)
+        ends = np.round(seg_pix).astype(np.int32).reshape(-1, 2, 1, 2)
+        cv2.polylines(canvas, list(ends), False, (0.85, 0.1, 0.1), 2, cv2.LINE_AA)
         img = canvas
     return img
 
@@ -283,8 +283,9 @@ def montage_png(
     for k, img in enumerate(images):
         rgb = _as_rgb(img)
         h, w = rgb.shape[:2]
-        new_w = max(1, int(round(w * height / h)))
-        rgb = cv2.resize(rgb, (new_w, height), interpolation=cv2.INTER_AREA if h > height else cv2.INTER_NEAREST)
+        if h != height:
+            new_w = max(1, int(round(w * height / h)))
+            rgb = cv2.resize(rgb, (new_w, height), interpolation=cv2.INTER_AREA if h > height else cv2.INTER_NEAREST)
         if titles is not None:
             rgb = _with_title(rgb, titles[k])
         tiles.append(rgb)

@@ -15,10 +15,11 @@ from click.testing import CliRunner
 from synthkit.cli.main import cli
 from synthkit.io.segmentation import read_seg
 from synthkit.methods.surfacing import measures
+from synthkit.methods.surfacing import solve as solve_mod
 from synthkit.methods.surfacing.graph import boundary_cost, build_graph, face_labels_from_vertices
 from synthkit.methods.surfacing.regions import normalised_cost
 from synthkit.methods.surfacing.segment import Options, chain_edges, cut_edges, segment
-from synthkit.methods.surfacing.solve import Problem, contract, cut_cost, solve_labels
+from synthkit.methods.surfacing.solve import Problem, build_hierarchy, contract, cut_cost, solve_labels
 from synthkit.methods.surfacing.strokes import graph_seeds
 from synthkit.samples import surfacing as sample
 
@@ -140,6 +141,56 @@ def test_contraction_prices_a_labelling_exactly():
     e_coarse = c.unary[np.arange(2), lab].sum() + cut_cost(lab, c.edges, c.weights)
     assert e_fine == pytest.approx(e_coarse)
     np.testing.assert_array_equal(c.seeds, [0, 1])
+
+
+
+def _random_problem(rng, n=40, n_labels=3):
+    pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < 0.12])
+    seeds = np.full(n, -1)
+    seeds[4 * np.arange(n_labels)] = np.arange(n_labels)
+    return Problem(rng.random((n, n_labels)), pairs, rng.random(len(pairs)), seeds, rng.random(len(pairs)) < 0.1)
+
+
+def energy(p, lab):
+    return p.unary[np.arange(p.n), lab].sum() + cut_cost(lab, p.edges, p.weights)
+
+
+def test_subproblem_prices_the_free_nodes_exactly():
+    """With the others held, the band problem's energy of any labelling of the free nodes differs
+    from the whole problem's by one constant; its rim lists each held neighbour's label."""
+    rng = np.random.default_rng(4)
+    p = _random_problem(rng)
+    held = rng.integers(0, 3, p.n)
+    mask = rng.random(p.n) < 0.4
+    sub, idx, rim = solve_mod._subproblem(p, held, mask)
+    np.testing.assert_array_equal(idx, np.flatnonzero(mask))
+    gaps = []
+    for _ in range(5):
+        lab = held.copy()
+        lab[idx] = rng.integers(0, 3, len(idx))
+        gaps.append(energy(p, lab) - energy(sub, lab[idx]))
+    assert np.ptp(gaps) < 1e-9
+    cross = mask[p.edges[:, 0]] != mask[p.edges[:, 1]]
+    assert len(rim[0]) == cross.sum()
+
+
+def test_static_hierarchy_levels_equal_the_rebuilt_ones():
+    """Without a cluster holding strokes of two regions, the levels contracted on the static
+    hierarchy equal those rebuilt from the raw maps; with one, the rebuilt levels are used."""
+    rng = np.random.default_rng(5)
+    p = _random_problem(rng)
+    maps = [np.arange(p.n) // 4, np.arange(10) % 3]
+    h = build_hierarchy(p, maps)
+    static = solve_mod._static_levels(p, h)
+    rebuilt, _ = solve_mod._split_levels(p, maps)
+    for a, b in zip(static, rebuilt, strict=True):
+        for field in ("unary", "edges", "weights", "seeds", "barrier"):
+            np.testing.assert_allclose(getattr(a, field), getattr(b, field))
+    both = Problem(p.unary, p.edges, p.weights, np.where(np.arange(p.n) == 3, 1, p.seeds))
+    h = build_hierarchy(both, maps)
+    assert solve_mod._static_levels(both, h) is None  # nodes 0 (region 0) and 3 (region 1) share a cluster
+    labels, _ = solve_mod.solve_multires(both, h, band_rings=2, rng=0)
+    assert labels[0] == 0 and labels[3] == 1
 
 
 # ------------------------------------------------------------------------------------------------

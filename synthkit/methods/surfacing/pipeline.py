@@ -1,8 +1,8 @@
 """``synthkit surface-by-numbers`` run (mode: segment): load, strokes, segmentation, outputs.
 
 Stages (``report.json`` ``timings``): ``load``, ``strokes``, ``graph`` (graph, costs, region term),
-``hierarchy`` (LOD maps), ``cut`` (all levels), ``single_level`` (with ``compare_single_level``), ``views``,
-``export``, ``previews``.
+``hierarchy`` (LOD maps and the static coarse graphs), ``cut`` (all levels), ``single_level`` (with
+``compare_single_level``), ``views``, ``export``, ``previews``.
 
 Outputs: ``labels.ply`` (int32 ``label`` and a region colour on every face and vertex),
 ``labels.seg`` (one face label per line), ``regions/<name><suffix>`` (one mesh per region in the

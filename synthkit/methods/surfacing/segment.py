@@ -23,7 +23,7 @@ from synthkit.methods.surfacing.graph import (
     face_labels_from_vertices,
     vertex_labels_from_faces,
 )
-from synthkit.methods.surfacing.solve import Problem, cut_cost, solve_labels, solve_multires
+from synthkit.methods.surfacing.solve import Problem, build_hierarchy, cut_cost, solve_labels, solve_multires
 from synthkit.methods.surfacing.strokes import assign_unstroked_components, graph_seeds
 
 __all__ = ["Options", "Segmentation", "segment", "region_costs", "cut_edges", "chain_edges"]
@@ -116,10 +116,11 @@ def segment(V, F, vertex_owner, face_owner, n_labels: int, opt: Options, *, colo
         per_vertex = 2 if opt.graph == "face" else 1  # a closed mesh has about twice as many faces as vertices
         maps = lod.lod_maps(V, F, opt.graph, coarsest=max(opt.coarsest_nodes // per_vertex, 4), ratio=opt.ratio,
                             max_levels=opt.max_levels)
+    problem = Problem(unary, graph.edges, graph.weights, seeds, graph.bend < -np.radians(opt.crease_deg))
+    hierarchy = build_hierarchy(problem, maps)
     timings["hierarchy"] = time.perf_counter() - t
     t = time.perf_counter()
-    problem = Problem(unary, graph.edges, graph.weights, seeds, graph.bend < -np.radians(opt.crease_deg))
-    labels, levels = solve_multires(problem, maps, band_rings=opt.band_rings, rng=rng)
+    labels, levels = solve_multires(problem, hierarchy, band_rings=opt.band_rings, rng=rng)
     timings["cut"] = time.perf_counter() - t
     for st in levels:
         st["free_faces"] = _to_faces(F, graph, st.pop("free"))

@@ -18,6 +18,12 @@ the band's problem as node costs; when the new cut reaches the band's edge, the 
 it and is solved again. The coarse cut can only run where clusters meet: with boundary costs
 alone, whose cheapest cuts are often nearly tied, a coarse cut can settle in a parallel place the
 bands cannot leave (see the README's figures).
+
+Static and per-stroke work: :func:`build_hierarchy` does what depends on the mesh alone (barrier
+splits, the coarse graphs' edges and weights, each level's adjacency), once; :func:`solve_multires`
+then contracts the node costs and strokes and solves. A stroke set that puts fixed nodes of two
+regions into one cluster splits that cluster, and the levels are then contracted again from the raw
+maps (the same result as the static path whenever there is no such cluster).
 """
 
 from __future__ import annotations
@@ -31,7 +37,10 @@ from scipy.sparse.csgraph import connected_components
 
 from synthkit.core.graphcut import alpha_expansion, mincut
 
-__all__ = ["Problem", "solve_labels", "cut_cost", "contract", "solve_multires", "band_nodes", "adjacency"]
+__all__ = [
+    "Problem", "Hierarchy", "solve_labels", "cut_cost", "contract", "build_hierarchy", "solve_multires",
+    "band_nodes", "adjacency", "incidence",
+]
 
 
 @dataclass
@@ -111,13 +120,10 @@ def _split_barriers(cluster: np.ndarray, p: Problem) -> tuple[np.ndarray, np.nda
     return new.astype(np.int64), origin
 
 
-def contract(p: Problem, cluster: np.ndarray) -> Problem:
-    """The coarse problem whose nodes are the clusters ``cluster (n,)`` of ``p``'s nodes."""
+def _contract_graph(p: Problem, cluster: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The coarse ``edges (E', 2)``, summed ``weights (E',)`` and ``barrier (E',)`` (any fine barrier
+    edge between the two clusters) of the clusters ``cluster (n,)`` of ``p``'s nodes."""
     nc = int(cluster.max()) + 1
-    L = p.unary.shape[1]
-    unary = np.stack([np.bincount(cluster, weights=p.unary[:, k], minlength=nc) for k in range(L)], axis=1)
-    seeds = np.full(nc, -1, np.int64)
-    np.maximum.at(seeds, cluster, p.seeds)
     e = np.sort(cluster[p.edges], axis=1)
     keep = e[:, 0] != e[:, 1]
     key, inv = np.unique(e[keep, 0] * nc + e[keep, 1], return_inverse=True)
@@ -126,6 +132,24 @@ def contract(p: Problem, cluster: np.ndarray) -> Problem:
     barrier = None
     if p.barrier is not None:
         barrier = np.bincount(inv, weights=p.barrier[keep], minlength=len(key)) > 0
+    return edges, weights, barrier
+
+
+def _contract_costs(unary: np.ndarray, seeds: np.ndarray, cluster: np.ndarray, nc: int):
+    """Summed node costs ``(nc, L)`` and the fixed region ``(nc,)`` of each cluster (-1: none)."""
+    member = sp.csr_matrix((np.ones(len(cluster)), (cluster, np.arange(len(cluster)))), shape=(nc, len(cluster)))
+    coarse = member @ unary
+    fixed = np.flatnonzero(seeds >= 0)
+    coarse_seeds = np.full(nc, -1, np.int64)
+    np.maximum.at(coarse_seeds, cluster[fixed], seeds[fixed])
+    return coarse, coarse_seeds
+
+
+def contract(p: Problem, cluster: np.ndarray) -> Problem:
+    """The coarse problem whose nodes are the clusters ``cluster (n,)`` of ``p``'s nodes."""
+    nc = int(cluster.max()) + 1
+    unary, seeds = _contract_costs(p.unary, p.seeds, cluster, nc)
+    edges, weights, barrier = _contract_graph(p, cluster)
     return Problem(unary, edges, weights, seeds, barrier)
 
 
@@ -143,54 +167,77 @@ def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int, A=None
     band[edges[cut].ravel()] = True
     if rings > 1 and band.any():
         A = adjacency(n, edges) if A is None else A
-        frontier = np.flatnonzero(band)
-        for _ in range(rings - 1):
-            nb = np.unique(A[frontier].indices)
-            frontier = nb[~band[nb]]
-            band[frontier] = True
+        _spread(A, band, np.flatnonzero(band), rings - 1)
     return band
 
 
-def _nearby_labels(A: sp.csr_matrix, idx: np.ndarray, labels: np.ndarray, n_labels: int, hops: int) -> np.ndarray:
-    """``(k, L) bool``: the labels found within ``hops`` steps of each node ``idx (k,)`` (its own included)."""
-    n = A.shape[0]
-    onehot = sp.csr_matrix((np.ones(n, bool), (np.arange(n), labels)), shape=(n, n_labels))
-    reach = (A[idx] @ onehot + onehot[idx]).astype(bool)
-    inner = A[idx][:, idx]
+def _spread(A: sp.csr_matrix, reached: np.ndarray, frontier: np.ndarray, rings: int) -> None:
+    """Mark in ``reached (n,) bool`` the nodes within ``rings`` rings of ``frontier`` (in place)."""
+    for _ in range(rings):
+        nb = A[frontier].indices
+        frontier = np.unique(nb[~reached[nb]])
+        reached[frontier] = True
+
+
+def incidence(n: int, edges: np.ndarray) -> sp.csr_matrix:
+    """``(n, E)`` node-edge incidence: row ``i`` holds the indices of the edges at node ``i``."""
+    ends = edges.ravel()
+    ids = np.repeat(np.arange(len(edges)), 2)
+    return sp.csr_matrix((np.ones(len(ends), bool), (ends, ids)), shape=(n, len(edges)))
+
+
+def _nearby_labels(idx: np.ndarray, labels: np.ndarray, sub: Problem, rim: tuple, n_labels: int,
+                   hops: int) -> np.ndarray:
+    """``(k, L) bool``: the labels found within ``hops`` steps of each node ``idx (k,)`` (its own
+    included): the first step over every edge (``sub``'s inner edges and the ``rim`` edges to held
+    nodes, given as ``(local node, held label)``), the others within ``sub``."""
+    k = len(idx)
+    own = np.zeros((k, n_labels), bool)
+    own[np.arange(k), labels[idx]] = True
+    e = sub.edges
+    M = sp.csr_matrix((np.ones(2 * len(e), np.uint8), (e.ravel(), e[:, ::-1].ravel())), shape=(k, k))
+    reach = own | ((M @ own.astype(np.uint8)) > 0)
+    reach[rim[0], rim[1]] = True
     for _ in range(hops - 1):
-        reach = (inner @ reach + reach).astype(bool)
-    return reach.toarray()
+        reach |= (M @ reach.astype(np.uint8)) > 0
+    return reach
 
 
-def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray) -> tuple[Problem, np.ndarray]:
+def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray, inc=None) -> tuple[Problem, np.ndarray, tuple]:
     """The problem of the nodes ``mask (n,) bool`` with every other node held at ``labels``: the
-    edges to held nodes become node costs. Returns it and the nodes' indices ``(k,)``."""
+    edges to held nodes become node costs. Returns it, the nodes' indices ``(k,)`` and those rim
+    edges as ``(local node (r,), held label (r,))``. ``inc``: ``p``'s :func:`incidence`, which finds
+    the nodes' edges without a pass over all of ``p``'s (built when not given)."""
     idx = np.flatnonzero(mask)
-    local = np.full(p.n, -1, np.int64)
-    local[idx] = np.arange(len(idx))
-    f0, f1 = mask[p.edges[:, 0]], mask[p.edges[:, 1]]
-    inner = f0 & f1
+    inc = incidence(p.n, p.edges) if inc is None else inc
+    eids, count = np.unique(inc[idx].indices, return_counts=True)
+    inner, cross = eids[count == 2], eids[count == 1]
     unary = p.unary[idx].copy()
-    for a, b in ((0, 1), (1, 0)):
-        rim = np.flatnonzero((f0 if a == 0 else f1) & ~(f1 if a == 0 else f0))
-        node, other = local[p.edges[rim, a]], labels[p.edges[rim, b]]
+    first_inside = mask[p.edges[cross, 0]]
+    nodes, others = [], []
+    for a, b, side in ((0, 1, first_inside), (1, 0, ~first_inside)):
+        rim = cross[side]
+        node, other = np.searchsorted(idx, p.edges[rim, a]), labels[p.edges[rim, b]]
         w = p.weights[rim]
         np.add.at(unary, node, w[:, None])
         np.add.at(unary, (node, other), -w)
-    return Problem(unary, local[p.edges[inner]], p.weights[inner], p.seeds[idx]), idx
+        nodes.append(node)
+        others.append(other)
+    sub = Problem(unary, np.searchsorted(idx, p.edges[inner]), p.weights[inner], p.seeds[idx])
+    return sub, idx, (np.concatenate(nodes), np.concatenate(others))
 
 
-def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr_matrix,
+def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, inc: sp.csr_matrix,
                 hops: int = 3) -> tuple[np.ndarray, int]:
     """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
     the number of edges of the graph cut solved. The new labels are kept only when they lower the
     band's energy (equal-cost alternatives leave the labels as they were). With three or more
     labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
     runs between), so that each expansion move involves only the nodes near its label."""
-    sub, idx = _subproblem(p, labels, free)
+    sub, idx, rim = _subproblem(p, labels, free, inc)
     unary = sub.unary
     if unary.shape[1] > 2:
-        unary[~_nearby_labels(A, idx, labels, unary.shape[1], hops)] = np.inf
+        unary[~_nearby_labels(idx, labels, sub, rim, unary.shape[1], hops)] = np.inf
     new = solve_labels(unary, sub.edges, sub.weights, np.full(len(idx), -1), init=labels[idx], rng=rng)
     rows = np.arange(len(idx))
     before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub.edges, sub.weights)
@@ -201,17 +248,19 @@ def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, A: sp.csr
     return out, int(len(sub.edges))
 
 
-def _refine(p: Problem, labels: np.ndarray, rings: int, rng, *, reach: int = 8) -> tuple[np.ndarray, dict]:
+def _refine(p: Problem, labels: np.ndarray, rings: int, rng, *, A=None, inc=None,
+            reach: int = 8) -> tuple[np.ndarray, dict]:
     """Re-solve the free nodes of ``p`` near the cut of ``labels``; others keep their labels. The
     bands move inside the nodes within ``reach * rings`` rings of the first band (:func:`_slide`),
-    so the work grows with the length of the cut, not with the size of the graph."""
-    A = adjacency(p.n, p.edges)
+    so the work grows with the length of the cut, not with the size of the graph. ``A``, ``inc``:
+    ``p``'s adjacency and incidence (built when not given)."""
+    A = adjacency(p.n, p.edges) if A is None else A
     band = band_nodes(p.n, p.edges, labels, rings, A)
     seen = np.zeros(p.n, bool)
     stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0, "free": seen}
     if not band.any():
         return labels, stats
-    sub, idx = _subproblem(p, labels, _grow(A, np.flatnonzero(band), reach * rings))
+    sub, idx, _ = _subproblem(p, labels, _grow(A, np.flatnonzero(band), reach * rings), inc)
     sub_labels, stats = _slide(sub, labels[idx], rings, rng)
     out = labels.copy()
     out[idx] = sub_labels
@@ -228,20 +277,20 @@ def _slide(p: Problem, labels: np.ndarray, rings: int, rng, max_moves: int = 32)
     that changes nothing (at most ``max_moves`` bands)."""
     seen = np.zeros(p.n, bool)
     stats = {"nodes": p.n, "free_nodes": 0, "edges": 0, "bands": 0}
-    A = adjacency(p.n, p.edges)
+    A, inc = adjacency(p.n, p.edges), incidence(p.n, p.edges)
     free = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
     whole = True
     for _ in range(max_moves):
         if not free.any():
             break
-        new, n_edges = _band_solve(p, labels, free, rng, A)
+        new, n_edges = _band_solve(p, labels, free, rng, inc)
         seen |= free
         stats["edges"] += n_edges
         stats["bands"] += 1
         changed = new != labels
         labels = new
         band = band_nodes(p.n, p.edges, labels, rings, A) & (p.seeds < 0)
-        moved = np.flatnonzero(changed & ((free & ~band) | _rim(p, free)))
+        moved = np.flatnonzero(changed & ((free & ~band) | _rim(A, free)))
         if len(moved):
             free, whole = band & _grow(A, moved, 3 * rings), False  # the new cut's band where it moved
         elif whole:
@@ -257,27 +306,73 @@ def _grow(A: sp.csr_matrix, start: np.ndarray, rings: int) -> np.ndarray:
     """Nodes ``(n,) bool`` within ``rings`` rings of the nodes ``start``."""
     out = np.zeros(A.shape[0], bool)
     out[start] = True
-    frontier = start
-    for _ in range(rings):
-        nb = np.unique(A[frontier].indices)
-        frontier = nb[~out[nb]]
-        out[frontier] = True
+    _spread(A, out, start, rings)
     return out
 
 
-def _rim(p: Problem, free: np.ndarray) -> np.ndarray:
-    """Free nodes with a neighbour outside ``free``."""
-    e = p.edges
-    cross = free[e[:, 0]] != free[e[:, 1]]
-    rim = np.zeros(p.n, bool)
-    rim[e[cross].ravel()] = True
-    return rim & free
+def _rim(A: sp.csr_matrix, free: np.ndarray) -> np.ndarray:
+    """Nodes of ``free (n,) bool`` with a neighbour outside it (over the adjacency ``A``)."""
+    idx = np.flatnonzero(free)
+    rim = np.zeros(len(free), bool)
+    rim[idx[A[idx] @ (~free).astype(np.int32) > 0]] = True
+    return rim
 
 
-def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rng=None):
-    """Labels ``(n,)`` of ``fine`` through the hierarchy ``maps``; also a list of per-level stats
-    (finest first): ``nodes``, ``free_nodes``, ``edges`` (of the graph cut solved), ``seconds`` and
-    ``free (n,) bool`` (the level's free nodes, seen from the finest nodes)."""
+@dataclass
+class Hierarchy:
+    """The static part of a multiresolution solve. ``maps``: the raw level-of-detail maps (finest
+    first); ``clusters[k] (n_k,)``: level k's nodes to level k + 1's after barrier splits;
+    ``graphs[k]``: level k's ``(edges, weights, barrier)`` (level 0 the fine graph); ``adjacency[k]``
+    and ``incidence[k]``: level k's :func:`adjacency` and :func:`incidence`."""
+
+    maps: list[np.ndarray]
+    clusters: list[np.ndarray]
+    graphs: list[tuple]
+    adjacency: list[sp.csr_matrix]
+    incidence: list[sp.csr_matrix]
+
+    @property
+    def depth(self) -> int:
+        return len(self.clusters)
+
+
+def build_hierarchy(fine: Problem, maps: list[np.ndarray]) -> Hierarchy:
+    """Barrier-split clusters and contracted graphs of ``fine`` through ``maps`` (its node costs
+    and strokes are not used)."""
+    graphs = [(fine.edges, fine.weights, fine.barrier)]
+    clusters, sizes = [], [fine.n]
+    raw = list(maps)
+    for k in range(len(raw)):
+        level = Problem(np.zeros((sizes[-1], 0)), *graphs[-1][:2], np.full(sizes[-1], -1), graphs[-1][2])
+        cluster, origin = _split_barriers(raw[k], level)
+        if k + 1 < len(raw):
+            raw[k + 1] = raw[k + 1][origin]
+        clusters.append(cluster)
+        sizes.append(int(cluster.max()) + 1)
+        graphs.append(_contract_graph(level, cluster))
+    A = [adjacency(n, g[0]) for n, g in zip(sizes, graphs, strict=True)]
+    inc = [incidence(n, g[0]) for n, g in zip(sizes, graphs, strict=True)]
+    return Hierarchy(list(maps), clusters, graphs, A, inc)
+
+
+def _static_levels(fine: Problem, h: Hierarchy) -> list[Problem] | None:
+    """The levels of ``fine`` on ``h``'s static clusters, or None when a cluster would hold fixed
+    nodes of two regions."""
+    levels = [fine]
+    for k, cluster in enumerate(h.clusters):
+        p = levels[-1]
+        fixed = np.flatnonzero(p.seeds >= 0)
+        pairs = np.unique(cluster[fixed] * p.unary.shape[1] + p.seeds[fixed]) // p.unary.shape[1]
+        if len(pairs) != len(np.unique(pairs)):
+            return None
+        unary, seeds = _contract_costs(p.unary, p.seeds, cluster, h.adjacency[k + 1].shape[0])
+        levels.append(Problem(unary, *h.graphs[k + 1][:2], seeds, h.graphs[k + 1][2]))
+    return levels
+
+
+def _split_levels(fine: Problem, maps: list[np.ndarray]) -> tuple[list[Problem], list[np.ndarray]]:
+    """Levels and clusters of ``fine`` through the raw ``maps``, splitting barrier clusters and
+    clusters that hold fixed nodes of two regions."""
     L = fine.unary.shape[1]
     levels, clusters = [fine], []
     maps = list(maps)
@@ -288,6 +383,19 @@ def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rn
             maps[k + 1] = maps[k + 1][origin[origin2]]
         clusters.append(cluster)
         levels.append(contract(levels[-1], cluster))
+    return levels, clusters
+
+
+def solve_multires(fine: Problem, hierarchy: Hierarchy, *, band_rings: int, rng=None):
+    """Labels ``(n,)`` of ``fine`` through ``hierarchy`` (:func:`build_hierarchy` of ``fine``'s graph);
+    also a list of per-level stats (finest first): ``nodes``, ``free_nodes``, ``edges`` (of the graph
+    cut solved), ``seconds`` and ``free (n,) bool`` (the level's free nodes, seen from the finest
+    nodes)."""
+    levels = _static_levels(fine, hierarchy)
+    clusters, A, inc = hierarchy.clusters, hierarchy.adjacency, hierarchy.incidence
+    if levels is None:
+        levels, clusters = _split_levels(fine, hierarchy.maps)
+        A = inc = [None] * len(levels)
     to_level = [np.arange(fine.n)]
     for cluster in clusters:
         to_level.append(cluster[to_level[-1]])
@@ -296,9 +404,9 @@ def solve_multires(fine: Problem, maps: list[np.ndarray], *, band_rings: int, rn
     labels = solve_labels(top.unary, top.edges, top.weights, top.seeds, rng=rng)
     stats = [{"nodes": top.n, "free_nodes": int((top.seeds < 0).sum()), "edges": int(len(top.edges)),
               "seconds": time.perf_counter() - t0, "free": (top.seeds < 0)[to_level[-1]]}]
-    for k in range(len(maps) - 1, -1, -1):
+    for k in range(len(clusters) - 1, -1, -1):
         t0 = time.perf_counter()
-        labels, st = _refine(levels[k], labels[clusters[k]], band_rings, rng)
+        labels, st = _refine(levels[k], labels[clusters[k]], band_rings, rng, A=A[k], inc=inc[k])
         st["seconds"] = time.perf_counter() - t0
         st["free"] = st["free"][to_level[k]]
         stats.append(st)

@@ -174,9 +174,18 @@ def band_nodes(n: int, edges: np.ndarray, labels: np.ndarray, rings: int, A=None
 def _spread(A: sp.csr_matrix, reached: np.ndarray, frontier: np.ndarray, rings: int) -> None:
     """Mark in ``reached (n,) bool`` the nodes within ``rings`` rings of ``frontier`` (in place)."""
     for _ in range(rings):
-        nb = A[frontier].indices
+        nb = _row_entries(A, frontier)
         frontier = np.unique(nb[~reached[nb]])
         reached[frontier] = True
+
+
+def _row_entries(M: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
+    """The column indices stored in the rows ``rows (k,)`` of ``M``, row after row: ``M[rows].indices``
+    without building the sub-matrix."""
+    start, stop = M.indptr[rows], M.indptr[rows + 1]
+    lengths = stop - start
+    offsets = np.repeat(start - np.cumsum(lengths) + lengths, lengths)
+    return M.indices[offsets + np.arange(int(lengths.sum()))]
 
 
 def incidence(n: int, edges: np.ndarray) -> sp.csr_matrix:
@@ -210,7 +219,7 @@ def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray, inc=None) -> t
     the nodes' edges without a pass over all of ``p``'s (built when not given)."""
     idx = np.flatnonzero(mask)
     inc = incidence(p.n, p.edges) if inc is None else inc
-    eids, count = np.unique(inc[idx].indices, return_counts=True)
+    eids, count = np.unique(_row_entries(inc, idx), return_counts=True)
     inner, cross = eids[count == 2], eids[count == 1]
     unary = p.unary[idx].copy()
     first_inside = mask[p.edges[cross, 0]]
@@ -230,22 +239,81 @@ def _subproblem(p: Problem, labels: np.ndarray, mask: np.ndarray, inc=None) -> t
 def _band_solve(p: Problem, labels: np.ndarray, free: np.ndarray, rng, inc: sp.csr_matrix,
                 hops: int = 3) -> tuple[np.ndarray, int]:
     """Best labels of the ``free (n,) bool`` nodes with every other node held; returns the labels and
-    the number of edges of the graph cut solved. The new labels are kept only when they lower the
-    band's energy (equal-cost alternatives leave the labels as they were). With three or more
-    labels a node may take only the labels found within ``hops`` steps of it (the regions the cut
-    runs between), so that each expansion move involves only the nodes near its label."""
+    the number of edges of the graph cut solved. With three or more labels a node may take only
+    the labels found within ``hops`` steps of it (the regions the cut runs between). The band's
+    connected pieces are independent problems (every edge to a held node is a node cost), so each
+    is solved alone over the labels its nodes may take: two of them, as usual between two regions,
+    give one exact s-t cut (:func:`_solve_pieces`)."""
     sub, idx, rim = _subproblem(p, labels, free, inc)
     unary = sub.unary
     if unary.shape[1] > 2:
         unary[~_nearby_labels(idx, labels, sub, rim, unary.shape[1], hops)] = np.inf
-    new = solve_labels(unary, sub.edges, sub.weights, np.full(len(idx), -1), init=labels[idx], rng=rng)
-    rows = np.arange(len(idx))
-    before = unary[rows, labels[idx]].sum() + cut_cost(labels[idx], sub.edges, sub.weights)
-    after = unary[rows, new].sum() + cut_cost(new, sub.edges, sub.weights)
     out = labels.copy()
-    if after < before - 1e-9 * max(abs(before), 1.0):  # keep only strict improvements: ties do not drift
-        out[idx] = new
+    out[idx] = _solve_pieces(unary, sub, labels[idx], rng)
     return out, int(len(sub.edges))
+
+
+def _improves(before, after):
+    """Strictly lower, beyond rounding (elementwise on arrays): equal-cost alternatives leave the
+    labels as they were, so ties do not drift."""
+    return after < before - 1e-9 * np.maximum(np.abs(before), 1.0)
+
+
+def _solve_pieces(unary: np.ndarray, sub: Problem, init: np.ndarray, rng) -> np.ndarray:
+    """Labels ``(k,)`` of the band ``sub`` with costs ``unary (k, L)`` (infinite: a label the node may
+    not take), from ``init (k,)``. The band's connected pieces are independent: every piece offered
+    two labels is solved in one exact s-t cut together with the others, the pieces offered more in
+    one alpha-expansion; a piece takes its new labels only when they lower its energy."""
+    k, e = len(init), sub.edges
+    graph = sp.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(k, k))
+    n_pieces, piece = connected_components(graph, directed=False)
+    node, label = np.nonzero(np.isfinite(unary))
+    offered = np.zeros((n_pieces, unary.shape[1]), bool)
+    offered[piece[node], label] = True
+    n_offered = offered.sum(axis=1)[piece]
+    new = init.copy()
+    two = np.flatnonzero(n_offered == 2)
+    if len(two):
+        first = np.argmax(offered, axis=1)[piece[two]]
+        last = unary.shape[1] - 1 - np.argmax(offered[:, ::-1], axis=1)[piece[two]]
+        part = _part(unary, sub, two)
+        rows = np.arange(len(two))
+        side = solve_labels(np.stack([part.unary[rows, first], part.unary[rows, last]], axis=1),
+                            part.edges, part.weights, part.seeds)
+        new[two] = np.where(side == 1, last, first)
+    more = np.flatnonzero(n_offered > 2)
+    if len(more):
+        new[more] = _solve_offered(_part(unary, sub, more), init[more], rng)
+    before, after = (_piece_energy(unary, sub, piece, n_pieces, lab) for lab in (init, new))
+    return np.where(_improves(before, after)[piece], new, init)
+
+
+def _part(unary: np.ndarray, sub: Problem, nodes: np.ndarray) -> Problem:
+    """The problem of ``sub``'s nodes ``nodes (m,)`` (sorted; whole connected pieces, so no edge
+    leaves them), numbered ``0..m-1``."""
+    inside = np.zeros(sub.n, bool)
+    inside[nodes] = True
+    eidx = np.flatnonzero(inside[sub.edges[:, 0]])
+    return Problem(unary[nodes], np.searchsorted(nodes, sub.edges[eidx]), sub.weights[eidx], np.full(len(nodes), -1))
+
+
+def _piece_energy(unary: np.ndarray, sub: Problem, piece: np.ndarray, n_pieces: int, labels: np.ndarray):
+    """Energy ``(n_pieces,)`` of each connected piece of ``sub`` under ``labels (k,)``."""
+    e = sub.edges
+    node = np.bincount(piece, weights=unary[np.arange(len(labels)), labels], minlength=n_pieces)
+    cut = sub.weights * (labels[e[:, 0]] != labels[e[:, 1]])
+    return node + np.bincount(piece[e[:, 0]], weights=cut, minlength=n_pieces)
+
+
+def _solve_offered(part: Problem, init: np.ndarray, rng) -> np.ndarray:
+    """:func:`solve_labels` of ``part`` over only the labels some node may take (finite in its
+    ``unary (k, L)``; two of them: one exact s-t cut), from ``init (k,)``; labels in ``0..L-1``."""
+    offered = np.flatnonzero(np.isfinite(part.unary).any(axis=0))
+    if len(offered) == 1:
+        return np.full(len(init), offered[0])
+    rank = np.cumsum(np.isin(np.arange(part.unary.shape[1]), offered)) - 1
+    local = solve_labels(part.unary[:, offered], part.edges, part.weights, part.seeds, init=rank[init], rng=rng)
+    return offered[local]
 
 
 def _refine(p: Problem, labels: np.ndarray, rings: int, rng, *, A=None, inc=None,

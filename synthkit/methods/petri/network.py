@@ -450,176 +450,175 @@ def _arc_position(line: np.ndarray, seg: int, X: np.ndarray) -> float:
 
 
 def _arms_of(c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part) -> None:
-    """Cut curve ``c`` at its junctions into arms; append the arms' cells and the junctions it owns."""
-    rows = [c.P + (j - j0) * ub * c.D for j in range(SY + 1)]
-    centre = c.P
-    if c.closed:
-        rows = [np.vstack([r, r[:1]]) for r in rows]
-        centre = np.vstack([c.P, c.P[:1]])
-    mine = []
-    for J in junctions:
+    """Cut curve ``c`` at its junctions into arms; append the arms' cells and the junctions it owns
+    (:class:`_Arms`)."""
+    _Arms(c, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part).build()
+
+
+class _Arms:
+    """Curve ``c`` cut at its junctions into arms. ``rows``: the ``SY + 1`` offset lines of ``c``
+    (``ub`` apart, line ``j0`` on the curve), ``crossings``: one record per junction on ``c`` sorted
+    along it (its entry and exit cut on every row and on the centre line). :meth:`build` appends each
+    arm and each junction ``c`` owns (the ones where it is curve A) to ``parts`` through
+    ``add_quads``, and records the junctions' part index in ``junction_part``."""
+
+    def __init__(self, c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part):
+        self.c, self.ua, self.SY, self.unit_key = c, ua, SY, unit_key
+        self.parts, self.add_quads, self.junction_part = parts, add_quads, junction_part
+        self.name = f"construction.curves[{c.index}]"
+        rows = [c.P + (j - j0) * ub * c.D for j in range(SY + 1)]
+        centre = c.P
+        if c.closed:
+            rows = [np.vstack([r, r[:1]]) for r in rows]
+            centre = np.vstack([c.P, c.P[:1]])
+        self.rows, self.centre = rows, centre
+        steps = [np.linalg.norm(np.diff(r, axis=0), axis=1) for r in rows]
+        self.row_len = [float(s.sum()) for s in steps]
+        self.cum_rows = [np.concatenate([[0.0], np.cumsum(s)]) for s in steps]
+        self.cen_len = float(np.linalg.norm(np.diff(centre, axis=0), axis=1).sum())
+        found = (self._crossing(J, cs) for J in junctions)
+        self.crossings = sorted((r for r in found if r is not None), key=lambda r: r["cpos"][0])
+
+    def _crossing(self, J, cs) -> dict | None:
+        """Where junction ``J`` cuts this curve (None when ``J`` is not on it)."""
+        c, SY = self.c, self.SY
         if J.A == c.index:
-            seg, other = J.sa, J.B
+            seg, other, own_seg = J.sa, J.B, J.sa
             entry = [J.X[(j, J.order[0])] for j in range(SY + 1)]
             exit_ = [J.X[(j, J.order[-1])] for j in range(SY + 1)]
-            pa, ta = c.P[J.sa], c.T[J.sa]
-            ob = cs[J.B]
-            cut_in = (J.X[(0, J.order[0])], ob.T[J.sb])
-            cut_out = (J.X[(0, J.order[-1])], ob.T[J.sb])
+            cross_t = cs[J.B].T[J.sb]
+            cut_in, cut_out = (J.X[(0, J.order[0])], cross_t), (J.X[(0, J.order[-1])], cross_t)
         elif J.B == c.index:
-            seg, other = J.sb, J.A
+            seg, other, own_seg = J.sb, J.A, J.sb
             entry = [J.X[(J.order_b[0], j)] for j in range(SY + 1)]
             exit_ = [J.X[(J.order_b[-1], j)] for j in range(SY + 1)]
-            pa, ta = c.P[J.sb], c.T[J.sb]
-            oa = cs[J.A]
-            cut_in = (J.X[(J.order_b[0], 0)], oa.T[J.sa])
-            cut_out = (J.X[(J.order_b[-1], 0)], oa.T[J.sa])
+            cross_t = cs[J.A].T[J.sa]
+            cut_in, cut_out = (J.X[(J.order_b[0], 0)], cross_t), (J.X[(J.order_b[-1], 0)], cross_t)
         else:
-            continue
-        c_in = _line_x(pa, ta, *cut_in)
-        c_out = _line_x(pa, ta, *cut_out)
-        pos = [(_arc_position(rows[j], seg, entry[j]), _arc_position(rows[j], seg, exit_[j])) for j in range(SY + 1)]
-        cpos = (_arc_position(centre, seg, c_in), _arc_position(centre, seg, c_out))
-        mine.append(
-            dict(J=J, seg=seg, other=other, entry=entry, exit=exit_, pos=pos, cpos=cpos, c_in=c_in, c_out=c_out)
-        )
-    mine.sort(key=lambda r: r["cpos"][0])
-    name = f"construction.curves[{c.index}]"
-    row_len = [float(np.linalg.norm(np.diff(r, axis=0), axis=1).sum()) for r in rows]
-    cum_rows = [np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(r, axis=0), axis=1))]) for r in rows]
-    cen_len = float(np.linalg.norm(np.diff(centre, axis=0), axis=1).sum())
+            return None
+        pa, ta = c.P[own_seg], c.T[own_seg]
+        c_in, c_out = _line_x(pa, ta, *cut_in), _line_x(pa, ta, *cut_out)
+        pos = [(_arc_position(self.rows[j], seg, entry[j]), _arc_position(self.rows[j], seg, exit_[j]))
+               for j in range(SY + 1)]
+        cpos = (_arc_position(self.centre, seg, c_in), _arc_position(self.centre, seg, c_out))
+        return dict(J=J, seg=seg, other=other, entry=entry, exit=exit_, pos=pos, cpos=cpos, c_in=c_in, c_out=c_out)
 
-    def piece(line, cum, total, start, end, p_start, p_end):
-        """The polyline ``line`` from arc position ``start`` (point ``p_start``) to ``end`` (``p_end``),
-        wrapping once past the end for a closed curve."""
+    def _piece(self, j, start, end, p_start, p_end):
+        """Row ``j`` from arc position ``start`` (point ``p_start``) to ``end`` (``p_end``), wrapping
+        once past the end for a closed curve; returns the polyline and its length along the row."""
+        line, cum, total = self.rows[j], self.cum_rows[j], self.row_len[j]
         if end < start:
             end += total
-        cum2 = np.concatenate([cum, cum[1:] + total]) if c.closed else cum
-        line2 = np.vstack([line, line[1:]]) if c.closed else line
+        cum2 = np.concatenate([cum, cum[1:] + total]) if self.c.closed else cum
+        line2 = np.vstack([line, line[1:]]) if self.c.closed else line
         inner = [line2[i] for i in range(len(line2)) if start + 1e-12 < cum2[i] < end - 1e-12]
         return np.vstack([p_start] + inner + [p_end]), end - start
 
-    def arm(label, a_start, a_end, near):
-        """One arm between two cuts; ``a_start / a_end`` = (row positions, row points, centre position)."""
-        lines, lens = [], []
-        for j in range(SY + 1):
-            ln, L = piece(rows[j], cum_rows[j], row_len[j], a_start[0][j], a_end[0][j], a_start[1][j], a_end[1][j])
-            if L <= 0:
+    def _arm(self, label, a_start, a_end, near):
+        """One arm between two cuts; ``a_start / a_end`` = (row positions, row points, centre position);
+        ``near``: the ConfigError message when the arm is shorter than one unit."""
+        lines = []
+        for j in range(self.SY + 1):
+            ln, length = self._piece(j, a_start[0][j], a_end[0][j], a_start[1][j], a_end[1][j])
+            if length <= 0:
                 raise ConfigError(near)
             lines.append(ln)
-            lens.append(L)
         length = a_end[2] - a_start[2]
-        if c.closed and length < 0:
-            length += cen_len
-        SX = units_along(length, ua) if length > 0 else 0
+        if self.c.closed and length < 0:
+            length += self.cen_len
+        SX = units_along(length, self.ua) if length > 0 else 0
         if SX < 1:
             raise ConfigError(near)
         grid = np.stack([resample_polyline(ln, SX, False) for ln in lines], axis=1)
         for j, ln in enumerate(lines):  # the ends exactly on the cuts
             grid[0, j], grid[-1, j] = ln[0], ln[-1]
-        parts.append({"kind": "arm", "name": f"{label}", "curves": [c.index], "shape": [SX, SY]})
-        idx = len(parts) - 1
-        add_quads(grid, idx, lambda i, j: [(c.index, j)])
+        self._add(grid, {"kind": "arm", "name": f"{label}", "curves": [self.c.index], "shape": [SX, self.SY]})
 
-    def own_junction(r):
-        J = r["J"]
-        if J.A != c.index:
+    def _add(self, grid, part) -> None:
+        self.parts.append(part)
+        index = self.c.index
+        self.add_quads(grid, len(self.parts) - 1, lambda i, j: [(index, j)])
+
+    def _own_junction(self, r) -> None:
+        J, SY = r["J"], self.SY
+        if J.A != self.c.index:
             return
         G = np.empty((SY + 1, SY + 1, 2))
         for u, jB in enumerate(J.order):
             for jA in range(SY + 1):
                 G[u, jA] = J.X[(jA, jB)]
-        parts.append(
-            {
-                "kind": "junction",
-                "name": f"junction of curves {J.A} and {J.B} at {_fmt(J.point)}",
-                "curves": [J.A, J.B],
-                "point": _fmt(J.point),
-                "shape": [SY, SY],
-            }
-        )
-        idx = len(parts) - 1
-        junction_part[id(J)] = idx
+        self.parts.append({"kind": "junction", "name": f"junction of curves {J.A} and {J.B} at {_fmt(J.point)}",
+                           "curves": [J.A, J.B], "point": _fmt(J.point), "shape": [SY, SY]})
+        idx = len(self.parts) - 1
+        self.junction_part[id(J)] = idx
         order = J.order
-        add_quads(G, idx, lambda u, j: [(J.A, j), (J.B, min(order[u], order[u + 1]))])
+        self.add_quads(G, idx, lambda u, j: [(J.A, j), (J.B, min(order[u], order[u + 1]))])
 
-    start_cut = (
-        [0.0] * (SY + 1),
-        [r[0] for r in rows],
-        0.0,
-    )
-    end_cut = ([row_len[j] for j in range(SY + 1)], [r[-1] for r in rows], cen_len)
-    if not mine:
-        if c.closed:
-            SX = units_along(cen_len, ua)
-            if SX < 1:
-                raise ConfigError(
-                    f"{name}: the curve is {cen_len:.6g} long, shorter than one unit along it ({ua:.6g}, {unit_key})"
-                )
-            grid = np.stack([resample_polyline(r[:-1], SX, True) for r in rows], axis=1)
-            grid = np.concatenate([grid, grid[:1]], axis=0)
-            parts.append({"kind": "arm", "name": f"curve {c.index}", "curves": [c.index], "shape": [SX, SY]})
-            add_quads(grid, len(parts) - 1, lambda i, j: [(c.index, j)])
+    def _whole_curve(self) -> None:
+        """A curve without junctions: one arm (closed: a ring)."""
+        c, too_short = self.c, (f"{self.name}: the curve is {self.cen_len:.6g} long, shorter than one unit along "
+                                f"it ({self.ua:.6g}, {self.unit_key})")
+        if not c.closed:
+            self._arm(f"curve {c.index}", self._start_cut(), self._end_cut(), too_short)
             return
-        arm(
-            f"curve {c.index}",
-            start_cut,
-            end_cut,
-            f"{name}: the curve is {cen_len:.6g} long, shorter than one unit along it ({ua:.6g}, {unit_key})",
-        )
-        return
-    for a, b in zip(mine, mine[1:], strict=False):
-        if b["cpos"][0] <= a["cpos"][1] or any(pb[0] <= pa[1] for pa, pb in zip(a["pos"], b["pos"], strict=True)):
-            raise ConfigError(
-                f"{name}: its crossings with construction.curves[{a['other']}] at {_fmt(a['J'].point)} and "
-                f"construction.curves[{b['other']}] at {_fmt(b['J'].point)} are too close to each other: their "
-                f"junctions overlap"
-            )
-    if c.closed and len(mine) > 1:
-        a, b = mine[-1], mine[0]
-        if (b["cpos"][0] + cen_len) <= a["cpos"][1]:
-            raise ConfigError(f"{name}: its crossings at {_fmt(a['J'].point)} and {_fmt(b['J'].point)} overlap")
+        SX = units_along(self.cen_len, self.ua)
+        if SX < 1:
+            raise ConfigError(too_short)
+        grid = np.stack([resample_polyline(r[:-1], SX, True) for r in self.rows], axis=1)
+        self._add(np.concatenate([grid, grid[:1]], axis=0),
+                  {"kind": "arm", "name": f"curve {c.index}", "curves": [c.index], "shape": [SX, self.SY]})
 
-    def cut_of(r, which):
+    def _start_cut(self):
+        return ([0.0] * (self.SY + 1), [r[0] for r in self.rows], 0.0)
+
+    def _end_cut(self):
+        return (list(self.row_len), [r[-1] for r in self.rows], self.cen_len)
+
+    @staticmethod
+    def _cut_of(r, which):
         k = 0 if which == "entry" else 1
         return ([p[k] for p in r["pos"]], r[which], r["cpos"][k])
 
-    n = len(mine)
-    if not c.closed:
-        r0 = mine[0]
-        arm(
-            f"curve {c.index} arm 0",
-            start_cut,
-            cut_of(r0, "entry"),
-            f"{name}: the crossing with construction.curves[{r0['other']}] at {_fmt(r0['J'].point)} is too close to "
-            f"the start of the curve (the arm before it must be at least one unit, {ua:g}, long)",
-        )
-    for t in range(n):
-        r = mine[t]
-        own_junction(r)
-        if t + 1 < n:
-            nxt = mine[t + 1]
-        elif c.closed:
-            nxt = mine[0]
-        else:
-            nxt = None
-        if nxt is not None:
-            arm(
-                f"curve {c.index} arm {t + 1}",
-                cut_of(r, "exit"),
-                cut_of(nxt, "entry"),
-                f"{name}: its crossings with construction.curves[{r['other']}] at {_fmt(r['J'].point)} and "
-                f"construction.curves[{nxt['other']}] at {_fmt(nxt['J'].point)} are too close to each other "
-                f"(the arm between them must be at least one unit, {ua:g}, long)",
-            )
-        else:
-            arm(
-                f"curve {c.index} arm {t + 1}",
-                cut_of(r, "exit"),
-                end_cut,
-                f"{name}: the crossing with construction.curves[{r['other']}] at {_fmt(r['J'].point)} is too close "
-                f"to the end of the curve (the arm after it must be at least one unit, {ua:g}, long)",
-            )
+    def _check_overlaps(self) -> None:
+        mine, name = self.crossings, self.name
+        for a, b in zip(mine, mine[1:], strict=False):
+            if b["cpos"][0] <= a["cpos"][1] or any(pb[0] <= pa[1] for pa, pb in zip(a["pos"], b["pos"], strict=True)):
+                raise ConfigError(
+                    f"{name}: its crossings with construction.curves[{a['other']}] at {_fmt(a['J'].point)} and "
+                    f"construction.curves[{b['other']}] at {_fmt(b['J'].point)} are too close to each other: their "
+                    f"junctions overlap"
+                )
+        if self.c.closed and len(mine) > 1:
+            a, b = mine[-1], mine[0]
+            if (b["cpos"][0] + self.cen_len) <= a["cpos"][1]:
+                raise ConfigError(f"{name}: its crossings at {_fmt(a['J'].point)} and {_fmt(b['J'].point)} overlap")
+
+    def build(self) -> None:
+        mine, name, ua, c = self.crossings, self.name, self.ua, self.c
+        if not mine:
+            self._whole_curve()
+            return
+        self._check_overlaps()
+        if not c.closed:
+            r0 = mine[0]
+            self._arm(f"curve {c.index} arm 0", self._start_cut(), self._cut_of(r0, "entry"),
+                      f"{name}: the crossing with construction.curves[{r0['other']}] at {_fmt(r0['J'].point)} is "
+                      f"too close to the start of the curve (the arm before it must be at least one unit, {ua:g}, "
+                      f"long)")
+        for t, r in enumerate(mine):
+            self._own_junction(r)
+            nxt = mine[t + 1] if t + 1 < len(mine) else (mine[0] if c.closed else None)
+            label = f"curve {c.index} arm {t + 1}"
+            if nxt is not None:
+                self._arm(label, self._cut_of(r, "exit"), self._cut_of(nxt, "entry"),
+                          f"{name}: its crossings with construction.curves[{r['other']}] at {_fmt(r['J'].point)} and "
+                          f"construction.curves[{nxt['other']}] at {_fmt(nxt['J'].point)} are too close to each "
+                          f"other (the arm between them must be at least one unit, {ua:g}, long)")
+            else:
+                self._arm(label, self._cut_of(r, "exit"), self._end_cut(),
+                          f"{name}: the crossing with construction.curves[{r['other']}] at {_fmt(r['J'].point)} is "
+                          f"too close to the end of the curve (the arm after it must be at least one unit, {ua:g}, "
+                          f"long)")
 
 
 def _check_network_cells(space: NetworkSpace) -> None:

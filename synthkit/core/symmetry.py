@@ -836,127 +836,27 @@ class IncrementalAutocorrelation:
           of the block with fixed row/column strips of ``g``.
 
         Exact algebra (the same sums as Parseval on the full spectrum of each candidate), so the
-        values agree with a full recompute up to rounding."""
+        values agree with a full recompute up to rounding. The parts: :meth:`_window_sums` (the
+        current image's sums), :meth:`_block_fields` (``U_1``, ``U_T``, ``U_ac`` and the line
+        strips), :meth:`_small_grid_weights` and, per candidate, :meth:`_candidate_terms`."""
         K, h, w = deltas.shape
-        H, W = self.f.shape
-        N = H * W
-        ev_y, ev_x = H % 2 == 0, W % 2 == 0
         st = self._torus_state()
-        g, G, P = st["g"], st["G"], st["P"]
         weights, sq, _ = self._spectral_weights(h, w, T)
         t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
-        dt = self.fft_dtype
-        # ---- base sums of AC over the window (float64, Parseval less the lines)
-        Pf = P.ravel()
-        ac_sum = float(weights[0].astype(np.float64) @ Pf)
-        ac_t = float(weights[1].astype(np.float64) @ Pf)
-        ac_sq = float((Pf * Pf) @ sq.astype(np.float64))
-        ac_row, ac_col = st["ac_row"], st["ac_col"]
-        if ev_y:
-            ac_sq -= float(ac_row @ ac_row)
-        if ev_x:
-            ac_sq -= float(ac_col @ ac_col)
-        if ev_y and ev_x:
-            ac_sq += float(ac_row[W // 2] ** 2)
-        # ---- the kernels near zero displacement, beside the block's fields when there are two threads
-        def kernels():
-            ac_small = self._pruned_real(P, np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
-            rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
-            return ac_small, self._pruned(G * G, rows, cols)
-
+        base = self._window_sums(st, weights, sq)
         self._torus_tables()  # built once, before a second thread reads it
-        pending = _executor(2).submit(kernels) if (workers or 1) > 1 else None
-        # ---- fields on the block
-        ry = (y0 + np.arange(h)) % H
-        rx = (x0 + np.arange(w)) % W
-        tau = self._torus_cache.get("tau")
-        if tau is None or tau[0] is not t_key:
-            tau = 2.0 * weights[1].astype(np.float64).reshape(P.shape) * (N / self._mult_row(W))
-            tau = (t_key, tau.astype(dt), float(T.mean()), float((T * T).mean()))
-            self._torus_cache["tau"] = tau
-        EH, EW, ctype = self._torus_tables()
-        K1 = P.shape[1]
-        # the spectra of U_T and of U_ac (before its lines), side by side, in the complex type
-        spectra = np.empty((H, 2 * K1), dtype=ctype)
-        Gc = G.astype(ctype)
-        np.multiply(Gc, tau[1], out=spectra[:, :K1])
-        np.multiply(Gc, (2.0 * P).astype(dt), out=spectra[:, K1:])
-        Z = EH[ry] @ spectra
-        U_T = (Z[:, :K1] @ EW[:, rx]).real / N
-        U_ac = (Z[:, K1:] @ EW[:, rx]).real / N
-        U_1 = np.full((h, w), 2.0 * st["gsum"])
-        if ev_y:  # row strip: M_r[(py, px), j] = g(y0 + H / 2 + py, x0 + px + j)
-            strip = np.roll(g[(ry + H // 2) % H], -(x0 % W), axis=1)
-            U_1 -= 2.0 * strip.sum(axis=1)[:, None]
-            strip = np.concatenate([strip, strip[:, :w]], axis=1).astype(dt)
-            M_r = np.lib.stride_tricks.sliding_window_view(strip, W, axis=1)[:, :w].reshape(h * w, W)
-            U_ac -= 2.0 * (M_r @ ac_row.astype(dt)).reshape(h, w)
-        if ev_x:  # column strip: M_c[(py, px), j] = g(y0 + py + j, x0 + W / 2 + px)
-            strip = np.roll(g[:, (rx + W // 2) % W], -(y0 % H), axis=0)
-            U_1 -= 2.0 * strip.sum(axis=0)[None, :]
-            strip = np.concatenate([strip, strip[:h]], axis=0).astype(dt)
-            M_c = np.lib.stride_tricks.sliding_window_view(strip, H, axis=0)[:h].reshape(h * w, H)
-            U_ac -= 2.0 * (M_c @ ac_col.astype(dt)).reshape(h, w)
-        if ev_y and ev_x:
-            corner = g[np.ix_((ry + H // 2) % H, (rx + W // 2) % W)]
-            U_1 += 2.0 * corner
-            U_ac += 2.0 * ac_row[W // 2] * corner
-        # ---- small grid: a, delta * delta and c near zero displacement
-        My = sfft.next_fast_len(3 * h - 2)
-        Mx = sfft.next_fast_len(3 * w - 2, real=True)
-        msq = np.broadcast_to(self._mult_row(Mx) / (My * Mx), (My, Mx // 2 + 1))
-        sy_ = np.arange(-(h - 1), h) % My
-        sx_ = np.arange(-(w - 1), w) % Mx
-
-        def small_spec(X, rows, cols):  # half spectrum on the small grid of X placed at rows x cols
-            grid = np.zeros((My, Mx))
-            grid[np.ix_(rows, cols)] = X
-            return sfft.rfft2(grid)
-
-        ac_small, conv = pending.result() if pending is not None else kernels()
-        cache_t = self._torus_cache.get("t_small")
-        if cache_t is None or cache_t[0] is not t_key or cache_t[1] != (h, w):
-            wy, wx = self.window
-            Ts = T[np.ix_(wy + np.arange(-(h - 1), h), wx + np.arange(-(w - 1), w))]
-            cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
-            self._torus_cache["t_small"] = cache_t
-        wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
-        w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
-        grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
-        w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)
-        w_grown = w_grown.ravel()
-        wsq = msq.ravel()
-        fields = np.stack([U_1.ravel(), U_T.ravel(), U_ac.ravel()], axis=1)
-        deltas = deltas.astype(dt, copy=False)
+        # the kernels near zero displacement, beside the block's fields when there are two threads
+        pending = _executor(2).submit(self._near_zero_kernels, st, y0, x0, h, w) if (workers or 1) > 1 else None
+        tau = self._tau(weights, t_key, T, st["P"].shape)
+        block = self._block_fields(st, y0, x0, h, w, tau[1])
+        kernels = pending.result() if pending is not None else self._near_zero_kernels(st, y0, x0, h, w)
+        small = self._small_grid_weights(st, y0, x0, h, w, T, t_key, kernels)
+        deltas = deltas.astype(self.fft_dtype, copy=False)
         lin = np.empty((K, 3))
         quad = np.empty(K)
 
         def chunk(lo: int, hi: int) -> None:
-            d = deltas[lo:hi]
-            flat = d.reshape(hi - lo, h * w)
-            D = sfft.rfft2(d, s=(My, Mx)).reshape(hi - lo, -1).astype(np.complex128)
-            A = D.real**2 + D.imag**2
-            a_lin = A @ wa  # sum a T, sum a AC
-            a_sq = (A * A) @ wsq
-            # sum Re(z conj(v)) as float inner products of the interleaved (re, im) views
-            cv = (D * D).view(np.float64) @ w_conv.view(np.float64)
-            cub = (A * D).view(np.float64) @ w_grown.view(np.float64)
-            f64 = flat.astype(np.float64)
-            sd = f64.sum(axis=1)
-            lin[lo:hi] = f64 @ fields
-            lin[lo:hi, 0] += sd * sd
-            lin[lo:hi, 1] += a_lin[:, 0]
-            lin[lo:hi, 2] += a_lin[:, 1]
-            q = 2.0 * a_lin[:, 1] + 2.0 * cv + 4.0 * cub + a_sq
-            if ev_y:
-                cr = (flat @ M_r).astype(np.float64)
-                q -= 2.0 * (cr * (cr + cr[:, (-np.arange(W)) % W])).sum(axis=1)
-            if ev_x:
-                cc = (flat @ M_c).astype(np.float64)
-                q -= 2.0 * (cc * (cc + cc[:, (-np.arange(H)) % H])).sum(axis=1)
-            if ev_y and ev_x:  # the corner (H / 2, W / 2) is on both lines, its own reflection
-                q += 4.0 * cr[:, W // 2] ** 2
-            quad[lo:hi] = q
+            lin[lo:hi], quad[lo:hi] = self._candidate_terms(deltas[lo:hi], block, small)
 
         # one chunk per thread (the per-candidate work is small); each candidate's values are
         # computed alike in any chunk, so any number of threads gives the same bytes
@@ -968,7 +868,140 @@ class IncrementalAutocorrelation:
         else:
             for job in jobs:
                 chunk(*job)
-        return lin, quad, (ac_sum, ac_t, ac_sq, tau[2], tau[3])
+        return lin, quad, (*base, tau[2], tau[3])
+
+    def _window_sums(self, st: dict, weights: np.ndarray, sq: np.ndarray) -> tuple[float, float, float]:
+        """``sum AC``, ``<AC, T>`` and ``sum AC^2`` over the window (float64, Parseval less the lines)."""
+        W = self.f.shape[1]
+        Pf = st["P"].ravel()
+        ac_sum = float(weights[0].astype(np.float64) @ Pf)
+        ac_t = float(weights[1].astype(np.float64) @ Pf)
+        ac_sq = float((Pf * Pf) @ sq.astype(np.float64))
+        ac_row, ac_col = st["ac_row"], st["ac_col"]
+        if ac_row is not None:
+            ac_sq -= float(ac_row @ ac_row)
+        if ac_col is not None:
+            ac_sq -= float(ac_col @ ac_col)
+        if ac_row is not None and ac_col is not None:
+            ac_sq += float(ac_row[W // 2] ** 2)
+        return ac_sum, ac_t, ac_sq
+
+    def _near_zero_kernels(self, st: dict, y0: int, x0: int, h: int, w: int):
+        """``AC`` for ``|d| < (h, w)`` and ``Conv = g * g`` at ``2 p0 + s`` (pruned inverse DFTs)."""
+        H, W = self.f.shape
+        ac_small = self._pruned_real(st["P"], np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+        rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
+        return ac_small, self._pruned(st["G"] * st["G"], rows, cols)
+
+    def _tau(self, weights: np.ndarray, t_key, T: np.ndarray, shape: tuple[int, int]) -> tuple:
+        """``(t_key, the spectral weight of T (shape) in the FFT type, mean(T), mean(T^2))``, kept
+        while the target stays."""
+        tau = self._torus_cache.get("tau")
+        if tau is None or tau[0] is not t_key:
+            N = self.f.size
+            tau = 2.0 * weights[1].astype(np.float64).reshape(shape) * (N / self._mult_row(self.f.shape[1]))
+            tau = (t_key, tau.astype(self.fft_dtype), float(T.mean()), float((T * T).mean()))
+            self._torus_cache["tau"] = tau
+        return tau
+
+    def _block_fields(self, st: dict, y0: int, x0: int, h: int, w: int, tau: np.ndarray) -> dict:
+        """The fixed fields on the block: ``fields (h w, 3)`` = ``U_1, U_T, U_ac`` (lines left out)
+        and the line strips ``M_r (h w, W)``, ``M_c (h w, H)`` (None for odd sizes)."""
+        H, W = self.f.shape
+        N, dt = H * W, self.fft_dtype
+        g, G, P = st["g"], st["G"], st["P"]
+        ac_row, ac_col = st["ac_row"], st["ac_col"]
+        ry, rx = (y0 + np.arange(h)) % H, (x0 + np.arange(w)) % W
+        EH, EW, ctype = self._torus_tables()
+        K1 = P.shape[1]
+        # the spectra of U_T and of U_ac (before its lines), side by side, in the complex type
+        spectra = np.empty((H, 2 * K1), dtype=ctype)
+        Gc = G.astype(ctype)
+        np.multiply(Gc, tau, out=spectra[:, :K1])
+        np.multiply(Gc, (2.0 * P).astype(dt), out=spectra[:, K1:])
+        Z = EH[ry] @ spectra
+        U_T = (Z[:, :K1] @ EW[:, rx]).real / N
+        U_ac = (Z[:, K1:] @ EW[:, rx]).real / N
+        U_1 = np.full((h, w), 2.0 * st["gsum"])
+        M_r = M_c = None
+        if ac_row is not None:  # row strip: M_r[(py, px), j] = g(y0 + H / 2 + py, x0 + px + j)
+            strip = np.roll(g[(ry + H // 2) % H], -(x0 % W), axis=1)
+            U_1 -= 2.0 * strip.sum(axis=1)[:, None]
+            strip = np.concatenate([strip, strip[:, :w]], axis=1).astype(dt)
+            M_r = np.lib.stride_tricks.sliding_window_view(strip, W, axis=1)[:, :w].reshape(h * w, W)
+            U_ac -= 2.0 * (M_r @ ac_row.astype(dt)).reshape(h, w)
+        if ac_col is not None:  # column strip: M_c[(py, px), j] = g(y0 + py + j, x0 + W / 2 + px)
+            strip = np.roll(g[:, (rx + W // 2) % W], -(y0 % H), axis=0)
+            U_1 -= 2.0 * strip.sum(axis=0)[None, :]
+            strip = np.concatenate([strip, strip[:h]], axis=0).astype(dt)
+            M_c = np.lib.stride_tricks.sliding_window_view(strip, H, axis=0)[:h].reshape(h * w, H)
+            U_ac -= 2.0 * (M_c @ ac_col.astype(dt)).reshape(h, w)
+        if M_r is not None and M_c is not None:
+            corner = g[np.ix_((ry + H // 2) % H, (rx + W // 2) % W)]
+            U_1 += 2.0 * corner
+            U_ac += 2.0 * ac_row[W // 2] * corner
+        return {"fields": np.stack([U_1.ravel(), U_T.ravel(), U_ac.ravel()], axis=1), "M_r": M_r, "M_c": M_c}
+
+    def _small_grid_weights(self, st: dict, y0: int, x0: int, h: int, w: int, T: np.ndarray, t_key,
+                            kernels) -> dict:
+        """Weights on the small grid ``(My, Mx)`` of about ``3h x 3w`` for the terms of the block's
+        own autocorrelation ``a``: ``wa (n, 2)`` (``sum a T``, ``sum a AC``), ``w_conv`` (``Conv``),
+        ``w_grown`` (``c`` near zero) and ``wsq`` (``sum a^2``)."""
+        H, W = self.f.shape
+        g = st["g"]
+        My = sfft.next_fast_len(3 * h - 2)
+        Mx = sfft.next_fast_len(3 * w - 2, real=True)
+        msq = np.broadcast_to(self._mult_row(Mx) / (My * Mx), (My, Mx // 2 + 1))
+        sy_ = np.arange(-(h - 1), h) % My
+        sx_ = np.arange(-(w - 1), w) % Mx
+
+        def small_spec(X, rows, cols):  # half spectrum on the small grid of X placed at rows x cols
+            grid = np.zeros((My, Mx))
+            grid[np.ix_(rows, cols)] = X
+            return sfft.rfft2(grid)
+
+        ac_small, conv = kernels
+        cache_t = self._torus_cache.get("t_small")
+        if cache_t is None or cache_t[0] is not t_key or cache_t[1] != (h, w):
+            wy, wx = self.window
+            Ts = T[np.ix_(wy + np.arange(-(h - 1), h), wx + np.arange(-(w - 1), w))]
+            cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
+            self._torus_cache["t_small"] = cache_t
+        wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
+        w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
+        grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
+        w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)
+        return {"shape": (My, Mx), "wa": wa, "w_conv": w_conv, "w_grown": w_grown.ravel(), "wsq": msq.ravel()}
+
+    def _candidate_terms(self, d: np.ndarray, block: dict, small: dict) -> tuple[np.ndarray, np.ndarray]:
+        """``lin (k, 3)`` and ``quad (k,)`` of the block changes ``d (k, h, w)``."""
+        H, W = self.f.shape
+        k, h, w = d.shape
+        M_r, M_c = block["M_r"], block["M_c"]
+        flat = d.reshape(k, h * w)
+        D = sfft.rfft2(d, s=small["shape"]).reshape(k, -1).astype(np.complex128)
+        A = D.real**2 + D.imag**2
+        a_lin = A @ small["wa"]  # sum a T, sum a AC
+        a_sq = (A * A) @ small["wsq"]
+        # sum Re(z conj(v)) as float inner products of the interleaved (re, im) views
+        cv = (D * D).view(np.float64) @ small["w_conv"].view(np.float64)
+        cub = (A * D).view(np.float64) @ small["w_grown"].view(np.float64)
+        f64 = flat.astype(np.float64)
+        sd = f64.sum(axis=1)
+        lin = f64 @ block["fields"]
+        lin[:, 0] += sd * sd
+        lin[:, 1] += a_lin[:, 0]
+        lin[:, 2] += a_lin[:, 1]
+        q = 2.0 * a_lin[:, 1] + 2.0 * cv + 4.0 * cub + a_sq
+        if M_r is not None:
+            cr = (flat @ M_r).astype(np.float64)
+            q -= 2.0 * (cr * (cr + cr[:, (-np.arange(W)) % W])).sum(axis=1)
+        if M_c is not None:
+            cc = (flat @ M_c).astype(np.float64)
+            q -= 2.0 * (cc * (cc + cc[:, (-np.arange(H)) % H])).sum(axis=1)
+        if M_r is not None and M_c is not None:  # the corner (H / 2, W / 2) is on both lines, its own reflection
+            q += 4.0 * cr[:, W // 2] ** 2
+        return lin, q
 
     @staticmethod
     def _mult_row(M1: int) -> np.ndarray:

@@ -211,10 +211,18 @@ class InteriorSolver:
         return x.reshape(-1, 2)
 
 
-def toroidal_repetitions(UV_new) -> tuple[np.ndarray, np.ndarray]:
-    """Integer repetitions ``(2,)`` and the per-tile scale ``(2,)`` of a toroidal surface (4.4):
-    the bounding box of the solved corners ``UV_new (c, 2)`` (in tiles) rounded to whole tiles,
-    at least one; the tile then stretches by ``extent / repetitions``."""
+def toroidal_repetitions(UV, UV_new) -> tuple[np.ndarray, np.ndarray]:
+    """Repetitions ``(2,)`` and per-tile scale ``(2,)`` of a toroidal surface (4.4) from the
+    bounding boxes of its original and solved corners ``UV``, ``UV_new (c, 2)`` (in tiles).
+
+    Along an axis where the original surface held a whole number of tiles (within 1e-3), the new
+    extent is rounded to whole tiles (at least one) and the tile stretches by ``extent /
+    repetitions``, as the paper does. Along an axis where it held a fraction of a tile (a 0.2-wide
+    window reveal of a 1-tile brick texture), rounding would squeeze the tile fivefold; there the
+    tile keeps its size (scale 1) and the surface shows as much of the repeating texture as its new
+    extent covers. Repetitions are then ``extent`` (not whole)."""
+    ext0 = UV.max(axis=0) - UV.min(axis=0)
     ext = UV_new.max(axis=0) - UV_new.min(axis=0)
-    reps = np.maximum(np.round(ext), 1.0)
-    return reps.astype(np.int64), ext / reps
+    whole = (np.abs(ext0 - np.round(ext0)) < 1e-3) & (np.round(ext0) >= 1)
+    reps = np.where(whole, np.maximum(np.round(ext), 1.0), ext)
+    return reps, np.where(whole, ext / reps, 1.0)

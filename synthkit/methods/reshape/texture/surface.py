@@ -128,7 +128,7 @@ def _solve(C, F, segments, ratio, size, toroidal, tex: TextureAnalysis, p: Textu
     Cn = cs.solve(ratio)
     reps, scale, per = None, np.ones(2), None
     if toroidal:
-        reps, scale = toroidal_repetitions(Cn / size)
+        reps, scale = toroidal_repetitions(C / size, Cn / size)
         W, H = size
         sq = np.array([[0, 0], [W, 0], [W, H], [0, H]], np.float64)
         grid = build_grid(sq, np.array([[0, 1], [1, 2], [2, 3], [3, 0]]), p.spacing * size)

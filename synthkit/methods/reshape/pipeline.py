@@ -432,13 +432,13 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
     if cfg.texture != "reshape":
         return {}
     with ctx.stage("texture"):
-        images: dict = {}
-        jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images)
+        images, skipped = {}, {}
+        jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images, skipped)
         texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
         ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
                            bytes_each=_BYTES_PER_TEXEL)
         entries, results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
-        ctx.metrics.update(RT.texture_metrics(results, notes, untouched))
+        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped))
     with ctx.stage("texture_previews"):
         _texture_previews(ctx, cfg, results)
     return entries

@@ -33,6 +33,9 @@ log = logging.getLogger("synthkit")
 UNCHANGED_TOL = 1e-9
 """A surface whose edge length ratios all lie within this of 1 is untouched."""
 
+MIN_UV_AREA = 16.0
+"""Texels a surface's UVs must cover to get a deformation grid."""
+
 WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max, "bake_ms": max,
          "rigid_scale_error": max, "stochastic_stretch": max, "detail_energy_ratio": min, "tiles": min,
          "baseline_rigid_scale_error": max, "baseline_detail_energy_ratio": min}
@@ -92,9 +95,32 @@ def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> bool:
     return toroidal
 
 
-def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images) -> tuple[list[SurfaceJob], int]:
+def _ratio(a, b, i, j) -> np.ndarray:
+    """Edge length ratios ``(m,)`` new/old of edges ``(i, j)`` between rows of ``a``, ``b`` ``(c, 3)``
+    (1 for an edge of zero rest length)."""
+    rest = np.linalg.norm(a[i] - a[j], axis=1)
+    new = np.linalg.norm(b[i] - b[j], axis=1)
+    return np.divide(new, rest, out=np.ones_like(rest), where=rest > 1e-12)
+
+
+def _degenerate(C, F) -> str | None:
+    """Why the texture-space triangles ``F`` over ``C (c, 2)`` (texels) cannot carry a grid, or None:
+    less than MIN_UV_AREA texels in all, or folded (triangles of both orientations, as mirrored
+    atlas patches have)."""
+    d1, d2 = C[F[:, 1]] - C[F[:, 0]], C[F[:, 2]] - C[F[:, 0]]
+    area = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    if np.abs(area).sum() < MIN_UV_AREA:
+        return f"its UVs cover {np.abs(area).sum():.3g} texels (fewer than {MIN_UV_AREA:g})"
+    big = np.abs(area) > 1e-9 * np.abs(area).max()
+    if (area[big] > 0).any() and (area[big] < 0).any():
+        return "its UVs are folded (triangles of both orientations)"
+    return None
+
+
+def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped) -> tuple[list[SurfaceJob], int]:
     """The changed textured surfaces of piece ``p`` (render vertices ``r.start..r.stop``, faces from
-    ``fstart``) and the number of its textured surfaces left untouched."""
+    ``fstart``) and the number of its textured surfaces left untouched; surfaces whose UVs cannot
+    carry a grid go into ``skipped`` (name -> reason) and keep the naive stretch."""
     jobs, untouched = [], 0
     Fp = mesh.F
     surf = graph.face_surface[fstart:fstart + len(Fp)]
@@ -108,8 +134,7 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images) -> tup
         Fl = np.searchsorted(verts, Fp[faces])
         a, b = (V0[r.start + verts], V1[r.start + verts])
         e = np.vstack([Fl[:, [0, 1]], Fl[:, [1, 2]], Fl[:, [2, 0]]])
-        ratio = np.linalg.norm(b[e[:, 0]] - b[e[:, 1]], axis=1) / np.linalg.norm(a[e[:, 0]] - a[e[:, 1]], axis=1)
-        if np.abs(ratio - 1).max() <= UNCHANGED_TOL:
+        if np.abs(_ratio(a, b, e[:, 0], e[:, 1]) - 1).max() <= UNCHANGED_TOL:
             untouched += 1
             continue
         name = f"{r.name}.{material}.{k}"
@@ -122,24 +147,28 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images) -> tup
                               f"({W} x {H}) is {cfg.texture_reshape.spacing * min(H, W):.3g} texels, below one texel")
         UV = mesh.UV[verts]
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
-
-        def ratio_fn(i, j, a=a, b=b):
-            return np.linalg.norm(b[i] - b[j], axis=1) / np.linalg.norm(a[i] - a[j], axis=1)
-
-        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, _contour(Fl), ratio_fn, toroidal))
+        reason = _degenerate(C, Fl)
+        if reason:
+            skipped[name] = reason
+            log.warning("%s: surface %s keeps the naive stretch: %s", mesh.source, name, reason)
+            continue
+        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, _contour(Fl),
+                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal))
     return jobs, untouched
 
 
-def surface_jobs(cfg, sc, graph, V1, images: dict) -> tuple[list[SurfaceJob], dict, int]:
+def surface_jobs(cfg, sc, graph, V1, images: dict, skipped: dict) -> tuple[list[SurfaceJob], dict, int]:
     """Every changed textured surface of the scene ``sc`` with reshaped render vertices ``V1
     (#V, 3)``, per piece name a note for pieces whose texture cannot be reshaped (GLB), and the
-    number of untouched textured surfaces. ``images`` (path -> texture) is filled as read."""
+    number of untouched textured surfaces. ``images`` (path -> texture) is filled as read,
+    ``skipped`` (surface -> reason) with the surfaces that keep the naive stretch."""
     jobs, notes, fstart, untouched = [], {}, 0, 0
     for p, (mesh, r) in enumerate(zip(sc.meshes, sc.ranges, strict=True)):
         if mesh.source.suffix.lower() != ".obj":
             notes[r.name] = "GLB: embedded textures keep the naive stretch"
         else:
-            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, material_textures(mesh), images)
+            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, material_textures(mesh), images,
+                                       skipped)
             jobs += found
             untouched += kept
         fstart += len(mesh.F)
@@ -172,7 +201,7 @@ def reshape_jobs(cfg, jobs, images, rng):
     return entries, results
 
 
-def texture_metrics(results: dict, notes: dict, untouched: int) -> dict:
+def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict) -> dict:
     """``surfaces`` (name -> metrics) and the worst case of each :data:`WORST` metric."""
     surfaces = {}
     for name, (job, res, _) in results.items():
@@ -181,7 +210,7 @@ def texture_metrics(results: dict, notes: dict, untouched: int) -> dict:
         m.update(material=job.material, texture=job.texture.name, toroidal=job.toroidal)
         surfaces[name] = m
     out = {"surfaces": surfaces, "texture_surfaces": len(surfaces), "texture_notes": notes,
-           "texture_untouched_surfaces": untouched}
+           "texture_untouched_surfaces": untouched, "texture_skipped": skipped}
     for key, pick in WORST.items():
         vals = [m[key] for m in surfaces.values() if m.get(key) is not None]
         top = key if key in ("rigid_scale_error", "stochastic_stretch", "detail_energy_ratio", "tiles",

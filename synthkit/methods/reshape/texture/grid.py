@@ -157,6 +157,7 @@ def _triangulate(X, C, segments) -> np.ndarray:
     """Delaunay triangles ``(t, 3)`` of ``X (n, 2)`` whose centroid is inside the contour."""
     tri = Delaunay(X, qhull_options="QJ Pp").simplices.astype(np.int64)
     P = X[tri]
-    area = 0.5 * np.abs(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
+    d1, d2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
     keep = (area > 1e-9) & inside_contour(P.mean(axis=1), C, segments)
     return tri[keep]

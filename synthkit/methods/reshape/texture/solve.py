@@ -190,8 +190,8 @@ class InteriorSolver:
         self._A_k, self._kc, self._free = A[:, kc], kc, free
         self._rest = np.concatenate([(grid.X[i] - grid.X[j])[:, ax] for ax in range(2)])
         self.equations, self.vars = m, len(free)
-        start = time.perf_counter()
-        self._lsq = LeastSquares(A[:, free], weights=np.concatenate(w), backend=backend)
+        start = time.perf_counter()  # a polygon smaller than a grid cell has corners only
+        self._lsq = LeastSquares(A[:, free], weights=np.concatenate(w), backend=backend) if len(free) else None
         self.factor_ms = 1e3 * (time.perf_counter() - start)
         self.solve_ms = 0.0
 
@@ -206,7 +206,8 @@ class InteriorSolver:
         b -= self._A_k @ corners.reshape(-1)
         x = np.empty(2 * len(self.grid.X))
         x[self._kc] = corners.reshape(-1)
-        x[self._free] = self._lsq.solve(b)
+        if self._lsq is not None:
+            x[self._free] = self._lsq.solve(b)
         self.solve_ms = 1e3 * (time.perf_counter() - start)
         return x.reshape(-1, 2)
 

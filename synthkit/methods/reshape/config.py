@@ -236,7 +236,10 @@ class TextureSection(StrictModel):
         "auto", description="Materials whose texture repeats; auto: every surface whose UVs leave [0, 1]."
     )
     tau: float = Field(0.1, gt=0, le=100, description="Rigid/stochastic threshold on max_dir T_dir (segmentation).")
-    smoothness: float = Field(0.5, ge=0, le=100, description="Potts weight of the binary graph cut [BJ01].")
+    smoothness: float = Field(20.0, ge=0, le=1000, description="Boundary weight of the binary graph cut [BJ01].")
+    edge_sigma: float = Field(
+        0.5, gt=0, le=10, description="Luminance step (equalized units) at which a cut becomes cheap [BJ01]."
+    )
     tries: int = Field(8, ge=1, le=1000, description="Random seeds per stochastic region; the largest tile is kept.")
     sigma_s: float = Field(3.0, gt=0, le=50, description="Bilateral filter spatial sigma (texels).")
     sigma_r: float = Field(0.2, gt=0, le=1, description="Bilateral filter range sigma (intensity).")

@@ -64,10 +64,9 @@ class SurfaceJob:
 def params_of(cfg) -> TextureParams:
     """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
     t = cfg.texture_reshape
-    return TextureParams(delta=t.delta, neighbourhood=t.neighbourhood, spacing=t.spacing, s_min=t.s_min,
-                         s_align=t.s_align, samples=t.samples, corner_form=t.corner_form, tau=t.tau,
-                         smoothness=t.smoothness, tries=t.tries, sigma_s=t.sigma_s, sigma_r=t.sigma_r, ramp=t.ramp,
-                         max_side=t.max_side, backend=cfg.solver.backend)
+    names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "samples", "corner_form", "tau", "smoothness",
+             "edge_sigma", "tries", "sigma_s", "sigma_r", "ramp", "max_side")
+    return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
 
 
 def _contour(F: np.ndarray) -> np.ndarray:

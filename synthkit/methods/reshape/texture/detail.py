@@ -2,10 +2,18 @@
 
 1. :func:`segment_rigid`: the per-texel maximum of the directional maps, segmented into rigid and
    stochastic texels by a binary graph cut [BJ01] (:func:`synthkit.core.graphcut.grid_mincut`):
-   unary costs ``max(tau - T, 0) / tau`` for rigid and ``min(max(T - tau, 0) / tau, 4)`` for
-   stochastic, a Potts cost ``smoothness`` between 4-neighbours. ``tau`` is in the units of
+   region costs ``max(tau - T, 0) / tau`` for rigid and ``min(max(T - tau, 0) / tau, 1)`` for
+   stochastic, and BJ01's boundary cost ``smoothness * exp(-(L_p - L_q)^2 / (2 edge_sigma^2))``
+   between 4-neighbours on the equalized luminance ``L``. ``tau`` is in the units of
    :func:`autosim.equalize_luminance` (texture variance), so one value serves every texture, as
    the paper found with its equalized textures.
+
+   Why the boundary term: eq. 9 spreads a feature's error over ``Delta + n / 2`` texels around it
+   (a pixel 8 texels from a door jamb still sees it within its +-10 line), so a threshold alone
+   makes every rigid region 12 texels too wide: on the generated 512^2 wall the thresholded mask
+   (Potts cost only) had IoU 0.76 with the known mask (20k false rigid texels). Capping the
+   stochastic cost at 1 and making cuts cheap across luminance edges moves the boundary back onto
+   the feature's edge: IoU 1.0 there with ``smoothness`` 20 and ``edge_sigma`` 0.5.
 2. :func:`grow_tile`: in one stochastic region, a rectangle grown from a random seed, spiral-like
    (right, down, left, up in turn, each side as far as one step keeps the rectangle inside); the
    largest over ``tries`` seeds is the region's detail tile (the paper's naive search).
@@ -24,17 +32,23 @@ from synthkit.core.graphcut import grid_mincut
 __all__ = ["segment_rigid", "grow_tile", "tile_map", "base_detail"]
 
 
-def segment_rigid(T, *, tau: float, smoothness: float) -> np.ndarray:
-    """Rigid mask ``(H, W) bool`` from the directional maps ``T (D, H, W)`` (max over directions,
-    then the binary cut). Raises ValueError for a non-positive ``tau`` or negative smoothness."""
-    if tau <= 0:
-        raise ValueError(f"tau must be positive, got {tau}")
+def segment_rigid(T, lum, *, tau: float, smoothness: float, edge_sigma: float) -> np.ndarray:
+    """Rigid mask ``(H, W) bool`` from the directional maps ``T (D, H, W)`` (max over directions)
+    and the equalized luminance ``lum (H, W)`` by the binary cut above. Raises ValueError for a
+    non-positive ``tau`` or ``edge_sigma``, or a negative smoothness."""
+    if tau <= 0 or edge_sigma <= 0:
+        raise ValueError(f"tau and edge_sigma must be positive, got {tau}, {edge_sigma}")
     if smoothness < 0:
         raise ValueError(f"smoothness must be non-negative, got {smoothness}")
     Tm = np.asarray(T, np.float64).max(axis=0)
+    L = np.asarray(lum, np.float64)
     cost_rigid = np.maximum(tau - Tm, 0.0) / tau
-    cost_stoch = np.minimum(np.maximum(Tm - tau, 0.0) / tau, 4.0)
-    side, _ = grid_mincut(cost_rigid, cost_stoch, float(smoothness))
+    cost_stoch = np.minimum(np.maximum(Tm - tau, 0.0) / tau, 1.0)
+    right = np.zeros_like(L)
+    down = np.zeros_like(L)
+    right[:, :-1] = smoothness * np.exp(-((L[:, 1:] - L[:, :-1]) ** 2) / (2 * edge_sigma**2))
+    down[:-1] = smoothness * np.exp(-((L[1:] - L[:-1]) ** 2) / (2 * edge_sigma**2))
+    side, _ = grid_mincut(cost_rigid, cost_stoch, {(0, 1): right, (1, 0): down})
     return side  # sink side pays the source capacity: cost_rigid
 
 

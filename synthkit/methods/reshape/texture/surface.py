@@ -38,7 +38,8 @@ class TextureParams:
     samples: int = 9
     corner_form: str = "contour"
     tau: float = 0.1
-    smoothness: float = 0.5
+    smoothness: float = 20.0
+    edge_sigma: float = 0.5
     tries: int = 8
     sigma_s: float = 3.0
     sigma_r: float = 0.2
@@ -68,11 +69,11 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
     """:class:`TextureAnalysis` of ``img (H, W, 3)`` in [0, 1]; ``rng`` seeds the tile growth."""
     t = {}
     start = time.perf_counter()
-    T = autosim.directional_autosimilarity(autosim.equalize_luminance(img), delta=params.delta,
-                                           size=params.neighbourhood, wrap=wrap)
+    lum = autosim.equalize_luminance(img)
+    T = autosim.directional_autosimilarity(lum, delta=params.delta, size=params.neighbourhood, wrap=wrap)
     t["autosimilarity"] = time.perf_counter() - start
     start = time.perf_counter()
-    rigid = detail.segment_rigid(T, tau=params.tau, smoothness=params.smoothness)
+    rigid = detail.segment_rigid(T, lum, tau=params.tau, smoothness=params.smoothness, edge_sigma=params.edge_sigma)
     t["segmentation"] = time.perf_counter() - start
     start = time.perf_counter()
     ids, tiles = detail.tile_map(rigid, rng=rng, tries=params.tries)

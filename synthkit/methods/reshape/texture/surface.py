@@ -146,14 +146,23 @@ def _solve(C, F, segments, ratio, size, toroidal, tex: TextureAnalysis, p: Textu
         shape = np.maximum(np.round(scale[::-1] * size[::-1]), 1).astype(int)
         Y = Yd * (shape[::-1] / (scale * size))
     else:
-        off = np.floor(Cn.min(axis=0))
-        shape = np.maximum(np.ceil(Cn.max(axis=0) - off), 1).astype(int)[::-1]
+        off = _origin(Cn)
+        shape = np.maximum(np.ceil(Cn.max(axis=0) - off - _SNAP), 1).astype(int)[::-1]
         Y = Yd - off
     info = dict(corner_equations=cs.equations, interior_equations=isv.equations, vars=isv.vars,
                 corner_factor_ms=cs.factor_ms, interior_factor_ms=isv.factor_ms,
                 corner_solve_ms=cs.solve_ms, interior_solve_ms=isv.solve_ms,
                 repetitions=None if reps is None else reps.tolist())
     return Cn, grid, Y, tuple(int(v) for v in shape), scale, info
+
+
+_SNAP = 1e-6
+"""Solved corners this close to a texel boundary count as on it (the solve is exact to ~1e-9)."""
+
+
+def _origin(Cn) -> np.ndarray:
+    """Texel origin ``(2,)`` of the baked texture of solved corners ``Cn (c, 2)``."""
+    return np.floor(Cn.min(axis=0) + _SNAP)
 
 
 def _new_uv(C, Cn, Y_shape, size, scale, toroidal) -> np.ndarray:
@@ -163,7 +172,7 @@ def _new_uv(C, Cn, Y_shape, size, scale, toroidal) -> np.ndarray:
         Q = Q - Q[0] + C[0] / size
         return np.column_stack([Q[:, 0], 1.0 - Q[:, 1]])
     Ho, Wo = Y_shape
-    off = np.floor(Cn.min(axis=0))
+    off = _origin(Cn)
     return np.column_stack([(Cn[:, 0] - off[0]) / Wo, 1.0 - (Cn[:, 1] - off[1]) / Ho])
 
 
@@ -210,8 +219,8 @@ def _naive(tex, C, Cn, F, size, toroidal):
         X = np.array([[0, 0], [W, 0], [W, H], [0, H]], np.float64)
         Xn, Fn = X * full, np.array([[0, 1, 2], [0, 2, 3]])
     else:
-        X, Xn, Fn = C, Cn - np.floor(Cn.min(axis=0)), F
-    shape = tuple(int(v) for v in np.maximum(np.ceil(Xn.max(axis=0)), 1)[::-1])
+        X, Xn, Fn = C, Cn - _origin(Cn), F
+    shape = tuple(int(v) for v in np.maximum(np.ceil(Xn.max(axis=0) - _SNAP), 1)[::-1])
     dm = bake.distortion_map(X, Xn, Fn, shape)
     return dm, bake.triangle_jacobians(X, Xn, Fn)
 

@@ -153,7 +153,8 @@ class InteriorSolver:
         toroidal tile whose coordinate ``axis`` must stay equal (None: not toroidal)
     backend : least-squares backend
 
-    Attributes: ``equations``, ``vars``, ``factor_ms``, ``solve_ms`` (last solve).
+    Attributes: ``equations``, ``vars``, ``A (m, vars)`` the rows over the free coordinates and
+    their ``weights (m,)``, ``factor_ms``, ``solve_ms`` (last solve).
     """
 
     def __init__(self, grid: DeformationGrid, stiffness, *, periodic=None, backend: str = "auto"):
@@ -190,8 +191,9 @@ class InteriorSolver:
         self._A_k, self._kc, self._free = A[:, kc], kc, free
         self._rest = np.concatenate([(grid.X[i] - grid.X[j])[:, ax] for ax in range(2)])
         self.equations, self.vars = m, len(free)
+        self.A, self.weights = A[:, free].tocsr(), np.concatenate(w)
         start = time.perf_counter()  # a polygon smaller than a grid cell has corners only
-        self._lsq = LeastSquares(A[:, free], weights=np.concatenate(w), backend=backend) if len(free) else None
+        self._lsq = LeastSquares(self.A, weights=self.weights, backend=backend) if len(free) else None
         self.factor_ms = 1e3 * (time.perf_counter() - start)
         self.solve_ms = 0.0
 

@@ -151,7 +151,9 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             skipped[name] = reason
             log.warning("%s: surface %s keeps the naive stretch: %s", mesh.source, name, reason)
             continue
-        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, _contour(Fl),
+        seg = _contour(Fl)
+        seg = seg[np.linalg.norm(C[seg[:, 1]] - C[seg[:, 0]], axis=1) > 1e-9]  # duplicated corners
+        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, seg,
                                lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal))
     return jobs, untouched
 

@@ -82,7 +82,10 @@ class CornerSolver:
             rows = 2 * m10 + 2 * np.arange(s) + ax  # contour form: c_k - c_i
             ent += [(rows, 2 * self.segments[:, 1] + ax, np.ones(s)), (rows, 2 * self.segments[:, 0] + ax, -np.ones(s))]
         d = self.C[self.segments[:, 1]] - self.C[self.segments[:, 0]]
-        nrm = np.column_stack([-d[:, 1], d[:, 0]]) / np.linalg.norm(d, axis=1)[:, None]
+        length = np.linalg.norm(d, axis=1)
+        if s == 0 or length.min() <= 0:
+            raise ValueError("the contour needs segments of positive length in texture space")
+        nrm = np.column_stack([-d[:, 1], d[:, 0]]) / length[:, None]
         rows = 2 * m10 + 2 * s + np.arange(s)  # 2-D eq. 1, per contour edge
         for ax in range(2):
             ent += [(rows, 2 * self.segments[:, 1] + ax, nrm[:, ax]), (rows, 2 * self.segments[:, 0] + ax, -nrm[:, ax])]

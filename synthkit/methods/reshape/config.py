@@ -226,6 +226,10 @@ class TextureSection(StrictModel):
         description="Weight of the orthogonal-alignment term of eq. 13: 1 doubles a rigid edge's resistance to "
         "shearing across the direction, which keeps door and window sides straight.",
     )
+    t_max: float | None = Field(
+        0.4, gt=0, le=1000,
+        description="T_dir is clipped here in eq. 13 (4 tau: rigid texels equally stiff); null: the paper's T.",
+    )
     samples: int = Field(
         9, ge=1, le=64, description="T_dir read at this many points of a grid edge, largest kept (1: paper midpoint)."
     )

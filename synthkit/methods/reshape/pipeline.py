@@ -445,11 +445,16 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
 
 
 def _texture_previews(ctx, cfg, results) -> None:
-    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` largest surfaces."""
+    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` surfaces the naive stretch would
+    distort most (largest ``baseline_rigid_scale_error`` times baked texels)."""
     if not ctx.wants_preview("all"):
         return
     tau = cfg.texture_reshape.tau
-    order = sorted(results.items(), key=lambda kv: -kv[1][1].texture.size)[: cfg.texture_reshape.previews]
+    def distortion(item):
+        res = item[1][1]
+        return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
+
+    order = sorted(results.items(), key=distortion)[: cfg.texture_reshape.previews]
     for name, (job, res, tex) in order:
         rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
         stem = f"texture/{RT._safe(name)}"

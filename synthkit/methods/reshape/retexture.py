@@ -64,8 +64,8 @@ class SurfaceJob:
 def params_of(cfg) -> TextureParams:
     """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
     t = cfg.texture_reshape
-    names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "samples", "corner_form", "tau", "smoothness",
-             "edge_sigma", "tries", "sigma_s", "sigma_r", "ramp", "max_side")
+    names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
+             "smoothness", "edge_sigma", "tries", "sigma_s", "sigma_r", "ramp", "max_side")
     return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
 
 

@@ -35,6 +35,7 @@ class TextureParams:
     spacing: float = 1 / 32
     s_min: float = 0.01
     s_align: float = 1.0
+    t_max: float | None = 0.4
     samples: int = 9
     corner_form: str = "contour"
     tau: float = 0.1
@@ -139,7 +140,7 @@ def _solve(C, F, segments, ratio, size, toroidal, tex: TextureAnalysis, p: Textu
         grid = build_grid(C[order], np.searchsorted(order, segments), p.spacing * size)
         Cd = Cn[order]
     stiff = edge_stiffness(tex.T, grid.X, grid.edges, s_min=p.s_min, s_align=p.s_align, samples=p.samples,
-                           wrap=toroidal)
+                           wrap=toroidal, t_max=p.t_max)
     isv = InteriorSolver(grid, stiff, periodic=per, backend=p.backend)
     Yd = isv.solve(Cd)
     if toroidal:

@@ -17,6 +17,12 @@ door, two windows and a plinth over plaster noise, 512^2) and its 2x upscale (10
   change and detail energy (variance of the Laplacian over the plaster above the windows, output
   over input), and the time of each.
 
+- real houses (../shared/data/architecture/houses, skipped when absent): house1, 2 and 4 widened by
+  30 % and raised by 20 % through whole ``synthkit reshape`` runs; over the surfaces that map a
+  door, window or garage rectangle of their atlas (the fixture rectangles of
+  tests/methods/test_reshape_texture.py), the mean rigid scale error of ours and of the naive
+  stretch, and the texture stage's time.
+
 Run: ``.venv/bin/python benchmarks/reshape_texture.py [--quick]``; writes
 bench-results/reshape_texture.json.
 """
@@ -158,6 +164,38 @@ def bench_quality(img, repeats):
         record(AREA, f"facade_2x_{name}_time", t, "s", baseline=outs["naive"][1] if name != "naive" else None)
 
 
+def bench_real(quick: bool) -> None:
+    import tempfile
+
+    import yaml
+
+    from synthkit.io.textured import load_textured
+    from synthkit.runner import run_config
+    from tests.methods.test_reshape_texture import HOUSE_ATLAS, HOUSES, door_window_rows, house_motion
+
+    if not HOUSES.is_dir():
+        print(f"skipped real houses: {HOUSES} not present", file=sys.stderr)
+        return
+    cases = [("house1_baked.obj", "widen")] if quick else [(h, m) for h in HOUSE_ATLAS for m in ("widen", "raise")]
+    for name, mode in cases:
+        mesh = load_textured(HOUSES / name)
+        cfg = {"method": "reshape", "input": str(HOUSES / name), "contacts": {"tol": 1e-4}, "baseline": False,
+               **house_motion(mesh.V, mode)}
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "house.yaml"
+            path.write_text(yaml.safe_dump(cfg))
+            report = run_config(path, out_dir=Path(tmp) / "out", show_progress=False, previews="none")
+        rows = door_window_rows(report, mesh, HOUSE_ATLAS[name])
+        key = f"real_{name.split('_')[0]}_{mode}"
+        record(AREA, f"{key}_texture_stage", report["timings"]["texture"], "s")
+        record(AREA, f"{key}_surfaces", float(report["metrics"]["texture_surfaces"]), "count")
+        if rows:
+            naive = float(np.mean([r[3] for r in rows]))
+            record(AREA, f"{key}_door_window_naive_scale_error", naive, "ratio")
+            record(AREA, f"{key}_door_window_scale_error", float(np.mean([r[2] for r in rows])), "ratio",
+                   baseline=naive)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats")
@@ -170,6 +208,7 @@ def main() -> int:
     bench_grid(tex1024, repeats)
     bench_bake(tex1024, repeats)
     bench_quality(img, repeats)
+    bench_real(args.quick)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}", file=sys.stderr)
     return 0

@@ -120,6 +120,13 @@ def test_corner_solve_replicates_edge_ratios():
     np.testing.assert_allclose(ext, [192.2, 71.1], atol=0.1)  # the paper's eq. 10 per triangle
 
 
+def test_corner_solve_refuses_zero_length_contour_segment():
+    C = np.vstack([SQUARE, SQUARE[:1]])
+    S = np.array([[0, 1], [1, 2], [2, 3], [3, 4], [4, 0]])
+    with pytest.raises(ValueError, match="segments of positive length"):
+        CornerSolver(C, SQUARE_F, S)
+
+
 def test_interior_solve_keeps_a_rigid_band_and_factors_once():
     g = build_grid(SQUARE, SQUARE_S, (10, 10))
     T = np.zeros((2, 50, 100), np.float32)
@@ -245,14 +252,14 @@ def test_toroidal_surface_keeps_whole_repetitions():
 
 # ---------------------------------------------------------------- the pipeline
 
-def run(tmp_path, name="facade", **cfg):
+def run(tmp_path, name="facade", previews="all", **cfg):
     base = {"method": "reshape", "input": str(SAMPLES / "reshape-facade.obj"), "preview_size": 128,
             "handles": [{"half_space": {"axis": "x", "above": 3.99}, "displacement": [4, 0, 0]}],
             "fixed": [{"half_space": {"axis": "x", "below": 0.01}}]}
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump({**base, **cfg}))
     out = tmp_path / f"out-{name}"
-    return run_config(path, out_dir=out, show_progress=False), out
+    return run_config(path, out_dir=out, show_progress=False, previews=previews), out
 
 
 def test_pipeline_writes_reshaped_mesh_textures_and_report(tmp_path):
@@ -286,8 +293,9 @@ def test_pipeline_stretch_mode_and_no_previews_and_determinism(tmp_path):
     assert report["metrics"]["texture"] == "stretch" and "surfaces" not in report["metrics"]
     assert load_textured(out / "reshape-facade.obj").materials == ["facade", "facade_end"]
     _, out_a = run(tmp_path, "a")
-    _, out_b = run(tmp_path, "b")
+    _, out_b = run(tmp_path, "b", previews="summary")
     assert (out_a / "facade_retex0.png").read_bytes() == (out_b / "facade_retex0.png").read_bytes()
+    assert (out_a / "texture").is_dir() and not (out_b / "texture").exists()
 
 
 # ---------------------------------------------------------------- bad input: one line, exit code, nothing written

@@ -88,8 +88,8 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
 @dataclass
 class SurfaceResult:
     """A reshaped surface: new ``UV (c, 2)`` of its corners, the baked texture ``(Ho, Wo, 3)``, the
-    naive stretch ``(Hn, Wn, 3)``, the grids before and after (texels), the metrics dict, and the
-    output's stochastic mask ``(Ho, Wo)`` (for previews)."""
+    naive stretch ``(Hn, Wn, 3)``, the grid (nodes in source texels) and its nodes ``Y (n, 2)`` in
+    output texels, and the metrics dict."""
 
     UV: np.ndarray
     texture: np.ndarray

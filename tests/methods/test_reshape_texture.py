@@ -171,6 +171,21 @@ def test_tile_growth_finds_the_rectangle_and_is_deterministic():
     np.testing.assert_array_equal(ids, again)
 
 
+def test_exact_largest_rectangle_against_brute_force():
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        region = rng.random((7, 9)) < 0.75
+        best = max(((y1 - y0) * (x1 - x0), (y0, x0, y1, x1)) for y0 in range(7) for y1 in range(y0 + 1, 8)
+                   for x0 in range(9) for x1 in range(x0 + 1, 10) if region[y0:y1, x0:x1].all())
+        r = detail.largest_rectangle(region)
+        assert (r[2] - r[0]) * (r[3] - r[1]) == best[0] and region[r[0]:r[2], r[1]:r[3]].all()
+    assert detail.largest_rectangle(np.zeros((3, 3), bool)) is None
+    L = np.zeros((20, 20), bool)
+    L[2:18, 2:6] = L[14:18, 2:18] = True  # an L: the spiral may stop in the thin arm, exact may not
+    ids, tiles = detail.tile_map(~L, rng=np.random.default_rng(0), search="exact")
+    assert (tiles[1, 2] - tiles[1, 0]) * (tiles[1, 3] - tiles[1, 1]) == 64
+
+
 def test_base_detail_sum_and_energy():
     img = (0.5 + 0.03 * np.random.default_rng(4).normal(size=(32, 32, 3))).astype(np.float32)
     img[:, 16:] += 0.4  # an edge the base keeps

@@ -245,6 +245,9 @@ class TextureSection(StrictModel):
         0.5, gt=0, le=10, description="Luminance step (equalized units) at which a cut becomes cheap [BJ01]."
     )
     tries: int = Field(8, ge=1, le=1000, description="Random seeds per stochastic region; the largest tile is kept.")
+    tile_search: Literal["spiral", "exact"] = Field(
+        "spiral", description="Tile per region: spiral growth from random seeds (paper) or the exact largest rectangle."
+    )
     sigma_s: float = Field(3.0, gt=0, le=50, description="Bilateral filter spatial sigma (texels).")
     sigma_r: float = Field(0.2, gt=0, le=1, description="Bilateral filter range sigma (intensity).")
     ramp: float = Field(

@@ -17,6 +17,9 @@
 2. :func:`grow_tile`: in one stochastic region, a rectangle grown from a random seed, spiral-like
    (right, down, left, up in turn, each side as far as one step keeps the rectangle inside); the
    largest over ``tries`` seeds is the region's detail tile (the paper's naive search).
+   :func:`largest_rectangle` is the exact search beyond the paper (the paper points to [DMR97]
+   for polygons; on a texel mask the "largest rectangle in a histogram" pass over the rows is
+   exact in O(H W)): ``tile_map(..., search="exact")``.
 3. :func:`tile_map`: tile id per texel (0 rigid or no tile) and the ``(k, 4)`` tile table.
 4. :func:`base_detail`: a bilateral filter [TM98] splits the texture into base and detail.
 """
@@ -24,12 +27,14 @@
 from __future__ import annotations
 
 import cv2
+import numba
 import numpy as np
 from scipy import ndimage
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.graphcut import grid_mincut
 
-__all__ = ["segment_rigid", "grow_tile", "tile_map", "base_detail"]
+__all__ = ["segment_rigid", "grow_tile", "largest_rectangle", "tile_map", "base_detail"]
 
 
 def segment_rigid(T, lum, *, tau: float, smoothness: float, edge_sigma: float) -> np.ndarray:
@@ -98,18 +103,52 @@ def grow_tile(region: np.ndarray, *, rng, tries: int = 8) -> tuple[int, int, int
     return best
 
 
-def tile_map(rigid: np.ndarray, *, rng, tries: int = 8, min_side: int = 4) -> tuple[np.ndarray, np.ndarray]:
+@numba.njit(cache=NUMBA_CACHE)
+def _histogram_rectangle(region):  # pragma: no cover - compiled
+    H, W = region.shape
+    height = np.zeros(W + 1, np.int64)
+    stack = np.zeros(W + 2, np.int64)
+    best = np.zeros(5, np.int64)  # area, y0, x0, y1, x1
+    for y in range(H):
+        for x in range(W):
+            height[x] = height[x] + 1 if region[y, x] else 0
+        top = 0
+        for x in range(W + 1):
+            h = height[x] if x < W else 0
+            while top > 0 and height[stack[top - 1]] >= h:
+                hh = height[stack[top - 1]]
+                top -= 1
+                left = stack[top - 1] + 1 if top > 0 else 0
+                if hh * (x - left) > best[0]:
+                    best[0], best[1], best[2], best[3], best[4] = hh * (x - left), y - hh + 1, left, y + 1, x
+            stack[top] = x
+            top += 1
+    return best
+
+
+def largest_rectangle(region: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The largest all-true axis-parallel rectangle ``(y0, x0, y1, x1)`` (end exclusive) of
+    ``region (H, W) bool``, exactly; None for an empty region."""
+    best = _histogram_rectangle(np.ascontiguousarray(region, np.bool_))
+    return None if best[0] == 0 else tuple(int(v) for v in best[1:])
+
+
+def tile_map(rigid: np.ndarray, *, rng, tries: int = 8, min_side: int = 4,
+             search: str = "spiral") -> tuple[np.ndarray, np.ndarray]:
     """Tile id ``(H, W) int32`` per texel and the tile table ``(k + 1, 4) int64`` of ``(y0, x0, y1,
     x1)`` rows (row 0 unused: id 0 means rigid, or a region whose tile is thinner than
-    ``min_side``). One tile per connected stochastic region (4-connected); seeds come from ``rng``
-    region by region in label order, so the result is deterministic for a seed."""
+    ``min_side``). One tile per connected stochastic region (4-connected), by ``search``
+    ``"spiral"`` (the paper; seeds come from ``rng`` region by region in label order, so the result
+    is deterministic for a seed) or ``"exact"`` (:func:`largest_rectangle`)."""
+    if search not in ("spiral", "exact"):
+        raise ValueError(f"unknown tile search {search!r}")
     labels, n = ndimage.label(~rigid)
     ids = np.zeros(rigid.shape, np.int32)
     table = [(0, 0, 0, 0)]
     objects = ndimage.find_objects(labels)
     for lab, sl in enumerate(objects, start=1):
         region = labels[sl] == lab
-        r = grow_tile(region, rng=rng, tries=tries)
+        r = grow_tile(region, rng=rng, tries=tries) if search == "spiral" else largest_rectangle(region)
         if r is None or min(r[2] - r[0], r[3] - r[1]) < min_side:
             continue
         oy, ox = sl[0].start, sl[1].start

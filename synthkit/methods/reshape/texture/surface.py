@@ -42,6 +42,7 @@ class TextureParams:
     smoothness: float = 20.0
     edge_sigma: float = 0.5
     tries: int = 8
+    tile_search: str = "spiral"
     sigma_s: float = 3.0
     sigma_r: float = 0.2
     ramp: float = 0.25
@@ -77,7 +78,7 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
     rigid = detail.segment_rigid(T, lum, tau=params.tau, smoothness=params.smoothness, edge_sigma=params.edge_sigma)
     t["segmentation"] = time.perf_counter() - start
     start = time.perf_counter()
-    ids, tiles = detail.tile_map(rigid, rng=rng, tries=params.tries)
+    ids, tiles = detail.tile_map(rigid, rng=rng, tries=params.tries, search=params.tile_search)
     t["tiles"] = time.perf_counter() - start
     start = time.perf_counter()
     base, det = detail.base_detail(img, sigma_s=params.sigma_s, sigma_r=params.sigma_r)

@@ -440,7 +440,7 @@ def test_real_house_door_and_window_surfaces(tmp_path, name, mode):
     mesh = load_textured(source)
     report, out = run(tmp_path, "house", input=str(source), contacts={"tol": 1e-4}, preview_size=64,
                       texture_reshape={"previews": 0}, **house_motion(mesh.V, mode))
-    assert report["metrics"]["texture_surfaces"] > 100
+    assert report["metrics"]["texture_surfaces"] > 20 and report["metrics"]["texture_untouched_surfaces"] > 20
     rows = door_window_rows(report, mesh, HOUSE_ATLAS[name])
     (tmp_path / "rows.json").write_text(json.dumps(rows))
     assert rows, "no stretched door or window surface"

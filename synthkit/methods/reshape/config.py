@@ -253,6 +253,10 @@ class TextureSection(StrictModel):
     ramp: float = Field(
         0.25, gt=0, le=10, description="Stretch at which tiled detail fully replaces the stretched detail (0.25: 25 %)."
     )
+    unchanged_texels: float = Field(
+        0.5, ge=0, le=100,
+        description="A surface none of whose edges would change by this many texels keeps its texture and UVs.",
+    )
     max_side: int = Field(4096, ge=16, le=16384, description="Largest side of a baked texture (texels).")
     previews: int = Field(4, ge=0, le=100, description="Surfaces (largest first) that get texture previews.")
 

@@ -2,8 +2,10 @@
 
 For each piece, each textured surface (a surface whose material's MTL names a ``map_Kd`` image)
 whose world edge lengths changed is reshaped by :func:`texture.surface.reshape_surface`; a surface
-whose edges kept their lengths (every ratio within ``UNCHANGED_TOL`` of 1) keeps its UVs and
-material, so its texture comes back unchanged. Each texture is analysed once
+whose edges kept their lengths (every ratio within ``UNCHANGED_TOL`` of 1, or no texture-space
+edge that would move by ``texture_reshape.unchanged_texels``, half a texel by default: the least
+squares geometry solve changes every edge a little) keeps its UVs and material, so its texture
+comes back unchanged. Each texture is analysed once
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
@@ -116,10 +118,24 @@ def _degenerate(C, F) -> str | None:
     return None
 
 
+def _texture(cfg, path, images) -> tuple[int, int]:
+    """``(W, H)`` of the texture at ``path`` (read once into ``images``); ConfigError when the grid
+    spacing is below one of its texels."""
+    if path not in images:
+        images[path] = load_image(path)
+    H, W = images[path].shape[:2]
+    spacing = cfg.texture_reshape.spacing
+    if spacing * min(H, W) < 1:
+        raise ConfigError(f"texture_reshape.spacing: {spacing:g} of {path.name} ({W} x {H}) is "
+                          f"{spacing * min(H, W):.3g} texels, below one texel")
+    return W, H
+
+
 def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped) -> tuple[list[SurfaceJob], int]:
     """The changed textured surfaces of piece ``p`` (render vertices ``r.start..r.stop``, faces from
-    ``fstart``) and the number of its textured surfaces left untouched; surfaces whose UVs cannot
-    carry a grid go into ``skipped`` (name -> reason) and keep the naive stretch."""
+    ``fstart``) and the number of its textured surfaces left untouched (no texture-space edge would
+    move by ``unchanged_texels``); surfaces whose UVs cannot carry a grid go into ``skipped``
+    (name -> reason) and keep the naive stretch."""
     jobs, untouched = [], 0
     Fp = mesh.F
     surf = graph.face_surface[fstart:fstart + len(Fp)]
@@ -133,19 +149,18 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
         Fl = np.searchsorted(verts, Fp[faces])
         a, b = (V0[r.start + verts], V1[r.start + verts])
         e = np.vstack([Fl[:, [0, 1]], Fl[:, [1, 2]], Fl[:, [2, 0]]])
-        if np.abs(_ratio(a, b, e[:, 0], e[:, 1]) - 1).max() <= UNCHANGED_TOL:
+        change = np.abs(_ratio(a, b, e[:, 0], e[:, 1]) - 1)
+        if change.max() <= UNCHANGED_TOL:
             untouched += 1
             continue
         name = f"{r.name}.{material}.{k}"
         toroidal = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
-        if path not in images:
-            images[path] = load_image(path)
-        H, W = images[path].shape[:2]
-        if cfg.texture_reshape.spacing * min(H, W) < 1:
-            raise ConfigError(f"texture_reshape.spacing: {cfg.texture_reshape.spacing:g} of {path.name} "
-                              f"({W} x {H}) is {cfg.texture_reshape.spacing * min(H, W):.3g} texels, below one texel")
+        W, H = _texture(cfg, path, images)
         UV = mesh.UV[verts]
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
+        if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
+            untouched += 1
+            continue
         reason = _degenerate(C, Fl)
         if reason:
             skipped[name] = reason

@@ -248,6 +248,10 @@ class TextureSection(StrictModel):
     tile_search: Literal["spiral", "exact"] = Field(
         "spiral", description="Tile per region: spiral growth from random seeds (paper) or the exact largest rectangle."
     )
+    min_tile: int = Field(
+        16, ge=1, le=4096,
+        description="Tiles thinner than this (texels) are dropped: tiled 4-texel tiles put a seam every 4 texels.",
+    )
     sigma_s: float = Field(3.0, gt=0, le=50, description="Bilateral filter spatial sigma (texels).")
     sigma_r: float = Field(0.2, gt=0, le=1, description="Bilateral filter range sigma (intensity).")
     ramp: float = Field(

@@ -466,7 +466,7 @@ def _texture_previews(ctx, cfg, results) -> None:
                      TP.grid_image(res.texture, res.Y, res.grid.edges)],
                     titles=["grid before", "grid after"], height=cfg.preview_size)
         montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
-                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, tex.tiles)[rows, cols]],
+                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
                     titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
         montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
                     titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)

@@ -67,7 +67,7 @@ def params_of(cfg) -> TextureParams:
     """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
     t = cfg.texture_reshape
     names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
-             "smoothness", "edge_sigma", "tries", "tile_search", "sigma_s", "sigma_r", "ramp", "max_side")
+             "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "sigma_s", "sigma_r", "ramp", "max_side")
     return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
 
 
@@ -205,7 +205,7 @@ def reshape_jobs(cfg, jobs, images, rng):
             analyses[key] = analyse_texture(images[job.texture], wrap=job.toroidal, params=params, rng=rng)
         try:
             res = reshape_surface(job.C, job.F, job.segments, job.ratio, analyses[key], toroidal=job.toroidal,
-                                  params=params)
+                                  params=params, rng=rng)
         except ValueError as exc:
             raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
         UV = np.zeros((int(job.vertices.max()) + 1, 2))

@@ -43,6 +43,7 @@ class TextureParams:
     edge_sigma: float = 0.5
     tries: int = 8
     tile_search: str = "spiral"
+    min_tile: int = 16
     sigma_s: float = 3.0
     sigma_r: float = 0.2
     ramp: float = 0.25
@@ -78,7 +79,8 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
     rigid = detail.segment_rigid(T, lum, tau=params.tau, smoothness=params.smoothness, edge_sigma=params.edge_sigma)
     t["segmentation"] = time.perf_counter() - start
     start = time.perf_counter()
-    ids, tiles = detail.tile_map(rigid, rng=rng, tries=params.tries, search=params.tile_search)
+    ids, tiles = detail.tile_map(rigid, rng=rng, tries=params.tries, search=params.tile_search,
+                                 min_side=params.min_tile)
     t["tiles"] = time.perf_counter() - start
     start = time.perf_counter()
     base, det = detail.base_detail(img, sigma_s=params.sigma_s, sigma_r=params.sigma_r)
@@ -90,7 +92,7 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
 class SurfaceResult:
     """A reshaped surface: new ``UV (c, 2)`` of its corners, the baked texture ``(Ho, Wo, 3)``, the
     naive stretch ``(Hn, Wn, 3)``, the grid (nodes in source texels) and its nodes ``Y (n, 2)`` in
-    output texels, and the metrics dict."""
+    output texels, the metrics dict and the detail tiles ``(k + 1, 4)`` (source texels) it used."""
 
     UV: np.ndarray
     texture: np.ndarray
@@ -98,6 +100,7 @@ class SurfaceResult:
     grid: DeformationGrid
     Y: np.ndarray
     metrics: dict
+    tiles: np.ndarray
 
 
 def _tile_problem(C, Cn, size):
@@ -186,7 +189,7 @@ def _texel_lookup(mask, uv, wrap):
     return mask[iy, ix]
 
 
-def _measure(tex, dmap, J, out, energy_in, *, tau, stretched_at=1.25) -> dict:
+def _measure(tex, tile_ids, dmap, J, out, energy_in, *, tau, stretched_at=1.25) -> dict:
     """Rigid scale error, stochastic stretch and detail energy ratio of one output whose triangles
     (``dmap.triangle`` per texel) have the Jacobians ``J (t, 2, 2)``.
 
@@ -203,7 +206,7 @@ def _measure(tex, dmap, J, out, energy_in, *, tau, stretched_at=1.25) -> dict:
         errs.append(np.abs(scale[:, d] - 1.0)[tri[rigid_d]])
     err = np.concatenate(errs)
     smax = np.linalg.svd(J, compute_uv=False)[:, 0][tri]
-    stoch = (_texel_lookup(tex.tile_ids, dmap.uv, tex.wrap) != 0) & covered
+    stoch = (_texel_lookup(tile_ids, dmap.uv, tex.wrap) != 0) & covered
     region = stoch & (smax >= stretched_at)
     e_out = bake.laplacian_energy(out, region) if region.sum() > 16 else float("nan")
     return {"rigid_scale_error": float(err.mean()) if len(err) else 0.0,
@@ -227,38 +230,65 @@ def _naive(tex, C, Cn, F, size, toroidal):
     return dm, bake.triangle_jacobians(X, Xn, Fn)
 
 
-def reshape_surface(C, F, segments, ratio, tex: TextureAnalysis, *, toroidal: bool,
-                    params: TextureParams) -> SurfaceResult:
+def _surface_tiles(tex: TextureAnalysis, grid: DeformationGrid, params: TextureParams, rng):
+    """Tile map ``(H, W) int32`` and table ``(k + 1, 4)`` of the stochastic regions *inside this
+    surface's texture-space polygon*.
+
+    Why per surface: in an atlas, stochastic texels of neighbouring patches touch, so one connected
+    region of the whole atlas would hand a garage door the tile grown in the concrete patch beside
+    it (house4 raised: detail energy 7x the garage's own). The polygon is rasterized from the
+    grid's triangles, and the regions are cut by its outline."""
+    H, W = tex.rigid.shape
+    lo = np.clip(np.floor(grid.X.min(axis=0)), 0, [W - 1, H - 1]).astype(int)
+    hi = np.clip(np.ceil(grid.X.max(axis=0)), lo + 1, [W, H]).astype(int)
+    X = grid.X - lo
+    inside = bake.distortion_map(X, X, grid.triangles, (hi[1] - lo[1], hi[0] - lo[0])).covered
+    stoch = inside & ~tex.rigid[lo[1]:hi[1], lo[0]:hi[0]]
+    ids_w, tiles = detail.tile_map(~stoch, rng=rng, tries=params.tries, search=params.tile_search,
+                                   min_side=params.min_tile)
+    ids = np.zeros((H, W), np.int32)
+    ids[lo[1]:hi[1], lo[0]:hi[0]] = ids_w
+    tiles[1:] += [lo[1], lo[0], lo[1], lo[0]]
+    return ids, tiles
+
+
+def reshape_surface(C, F, segments, ratio, tex: TextureAnalysis, *, toroidal: bool, params: TextureParams,
+                    rng=None) -> SurfaceResult:
     """Reshape the texture of one surface with corners ``C (c, 2)`` (texels of ``tex.img``),
     triangles ``F (t, 3)`` and contour ``segments (S, 2)`` over them, for the world edge length
-    ratios ``ratio`` (see :meth:`CornerSolver.solve`). Raises ValueError when the output would
-    exceed ``params.max_side`` texels or the grid is degenerate."""
+    ratios ``ratio`` (see :meth:`CornerSolver.solve`). ``rng`` seeds the surface's tile growth
+    (:func:`_surface_tiles`; a toroidal surface uses the texture's own tile map). Raises
+    ValueError when the output would exceed ``params.max_side`` texels or the grid is degenerate."""
     size = np.array(tex.img.shape[1::-1], np.float64)
     Cn, grid, Y, shape, scale, info = _solve(C, F, segments, ratio, size, toroidal, tex, params)
+    if toroidal:
+        tile_ids, tiles = tex.tile_ids, tex.tiles
+    else:
+        tile_ids, tiles = _surface_tiles(tex, grid, params, np.random.default_rng(rng))
     if max(shape) > params.max_side:
         raise ValueError(f"baked texture would be {shape[1]} x {shape[0]} texels (max_side {params.max_side})")
     start = time.perf_counter()
     dmap = bake.distortion_map(grid.X, Y, grid.triangles, shape)
     smax = bake.triangle_stretch(grid.X, Y, grid.triangles)[:, 0][dmap.triangle]
     amount = np.clip((smax - 1.0) / params.ramp, 0.0, 1.0)
-    out = bake.bake(tex.base, tex.detail, tex.tile_ids, tex.tiles, dmap, amount, wrap=toroidal)
+    out = bake.bake(tex.base, tex.detail, tile_ids, tiles, dmap, amount, wrap=toroidal)
     bake_ms = 1e3 * (time.perf_counter() - start)
     reached = np.zeros(tex.rigid.shape, bool)
     reached[_texel_index(dmap.uv[dmap.covered], tex.rigid.shape, toroidal)] = True
-    energy_in = bake.laplacian_energy(tex.img, reached & (tex.tile_ids != 0))
+    energy_in = bake.laplacian_energy(tex.img, reached & (tile_ids != 0))
     m = {**grid.counts, **info, "bake_ms": bake_ms, "texture_shape": list(shape),
-         **_measure(tex, dmap, bake.triangle_jacobians(grid.X, Y, grid.triangles), out, energy_in,
+         **_measure(tex, tile_ids, dmap, bake.triangle_jacobians(grid.X, Y, grid.triangles), out, energy_in,
                     tau=params.tau)}
     ndm, nJ = _naive(tex, C, Cn, F, size, toroidal)
     naive = np.clip(bake.remap(tex.img, ndm.uv, toroidal), 0, 1)
-    base_m = _measure(tex, ndm, nJ, naive, energy_in, tau=params.tau)
+    base_m = _measure(tex, tile_ids, ndm, nJ, naive, energy_in, tau=params.tau)
     m.update(baseline_rigid_scale_error=base_m["rigid_scale_error"],
              baseline_detail_energy_ratio=base_m["detail_energy_ratio"],
              equations=info["corner_equations"] + info["interior_equations"],
              factor_ms=info["corner_factor_ms"] + info["interior_factor_ms"],
              solve_ms=info["corner_solve_ms"] + info["interior_solve_ms"],
-             tiles=int(len(np.unique(tex.tile_ids[reached & (tex.tile_ids != 0)]))))
-    return SurfaceResult(_new_uv(C, Cn, shape, size, scale, toroidal), out, naive, grid, Y, m)
+             tiles=int(len(np.unique(tile_ids[reached & (tile_ids != 0)]))))
+    return SurfaceResult(_new_uv(C, Cn, shape, size, scale, toroidal), out, naive, grid, Y, m, tiles)
 
 
 def _texel_index(uv, shape, wrap):

@@ -368,6 +368,13 @@ def test_bad_input_spacing_below_one_texel(tmp_path):
     assert "texture_reshape.spacing: 0.001 of reshape-facade.png (512 x 512) is 0.512 texels, below one texel" in line
 
 
+def test_bad_input_baked_texture_too_large(tmp_path):
+    code, line = _invoke(tmp_path, SAMPLES / "reshape-facade.obj", texture_reshape={"max_side": 600})
+    assert code == 2
+    assert line.endswith("texture_reshape.max_side: surface reshape-facade.facade.0: baked texture would be "
+                         "1024 x 512 texels (max_side 600)")
+
+
 @pytest.mark.parametrize("key", ["delta", "neighbourhood"])
 def test_bad_input_delta_or_neighbourhood_below_one(tmp_path, key):
     code, line = _invoke(tmp_path, SAMPLES / "reshape-facade.obj", texture_reshape={key: 0})

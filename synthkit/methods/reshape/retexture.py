@@ -207,6 +207,8 @@ def reshape_jobs(cfg, jobs, images, rng):
             res = reshape_surface(job.C, job.F, job.segments, job.ratio, analyses[key], toroidal=job.toroidal,
                                   params=params, rng=rng)
         except ValueError as exc:
+            if "max_side" in str(exc):
+                raise ConfigError(f"texture_reshape.max_side: surface {job.name}: {exc}") from None
             raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
         UV = np.zeros((int(job.vertices.max()) + 1, 2))
         UV[job.vertices] = res.UV

@@ -161,8 +161,9 @@ def _solve(C, F, segments, ratio, size, toroidal, tex: TextureAnalysis, p: Textu
     return Cn, grid, Y, tuple(int(v) for v in shape), scale, info
 
 
-_SNAP = 1e-6
-"""Solved corners this close to a texel boundary count as on it (the solve is exact to ~1e-9)."""
+_SNAP = 1e-2
+"""Solved corners this close (texels) to a texel boundary count as on it: the geometry's least
+squares changes a kept edge by about 1e-6 of its length, which must not add a row of texels."""
 
 
 def _origin(Cn) -> np.ndarray:

@@ -186,6 +186,19 @@ def test_exact_largest_rectangle_against_brute_force():
     assert (tiles[1, 2] - tiles[1, 0]) * (tiles[1, 3] - tiles[1, 1]) == 64
 
 
+def test_split_regions_gives_two_touching_materials_a_tile_each():
+    rng = np.random.default_rng(8)
+    lum = np.where(np.arange(64)[None, :] < 32, 0.05, 1.0) * rng.normal(size=(64, 64))
+    lum[:, 32:] += 2.0  # right half: brighter and rougher
+    stoch = np.ones((64, 64), bool)
+    assert len(detail.tile_map(~stoch, rng=np.random.default_rng(0))[1]) == 2  # one region, one tile
+    labels = detail.split_regions(stoch, lum.astype(np.float32), clusters=2, rng=np.random.default_rng(0))
+    ids, tiles = detail.tile_map(~stoch, rng=np.random.default_rng(0), labels=labels, min_side=8)
+    assert len(tiles) >= 3
+    sides = {bool(x1 <= 36) for _, x0, _, x1 in tiles[1:] if x1 <= 36 or x0 >= 28}
+    assert sides == {True, False}  # a tile in each half
+
+
 def test_base_detail_sum_and_energy():
     img = (0.5 + 0.03 * np.random.default_rng(4).normal(size=(32, 32, 3))).astype(np.float32)
     img[:, 16:] += 0.4  # an edge the base keeps

@@ -252,6 +252,12 @@ class TextureSection(StrictModel):
         16, ge=1, le=4096,
         description="Tiles thinner than this (texels) are dropped: tiled 4-texel tiles put a seam every 4 texels.",
     )
+    regions: Literal["connected", "split"] = Field(
+        "connected",
+        description="One tile per connected stochastic region (paper), or split them by k-means on local statistics "
+        "first (its section 6's multi-label remedy).",
+    )
+    clusters: int = Field(3, ge=2, le=16, description="k of the k-means with regions: split.")
     sigma_s: float = Field(3.0, gt=0, le=50, description="Bilateral filter spatial sigma (texels).")
     sigma_r: float = Field(0.2, gt=0, le=1, description="Bilateral filter range sigma (intensity).")
     ramp: float = Field(

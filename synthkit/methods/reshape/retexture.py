@@ -67,7 +67,8 @@ def params_of(cfg) -> TextureParams:
     """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
     t = cfg.texture_reshape
     names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
-             "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "sigma_s", "sigma_r", "ramp", "max_side")
+             "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
+             "sigma_r", "ramp", "max_side")
     return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
 
 

@@ -44,6 +44,8 @@ class TextureParams:
     tries: int = 8
     tile_search: str = "spiral"
     min_tile: int = 16
+    regions: str = "connected"
+    clusters: int = 3
     sigma_s: float = 3.0
     sigma_r: float = 0.2
     ramp: float = 0.25
@@ -53,12 +55,13 @@ class TextureParams:
 
 @dataclass
 class TextureAnalysis:
-    """Per-texture stages: ``img (H, W, 3)``, ``T (2, H, W)`` (x, y), ``rigid (H, W) bool``,
-    ``tile_ids (H, W) int32``, ``tiles (k + 1, 4)``, ``base`` and ``detail`` ``(H, W, 3)``, and
-    the seconds each took (``timings``)."""
+    """Per-texture stages: ``img (H, W, 3)``, equalized ``lum (H, W)``, ``T (2, H, W)`` (x, y),
+    ``rigid (H, W) bool``, ``tile_ids (H, W) int32``, ``tiles (k + 1, 4)``, ``base`` and
+    ``detail`` ``(H, W, 3)``, and the seconds each took (``timings``)."""
 
     img: np.ndarray
     wrap: bool
+    lum: np.ndarray
     T: np.ndarray
     rigid: np.ndarray
     tile_ids: np.ndarray
@@ -85,7 +88,7 @@ def analyse_texture(img, *, wrap: bool, params: TextureParams, rng) -> TextureAn
     start = time.perf_counter()
     base, det = detail.base_detail(img, sigma_s=params.sigma_s, sigma_r=params.sigma_r)
     t["base_detail"] = time.perf_counter() - start
-    return TextureAnalysis(np.asarray(img, np.float32), wrap, T, rigid, ids, tiles, base, det, t)
+    return TextureAnalysis(np.asarray(img, np.float32), wrap, lum, T, rigid, ids, tiles, base, det, t)
 
 
 @dataclass
@@ -245,8 +248,11 @@ def _surface_tiles(tex: TextureAnalysis, grid: DeformationGrid, params: TextureP
     X = grid.X - lo
     inside = bake.distortion_map(X, X, grid.triangles, (hi[1] - lo[1], hi[0] - lo[0])).covered
     stoch = inside & ~tex.rigid[lo[1]:hi[1], lo[0]:hi[0]]
+    labels = None
+    if params.regions == "split":
+        labels = detail.split_regions(stoch, tex.lum[lo[1]:hi[1], lo[0]:hi[0]], clusters=params.clusters, rng=rng)
     ids_w, tiles = detail.tile_map(~stoch, rng=rng, tries=params.tries, search=params.tile_search,
-                                   min_side=params.min_tile)
+                                   min_side=params.min_tile, labels=labels)
     ids = np.zeros((H, W), np.int32)
     ids[lo[1]:hi[1], lo[0]:hi[0]] = ids_w
     tiles[1:] += [lo[1], lo[0], lo[1], lo[0]]

@@ -2,7 +2,8 @@
 
 :func:`analyse_texture` runs the per-texture stages once (an atlas shared by many surfaces is
 analysed once): luminance equalization, directional autosimilarity (eq. 9), the rigid/stochastic
-cut, tiles and tile map, the bilateral base/detail split. :func:`reshape_surface` runs the
+cut, the tile map (used by toroidal surfaces; other surfaces grow their tiles inside their own
+polygon), the bilateral base/detail split. :func:`reshape_surface` runs the
 per-surface stages: corner solve, toroidal repetitions, deformation grid, interior solve,
 distortion map, stretch, bake, and the naive stretch for comparison, and measures both.
 
@@ -106,15 +107,6 @@ class SurfaceResult:
     tiles: np.ndarray
 
 
-def _tile_problem(C, Cn, size):
-    """Toroidal: the unit tile's corners ``(4, 2)`` (texels), its contour, the deformed corners,
-    the repetitions and per-tile scale."""
-    reps, scale = toroidal_repetitions(Cn / size)
-    W, H = size
-    sq = np.array([[0, 0], [W, 0], [W, H], [0, H]], np.float64)
-    return sq, np.array([[0, 1], [1, 2], [2, 3], [3, 0]]), sq * scale, reps, scale
-
-
 def _periodic_pairs(grid: DeformationGrid, size) -> np.ndarray:
     """``(p, 3)`` rows tying boundary nodes of opposite tile sides (left-right share y, top-bottom x)."""
     X, rows = grid.X, []
@@ -187,10 +179,7 @@ def _new_uv(C, Cn, Y_shape, size, scale, toroidal) -> np.ndarray:
 
 def _texel_lookup(mask, uv, wrap):
     """``mask (H, W)`` read at the nearest texel of ``uv (Ho, Wo, 2)``."""
-    H, W = mask.shape
-    ix, iy = np.floor(uv[..., 0]).astype(np.int64), np.floor(uv[..., 1]).astype(np.int64)
-    ix, iy = (ix % W, iy % H) if wrap else (np.clip(ix, 0, W - 1), np.clip(iy, 0, H - 1))
-    return mask[iy, ix]
+    return mask[_texel_index(uv.reshape(-1, 2), mask.shape, wrap)].reshape(uv.shape[:2])
 
 
 def _measure(tex, tile_ids, dmap, J, out, energy_in, *, tau, stretched_at=1.25) -> dict:
@@ -299,6 +288,7 @@ def reshape_surface(C, F, segments, ratio, tex: TextureAnalysis, *, toroidal: bo
 
 
 def _texel_index(uv, shape, wrap):
+    """Row and column ``(m,)`` arrays of the texels holding ``uv (m, 2)`` (wrapped or clamped)."""
     H, W = shape
     ix, iy = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
     ix, iy = (ix % W, iy % H) if wrap else (np.clip(ix, 0, W - 1), np.clip(iy, 0, H - 1))

@@ -6,7 +6,12 @@ changed (OBJ: the ``v`` lines are rewritten in place, every other line is kept, 
 the texture images it names are copied beside the output; GLB: the scene is written again with
 each geometry's visuals and embedded textures, its node transforms applied to the vertices, so
 positions are in world coordinates and stored as float32). ``companion_files`` lists the files an
-OBJ needs beside it.
+OBJ needs beside it; ``material_textures`` maps each material to the ``map_Kd`` image its MTL names.
+
+A texture reshape gives an OBJ output :class:`Retexture` entries: the faces of a reshaped surface
+then name a new material (in ``<stem>.retex.mtl``, written beside the OBJ and named by a second
+``mtllib`` line) whose ``map_Kd`` is the surface's baked texture, and their corners use new ``vt``
+lines appended at the end of the file; every other line is kept.
 
 Render vertices: an OBJ corner is a ``(v, vt)`` pair; each distinct pair is one render vertex, so
 two triangles share a render vertex exactly when they share 3-D and UV coordinates. A GLB's
@@ -27,7 +32,10 @@ import trimesh
 from synthkit.errors import InputError
 from synthkit.io.meshes import check_mesh
 
-__all__ = ["TexturedMesh", "load_textured", "save_textured", "companion_files", "TEXTURED_SUFFIXES"]
+__all__ = [
+    "TexturedMesh", "Retexture", "load_textured", "save_textured", "companion_files", "material_textures",
+    "TEXTURED_SUFFIXES",
+]
 
 TEXTURED_SUFFIXES = (".obj", ".glb")
 _MAP_KEY = re.compile(r"^\s*(map_\w+|bump|disp|decal|norm)\s+", re.IGNORECASE)
@@ -58,6 +66,19 @@ class TexturedMesh:
     positions: np.ndarray
     source: Path
     _meshes: list = field(default_factory=list, repr=False)
+
+
+@dataclass
+class Retexture:
+    """A reshaped surface of an OBJ output: its triangles ``faces (k,) int64``, the new texture
+    coordinates ``UV (#V, 2)`` of the render vertices they use (other rows are ignored), the new
+    material's name and its baked texture ``image (H, W, 3)`` written as ``image_name``."""
+
+    faces: np.ndarray
+    UV: np.ndarray
+    material: str
+    image_name: str
+    image: np.ndarray
 
 
 def load_textured(path: Path | str) -> TexturedMesh:
@@ -194,10 +215,32 @@ def companion_files(mesh: TexturedMesh) -> list[str]:
     return found
 
 
-def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str) -> None:
+def material_textures(mesh: TexturedMesh) -> dict[str, Path]:
+    """Material name -> the ``map_Kd`` image path its OBJ's MTL names (whether or not the file
+    exists); materials without one are left out. Empty for a GLB (textures are embedded). Raises
+    InputError when an MTL the OBJ names is missing."""
+    if mesh.source.suffix.lower() != ".obj":
+        return {}
+    folder, found = mesh.source.parent, {}
+    for name in _mtl_files(mesh.source):
+        mtl = folder / name
+        if not mtl.is_file():
+            raise InputError(f"{mtl}: material library named by {mesh.source.name} not found")
+        current = None
+        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+            parts = line.split()
+            if parts and parts[0] == "newmtl":
+                current = parts[1] if len(parts) > 1 else ""
+            elif parts and parts[0].lower() == "map_kd" and current is not None and len(parts) > 1:
+                found[current] = (folder / parts[-1])
+    return found
+
+
+def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *, retexture=()) -> None:
     """Write ``mesh`` with its file positions replaced by ``positions (#P, 3)``, in the input's
     format (by ``path``'s suffix, which must match the input's), atomically; an OBJ also gets its
-    :func:`companion_files` copied beside it."""
+    :func:`companion_files` copied beside it and, with ``retexture`` (:class:`Retexture` entries,
+    OBJ only), the reshaped surfaces' materials, textures and UVs."""
     path = Path(path)
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape != mesh.positions.shape:
@@ -205,9 +248,11 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str) -
     suffix = mesh.source.suffix.lower()
     if path.suffix.lower() != suffix:
         raise ValueError(f"output {path.name} must keep the input's format {suffix}")
+    if retexture and suffix != ".obj":
+        raise ValueError("retextured surfaces can only be written to an OBJ")
     tmp = path.with_name(path.name + ".tmp" + suffix)
     if suffix == ".obj":
-        _write_obj(mesh.source, positions, tmp)
+        _write_obj(mesh.source, positions, tmp, _retexture_plan(mesh, list(retexture), path))
         for name in companion_files(mesh):
             target = path.parent / name
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -224,9 +269,66 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str) -
     os.replace(tmp, path)
 
 
-def _write_obj(source: Path, positions: np.ndarray, target: Path) -> None:
-    """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]`` (17 digits: exact)."""
-    out, i = [], 0
+@dataclass
+class _Plan:
+    """How the OBJ writer retextures: entry per triangle ``(#F,)`` (-1 none), new vt index (1-based)
+    per (entry, render vertex), the vt lines to append and the MTL line to add."""
+
+    F: np.ndarray
+    entry_of_face: np.ndarray
+    vt_index: dict
+    vt_lines: list
+    materials: list
+    mtllib: str | None
+
+
+def _retexture_plan(mesh: TexturedMesh, entries: list, path: Path) -> _Plan:
+    """Write the entries' textures and MTL beside ``path`` and plan the OBJ's new lines."""
+    entry_of_face = np.full(len(mesh.F), -1, np.int64)
+    vt_index, vt_lines = {}, []
+    n_vt = sum(1 for line in mesh.source.read_text(encoding="utf-8", errors="replace").splitlines()
+               if line.startswith("vt ") or line.startswith("vt\t"))
+    for e, entry in enumerate(entries):
+        entry_of_face[entry.faces] = e
+        for v in np.unique(mesh.F[entry.faces]):
+            vt_index[(e, int(v))] = n_vt + len(vt_lines) + 1
+            u, w = entry.UV[v]
+            vt_lines.append(f"vt {u:.17g} {w:.17g}")
+    mtllib = None
+    if entries:
+        from synthkit.io.images import save_image
+
+        mtllib = f"{path.stem}.retex.mtl"
+        lines = []
+        for entry in entries:
+            save_image(path.parent / entry.image_name, entry.image)
+            lines += [f"newmtl {entry.material}", "Ka 1 1 1", "Kd 1 1 1", f"map_Kd {entry.image_name}"]
+        tmp = path.parent / (mtllib + ".tmp")
+        tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        os.replace(tmp, path.parent / mtllib)
+    return _Plan(mesh.F, entry_of_face, vt_index, vt_lines, [e.material for e in entries], mtllib)
+
+
+def _face_line(parts, tri: int, plan: _Plan) -> str:
+    """An ``f`` line whose corners use the new vt indices of the plan's entry for triangle ``tri``
+    (the line's fan triangles are ``tri, tri + 1, ...``)."""
+    e = int(plan.entry_of_face[tri])
+    n = len(parts) - 1
+    F = plan.F
+    rv = [F[tri, 0]] + [F[tri + j - 1, 1] for j in range(1, n - 1)] + [F[tri + n - 3, 2]]
+    tokens = []
+    for tok, v in zip(parts[1:], rv, strict=True):
+        fields = tok.split("/")
+        normal = fields[2] if len(fields) > 2 else ""
+        tokens.append(f"{fields[0]}/{plan.vt_index[(e, int(v))]}" + (f"/{normal}" if normal else ""))
+    return "f " + " ".join(tokens)
+
+
+def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | None = None) -> None:
+    """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]`` (17 digits:
+    exact) and, with a ``plan``, the retextured faces rewritten (see :func:`_retexture_plan`)."""
+    out, i, tri, current, active = [], 0, 0, None, None
+    retex = plan is not None and len(plan.materials) > 0
     for line in source.read_text(encoding="utf-8", errors="replace").splitlines():
         parts = line.split()
         if parts and parts[0] == "v":
@@ -234,6 +336,23 @@ def _write_obj(source: Path, positions: np.ndarray, target: Path) -> None:
             extra = " ".join(parts[4:])
             out.append(f"v {x:.17g} {y:.17g} {z:.17g}" + (f" {extra}" if extra else ""))
             i += 1
+        elif retex and parts and parts[0] == "mtllib" and plan.mtllib:
+            out += [line, f"mtllib {plan.mtllib}"]
+            plan.mtllib = None
+        elif retex and parts and parts[0] == "usemtl":
+            current = parts[1] if len(parts) > 1 else ""  # emitted before the next face that uses it
+        elif retex and parts and parts[0] == "f":
+            e = int(plan.entry_of_face[tri])
+            wanted = plan.materials[e] if e >= 0 else current
+            if wanted != active and wanted is not None:
+                out.append(f"usemtl {wanted}")
+                active = wanted
+            out.append(_face_line(parts, tri, plan) if e >= 0 else line)
+            tri += len(parts) - 3
         else:
             out.append(line)
+    if retex:
+        if plan.mtllib:
+            out.insert(0, f"mtllib {plan.mtllib}")
+        out += plan.vt_lines
     target.write_text("\n".join(out) + "\n", encoding="utf-8")

@@ -34,9 +34,10 @@ def truth(name: str) -> dict:
 
 
 def reshape(tmp_path: Path, name: str, **cfg) -> tuple[dict, Path]:
-    """Run ``synthkit reshape`` with ``cfg`` (small previews, no baseline unless asked); returns the
-    report and the output folder."""
-    cfg = {"method": "reshape", "preview_size": 64, "baseline": False, **cfg}
+    """Run ``synthkit reshape`` with ``cfg`` (small previews, no baseline, ``texture: stretch``
+    unless asked: these tests check the geometry reshape, the texture reshape has its own tests in
+    test_reshape_texture.py); returns the report and the output folder."""
+    cfg = {"method": "reshape", "preview_size": 64, "baseline": False, "texture": "stretch", **cfg}
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(cfg))
     out = tmp_path / f"out-{name}"

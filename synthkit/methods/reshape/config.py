@@ -26,6 +26,7 @@ __all__ = [
     "ContactSection",
     "GroupSection",
     "SolverSection",
+    "TextureSection",
 ]
 
 Vec3 = list[float]
@@ -206,6 +207,70 @@ class SolverSection(StrictModel):
     )
 
 
+class TextureSection(StrictModel):
+    """Texture reshape (section 4), used with ``texture: reshape``. Autosimilarity maps are in the
+    units of the equalized luminance (zero mean, unit variance per texture)."""
+
+    delta: int = Field(10, ge=1, le=64, description="Delta of eq. 9: texels searched each way (paper 10).")
+    neighbourhood: int = Field(5, ge=1, le=31, description="Side of the neighbourhoods N(p) of eq. 9 (paper 5).")
+    spacing: float = Field(
+        1 / 32, gt=0, le=0.5, description="Grid spacing, share of the texture side (paper 1/32); at least one texel."
+    )
+    s_min: float = Field(
+        0.01, gt=0, le=100,
+        description="Stiffness of flat texture areas (eq. 13): 0.01 is about half the autosimilarity of plaster "
+        "noise, so stochastic grid edges stretch freely while a door (T about 0.5) is 50x stiffer.",
+    )
+    s_align: float = Field(
+        1.0, ge=0, le=100,
+        description="Weight of the orthogonal-alignment term of eq. 13: 1 doubles a rigid edge's resistance to "
+        "shearing across the direction, which keeps door and window sides straight.",
+    )
+    t_max: float | None = Field(
+        0.4, gt=0, le=1000,
+        description="T_dir is clipped here in eq. 13 (4 tau: rigid texels equally stiff); null: the paper's T.",
+    )
+    samples: int = Field(
+        9, ge=1, le=64, description="T_dir read at this many points of a grid edge, largest kept (1: paper midpoint)."
+    )
+    corner_form: Literal["contour", "triangles"] = Field(
+        "contour", description="Corner solve rows: per contour edge (polygon edges) or the paper's eq. 10 per triangle."
+    )
+    toroidal: Literal["auto"] | list[str] = Field(
+        "auto", description="Materials whose texture repeats; auto: every surface whose UVs leave [0, 1]."
+    )
+    tau: float = Field(0.1, gt=0, le=100, description="Rigid/stochastic threshold on max_dir T_dir (segmentation).")
+    smoothness: float = Field(20.0, ge=0, le=1000, description="Boundary weight of the binary graph cut [BJ01].")
+    edge_sigma: float = Field(
+        0.5, gt=0, le=10, description="Luminance step (equalized units) at which a cut becomes cheap [BJ01]."
+    )
+    tries: int = Field(8, ge=1, le=1000, description="Random seeds per stochastic region; the largest tile is kept.")
+    tile_search: Literal["spiral", "exact"] = Field(
+        "spiral", description="Tile per region: spiral growth from random seeds (paper) or the exact largest rectangle."
+    )
+    min_tile: int = Field(
+        16, ge=1, le=4096,
+        description="Tiles thinner than this (texels) are dropped: tiled 4-texel tiles put a seam every 4 texels.",
+    )
+    regions: Literal["connected", "split"] = Field(
+        "connected",
+        description="One tile per connected stochastic region (paper), or split them by k-means on local statistics "
+        "first (its section 6's multi-label remedy).",
+    )
+    clusters: int = Field(3, ge=2, le=16, description="k of the k-means with regions: split.")
+    sigma_s: float = Field(3.0, gt=0, le=50, description="Bilateral filter spatial sigma (texels).")
+    sigma_r: float = Field(0.2, gt=0, le=1, description="Bilateral filter range sigma (intensity).")
+    ramp: float = Field(
+        0.25, gt=0, le=10, description="Stretch at which tiled detail fully replaces the stretched detail (0.25: 25 %)."
+    )
+    unchanged_texels: float = Field(
+        0.5, ge=0, le=100,
+        description="A surface none of whose edges would change by this many texels keeps its texture and UVs.",
+    )
+    max_side: int = Field(4096, ge=16, le=16384, description="Largest side of a baked texture (texels).")
+    previews: int = Field(4, ge=0, le=100, description="Surfaces (largest first) that get texture previews.")
+
+
 class ReshapeConfig(RunConfig):
     """``synthkit reshape``: structure-preserving reshape of a textured mesh or a chain of pieces."""
 
@@ -223,6 +288,11 @@ class ReshapeConfig(RunConfig):
     groups: GroupSection = Field(default_factory=GroupSection)
     solver: SolverSection = Field(default_factory=SolverSection)
     baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
+    texture: Literal["reshape", "stretch"] = Field(
+        "reshape", description="reshape: each changed textured surface gets a reshaped, baked texture (section 4); "
+        "stretch: UVs kept, the texture follows the geometry (the naive baseline).",
+    )
+    texture_reshape: TextureSection = Field(default_factory=TextureSection)
     preview_size: int = Field(512, ge=64, le=2048, description="Side of the PNG previews in pixels.")
     view: Literal["front", "top", "side", "iso"] = Field("iso", description="View of the previews.")
 

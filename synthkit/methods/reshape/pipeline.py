@@ -29,6 +29,8 @@ from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import save_image
 from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
+from synthkit.methods.reshape import retexture as RT
+from synthkit.methods.reshape import texture_previews as TP
 from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
@@ -43,6 +45,9 @@ log = logging.getLogger("synthkit")
 
 _BYTES_PER_NNZ = 400.0
 """Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
+
+_BYTES_PER_TEXEL = 160.0
+"""Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
 
 
 @dataclass
@@ -312,10 +317,12 @@ def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
     montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
 
 
-def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X):
-    """Each piece in its input's format, with its companion files."""
+def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
+    """Each piece in its input's format, with its companion files and, with ``retex`` (piece index
+    -> :class:`~synthkit.io.textured.Retexture` entries), its reshaped surfaces' MTL and textures."""
     written = set()
-    for name, m, off, r in zip(names, meshes, offsets, ranges, strict=True):
+    retex = retex or {}
+    for i, (name, m, off, r) in enumerate(zip(names, meshes, offsets, ranges, strict=True)):
         P = m.positions.copy()
         P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
         suffix = m.source.suffix.lower()
@@ -324,7 +331,12 @@ def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X):
             if extra not in written:
                 ctx.path(f"file_{extra}", extra)
                 written.add(extra)
-        save_textured(m, P, target)
+        entries = retex.get(i, [])
+        if entries:
+            ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
+            for e in entries:
+                ctx.path(f"texture_{e.material}", e.image_name)
+        save_textured(m, P, target, retexture=entries)
 
 
 def _refuse(cfg, result: DragResult, graph, ranges) -> None:
@@ -413,6 +425,53 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
     return m
 
 
+def _textures(cfg, ctx, sc, graph, X) -> dict:
+    """The texture stage (``texture: reshape``): per piece index the Retexture entries; metrics
+    ``surfaces`` and their worst case go into the report; previews of the largest surfaces."""
+    ctx.metrics["texture"] = cfg.texture
+    if cfg.texture != "reshape":
+        return {}
+    with ctx.stage("texture"):
+        images, skipped = {}, {}
+        jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images, skipped)
+        texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
+        ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
+                           bytes_each=_BYTES_PER_TEXEL)
+        entries, results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
+        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped))
+    with ctx.stage("texture_previews"):
+        _texture_previews(ctx, cfg, results)
+    return entries
+
+
+def _texture_previews(ctx, cfg, results) -> None:
+    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` surfaces the naive stretch would
+    distort most (largest ``baseline_rigid_scale_error`` times baked texels)."""
+    if not ctx.wants_preview("all"):
+        return
+    tau = cfg.texture_reshape.tau
+    def distortion(item):
+        res = item[1][1]
+        return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
+
+    order = sorted(results.items(), key=distortion)[: cfg.texture_reshape.previews]
+    for name, (job, res, tex) in order:
+        rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
+        stem = f"texture/{RT._safe(name)}"
+        montage_png(ctx.path(f"autosim_{name}", f"{stem}_autosimilarity.png"),
+                    [tex.img[rows, cols], TP.autosimilarity_image(tex.T[:, rows, cols], tau)],
+                    titles=["texture", "autosimilarity x red, y green"], height=cfg.preview_size // 2)
+        montage_png(ctx.path(f"grid_{name}", f"{stem}_grid.png"),
+                    [TP.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
+                     TP.grid_image(res.texture, res.Y, res.grid.edges)],
+                    titles=["grid before", "grid after"], height=cfg.preview_size)
+        montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
+                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
+                    titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
+        montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
+                    titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)
+
+
 def run(cfg, ctx) -> None:
     """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
     sc = _load(cfg, ctx)
@@ -463,8 +522,9 @@ def run(cfg, ctx) -> None:
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12
         )
+    retex = _textures(cfg, ctx, sc, graph, result.X)
     with ctx.stage("outputs"):
-        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X)
+        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X, retex)
         _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)

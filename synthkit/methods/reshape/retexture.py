@@ -1,0 +1,238 @@
+"""The texture stage of ``synthkit reshape`` (``texture: reshape``; section 4 of Cabral et al.).
+
+For each piece, each textured surface (a surface whose material's MTL names a ``map_Kd`` image)
+whose world edge lengths changed is reshaped by :func:`texture.surface.reshape_surface`; a surface
+whose edges kept their lengths (every ratio within ``UNCHANGED_TOL`` of 1, or no texture-space
+edge that would move by ``texture_reshape.unchanged_texels``, half a texel by default: the least
+squares geometry solve changes every edge a little) keeps its UVs and material, so its texture
+comes back unchanged. Each texture is analysed once
+(:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
+drawn from the run's ``rng`` are the same for a given seed.
+
+Errors name the file, the surface and the key: a textured surface without UVs, UVs outside [0, 1]
+on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
+below one texel (ConfigError on ``texture_reshape.spacing``). GLB inputs keep the naive stretch
+(their textures are embedded; the writer only retextures OBJ files) and say so in the report.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from synthkit.errors import ConfigError, InputError
+from synthkit.io.images import load_image
+from synthkit.io.textured import Retexture, material_textures
+from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
+
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "texture_metrics", "params_of", "UNCHANGED_TOL", "WORST"]
+
+log = logging.getLogger("synthkit")
+
+UNCHANGED_TOL = 1e-9
+"""A surface whose edge length ratios all lie within this of 1 is untouched."""
+
+MIN_UV_AREA = 16.0
+"""Texels a surface's UVs must cover to get a deformation grid."""
+
+WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max, "bake_ms": max,
+         "rigid_scale_error": max, "stochastic_stretch": max, "detail_energy_ratio": min, "tiles": min,
+         "baseline_rigid_scale_error": max, "baseline_detail_energy_ratio": min}
+"""Per-surface metrics and how their worst case over surfaces is taken (report top level)."""
+
+
+@dataclass
+class SurfaceJob:
+    """One changed textured surface: its name, piece, faces ``(k,)`` (piece-local), render vertices
+    ``(c,)`` (piece-local), material, texture path, corners ``C (c, 2)`` texels, triangles ``F (k, 3)``
+    and contour ``segments (S, 2)`` over them, edge length ratios (callable) and toroidal flag."""
+
+    name: str
+    piece: int
+    faces: np.ndarray
+    vertices: np.ndarray
+    material: str
+    texture: object
+    C: np.ndarray
+    F: np.ndarray
+    segments: np.ndarray
+    ratio: object
+    toroidal: bool
+
+
+def params_of(cfg) -> TextureParams:
+    """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
+    t = cfg.texture_reshape
+    names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
+             "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
+             "sigma_r", "ramp", "max_side")
+    return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
+
+
+def _contour(F: np.ndarray) -> np.ndarray:
+    """Edges ``(S, 2)`` used by exactly one triangle of ``F (k, 3)``, oriented as in their triangle."""
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(he, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return he[counts[inv.reshape(-1)] == 1]
+
+
+def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> bool:
+    """Whether the surface is toroidal; InputError for missing UVs or UVs outside [0, 1] on a
+    texture that does not repeat."""
+    if np.isnan(UV).any():
+        raise InputError(f"{mesh.source}: surface {name} (material {material}) has no UVs, but its texture "
+                         f"{path.name} needs them")
+    outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
+    toroidal = outside if toroidal_cfg == "auto" else material in toroidal_cfg
+    if outside and not toroidal:
+        lo, hi = UV.min(axis=0), UV.max(axis=0)
+        raise InputError(
+            f"{mesh.source}: surface {name} (material {material}) has UVs outside [0, 1] (u {lo[0]:.4g}..{hi[0]:.4g}, "
+            f"v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal (texture_reshape.toroidal)"
+        )
+    return toroidal
+
+
+def _ratio(a, b, i, j) -> np.ndarray:
+    """Edge length ratios ``(m,)`` new/old of edges ``(i, j)`` between rows of ``a``, ``b`` ``(c, 3)``
+    (1 for an edge of zero rest length)."""
+    rest = np.linalg.norm(a[i] - a[j], axis=1)
+    new = np.linalg.norm(b[i] - b[j], axis=1)
+    return np.divide(new, rest, out=np.ones_like(rest), where=rest > 1e-12)
+
+
+def _degenerate(C, F) -> str | None:
+    """Why the texture-space triangles ``F`` over ``C (c, 2)`` (texels) cannot carry a grid, or None:
+    less than MIN_UV_AREA texels in all, or folded (triangles of both orientations, as mirrored
+    atlas patches have)."""
+    d1, d2 = C[F[:, 1]] - C[F[:, 0]], C[F[:, 2]] - C[F[:, 0]]
+    area = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    if np.abs(area).sum() < MIN_UV_AREA:
+        return f"its UVs cover {np.abs(area).sum():.3g} texels (fewer than {MIN_UV_AREA:g})"
+    big = np.abs(area) > 1e-9 * np.abs(area).max()
+    if (area[big] > 0).any() and (area[big] < 0).any():
+        return "its UVs are folded (triangles of both orientations)"
+    return None
+
+
+def _texture(cfg, path, images) -> tuple[int, int]:
+    """``(W, H)`` of the texture at ``path`` (read once into ``images``); ConfigError when the grid
+    spacing is below one of its texels."""
+    if path not in images:
+        images[path] = load_image(path)
+    H, W = images[path].shape[:2]
+    spacing = cfg.texture_reshape.spacing
+    if spacing * min(H, W) < 1:
+        raise ConfigError(f"texture_reshape.spacing: {spacing:g} of {path.name} ({W} x {H}) is "
+                          f"{spacing * min(H, W):.3g} texels, below one texel")
+    return W, H
+
+
+def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped) -> tuple[list[SurfaceJob], int]:
+    """The changed textured surfaces of piece ``p`` (render vertices ``r.start..r.stop``, faces from
+    ``fstart``) and the number of its textured surfaces left untouched (no texture-space edge would
+    move by ``unchanged_texels``); surfaces whose UVs cannot carry a grid go into ``skipped``
+    (name -> reason) and keep the naive stretch."""
+    jobs, untouched = [], 0
+    Fp = mesh.F
+    surf = graph.face_surface[fstart:fstart + len(Fp)]
+    for k, s in enumerate(np.unique(surf)):
+        faces = np.flatnonzero(surf == s)
+        material = mesh.materials[int(mesh.face_material[faces[0]])]
+        path = textures.get(material)
+        if path is None:
+            continue
+        verts = np.unique(Fp[faces])
+        Fl = np.searchsorted(verts, Fp[faces])
+        a, b = (V0[r.start + verts], V1[r.start + verts])
+        e = np.vstack([Fl[:, [0, 1]], Fl[:, [1, 2]], Fl[:, [2, 0]]])
+        change = np.abs(_ratio(a, b, e[:, 0], e[:, 1]) - 1)
+        if change.max() <= UNCHANGED_TOL:
+            untouched += 1
+            continue
+        name = f"{r.name}.{material}.{k}"
+        toroidal = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
+        W, H = _texture(cfg, path, images)
+        UV = mesh.UV[verts]
+        C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
+        if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
+            untouched += 1
+            continue
+        reason = _degenerate(C, Fl)
+        if reason:
+            skipped[name] = reason
+            log.warning("%s: surface %s keeps the naive stretch: %s", mesh.source, name, reason)
+            continue
+        seg = _contour(Fl)
+        seg = seg[np.linalg.norm(C[seg[:, 1]] - C[seg[:, 0]], axis=1) > 1e-9]  # duplicated corners
+        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, seg,
+                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal))
+    return jobs, untouched
+
+
+def surface_jobs(cfg, sc, graph, V1, images: dict, skipped: dict) -> tuple[list[SurfaceJob], dict, int]:
+    """Every changed textured surface of the scene ``sc`` with reshaped render vertices ``V1
+    (#V, 3)``, per piece name a note for pieces whose texture cannot be reshaped (GLB), and the
+    number of untouched textured surfaces. ``images`` (path -> texture) is filled as read,
+    ``skipped`` (surface -> reason) with the surfaces that keep the naive stretch."""
+    jobs, notes, fstart, untouched = [], {}, 0, 0
+    for p, (mesh, r) in enumerate(zip(sc.meshes, sc.ranges, strict=True)):
+        if mesh.source.suffix.lower() != ".obj":
+            notes[r.name] = "GLB: embedded textures keep the naive stretch"
+        else:
+            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, material_textures(mesh), images,
+                                       skipped)
+            jobs += found
+            untouched += kept
+        fstart += len(mesh.F)
+    return jobs, notes, untouched
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
+def reshape_jobs(cfg, jobs, images, rng):
+    """Run every job: per piece the :class:`Retexture` entries, per surface its result and metrics.
+    A stage ValueError becomes an InputError naming the surface."""
+    params, analyses, entries, results = params_of(cfg), {}, {}, {}
+    for job in jobs:
+        key = (job.texture, job.toroidal)
+        if key not in analyses:
+            analyses[key] = analyse_texture(images[job.texture], wrap=job.toroidal, params=params, rng=rng)
+        try:
+            res = reshape_surface(job.C, job.F, job.segments, job.ratio, analyses[key], toroidal=job.toroidal,
+                                  params=params, rng=rng)
+        except ValueError as exc:
+            if "max_side" in str(exc):
+                raise ConfigError(f"texture_reshape.max_side: surface {job.name}: {exc}") from None
+            raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
+        UV = np.zeros((int(job.vertices.max()) + 1, 2))
+        UV[job.vertices] = res.UV
+        material = _safe(f"{job.material}_retex{len(results)}")
+        entries.setdefault(job.piece, []).append(
+            Retexture(job.faces, UV, material, f"{material}.png", res.texture))
+        results[job.name] = (job, res, analyses[key])
+    return entries, results
+
+
+def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict) -> dict:
+    """``surfaces`` (name -> metrics) and the worst case of each :data:`WORST` metric."""
+    surfaces = {}
+    for name, (job, res, _) in results.items():
+        m = dict(res.metrics)
+        m["grid_nodes"] = m.pop("nodes")
+        m.update(material=job.material, texture=job.texture.name, toroidal=job.toroidal)
+        surfaces[name] = m
+    out = {"surfaces": surfaces, "texture_surfaces": len(surfaces), "texture_notes": notes,
+           "texture_untouched_surfaces": untouched, "texture_skipped": skipped}
+    for key, pick in WORST.items():
+        vals = [m[key] for m in surfaces.values() if m.get(key) is not None]
+        top = key if key in ("rigid_scale_error", "stochastic_stretch", "detail_energy_ratio", "tiles",
+                             "baseline_rigid_scale_error", "baseline_detail_energy_ratio") else f"texture_{key}"
+        out[top] = pick(vals) if vals else None
+    return out

@@ -113,8 +113,7 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
     if arr.ndim not in (2, 3) or arr.size == 0:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
     if arr.dtype not in (np.uint8, np.uint16):
-        arr = np.nan_to_num(arr.astype(np.float32), copy=False)  # float32: a preview's pixels need no more
-        arr = np.rint(np.clip(arr, 0.0, 1.0, out=arr) * 255.0, out=arr).astype(np.uint8)
+        arr = np.round(np.clip(np.nan_to_num(arr.astype(np.float64)), 0.0, 1.0) * 255.0).astype(np.uint8)
     if arr.ndim == 3:
         if arr.shape[2] == 1:
             arr = arr[..., 0]

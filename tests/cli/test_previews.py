@@ -18,6 +18,21 @@ def _run(runner, tmp_path, config, level):
     return out / config.stem
 
 
+def _previews(folder: Path) -> set[str]:
+    """Top-level preview PNGs of an output folder, and its preview folders as ``name/``."""
+    names = {p.name for p in folder.glob("*.png") if p.name != "bricks_wall.png" and "_retex" not in p.name}
+    return names | {f"{p.name}/" for p in folder.iterdir() if p.is_dir() and any(p.glob("*.png"))}
+
+
+def _untimed(value):
+    """``value`` with every mapping entry whose key ends in ``_ms`` dropped, at any depth."""
+    if isinstance(value, dict):
+        return {k: _untimed(v) for k, v in value.items() if not k.endswith("_ms")}
+    if isinstance(value, list):
+        return [_untimed(v) for v in value]
+    return value
+
+
 @pytest.mark.parametrize(
     ("config", "summary", "every"),
     [
@@ -25,19 +40,25 @@ def _run(runner, tmp_path, config, level):
         ("retarget/railing-analysis.yaml", {"sparsity.png"},
          {"sparsity.png", "histogram.png", "histogram_xy.png", "histogram_xz.png", "offsets.png", "before.png"}),
         ("reshape/wall.yaml", {"comparison.png"}, {"comparison.png", "before.png", "after.png", "baseline.png"}),
+        ("reshape/wall-texture.yaml", {"comparison.png"},
+         {"comparison.png", "before.png", "after.png", "baseline.png", "texture/"}),
     ],
 )
 def test_preview_levels(runner, tmp_path, config, summary, every):
+    """Each level writes its previews and nothing else changes: the same files (the input's texture
+    copied and the baked ``*_retex*.png`` textures are results, not previews), the same metrics but
+    for the timings reshape reports among them (keys ending in ``_ms``)."""
     config = CONFIGS / config
     folders = {level: _run(runner, tmp_path, config, level) for level in ("all", "summary", "none")}
-    pngs = {level: {p.name for p in folder.glob("*.png")} - {"bricks_wall.png"} for level, folder in folders.items()}
+    pngs = {level: _previews(folder) for level, folder in folders.items()}
     assert pngs == {"all": every, "summary": summary, "none": set()}
     reports = {level: json.loads((folder / "report.json").read_text()) for level, folder in folders.items()}
     assert [reports[level]["previews"] for level in ("all", "summary", "none")] == ["all", "summary", "none"]
-    timed = {"factor_ms", "solve_ms", "normal_ms"}  # reshape reports timings among its metrics (Table 4)
-    metrics = [{k: v for k, v in reports[level]["metrics"].items() if k not in timed} for level in reports]
+    metrics = [_untimed(reports[level]["metrics"]) for level in reports]
     assert metrics[0] == metrics[1] == metrics[2]
-    for name in {p.name for p in folders["all"].iterdir()} - every - {"report.json", ".synthkit-output"}:
+    results = {p.name for p in folders["all"].iterdir() if p.is_file()} - every - {"report.json", ".synthkit-output"}
+    assert results == {p.name for p in folders["none"].iterdir() if p.is_file()} - {"report.json", ".synthkit-output"}
+    for name in results:
         assert (folders["all"] / name).read_bytes() == (folders["none"] / name).read_bytes(), name
     for name in summary:
         assert (folders["all"] / name).read_bytes() == (folders["summary"] / name).read_bytes(), name

@@ -571,3 +571,51 @@ def test_colours_come_from_the_texture_at_the_uvs():
     assert colors.shape == (len(mesh.vertices), 3) and 0 <= colors.min() and colors.max() <= 1
     assert len(np.unique(np.round(colors, 3), axis=0)) > 2  # sampled from the image, not one flat colour
     assert mesh_colors(trimesh.creation.box()) is None
+
+
+# ------------------------------------------------------------------------------------------------
+# smoothing the exported cut (the paper's "straightforward" post-process)
+
+
+def _grid(n=30):
+    xs, ys = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    V = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    q = np.arange((n + 1) * (n + 1)).reshape(n + 1, n + 1)
+    a, b, c, d = q[:-1, :-1].ravel(), q[:-1, 1:].ravel(), q[1:, :-1].ravel(), q[1:, 1:].ravel()
+    return V, np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+
+
+def test_smoothing_straightens_a_staircase_cut_and_keeps_its_ends():
+    from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
+
+    V, F = _grid()
+    C = V[F].mean(axis=1)
+    labels = (C[:, 0] + 0.37 * C[:, 1] < 0.6).astype(int)  # a slanted line: a staircase of mesh edges
+    chains = chain_edges(cut_edges(V, F, labels))
+    assert len(chains) == 1
+    straight = float(np.linalg.norm(V[chains[0][0]] - V[chains[0][-1]]))
+    raw = smooth_chains(V, F, chains, 0)[0]
+    np.testing.assert_array_equal(raw, V[chains[0]])
+    assert polyline_length(raw) > 1.5 * straight
+    smooth = smooth_chains(V, F, chains, 10)[0]
+    assert polyline_length(smooth) == pytest.approx(straight, rel=0.01)
+    np.testing.assert_array_equal(smooth[[0, -1]], V[chains[0][[0, -1]]])
+    assert np.abs(smooth[:, 2]).max() < 1e-12  # on the plane
+    with pytest.raises(ValueError, match="iterations"):
+        smooth_chains(V, F, chains, -1)
+
+
+def test_smoothing_a_loop_keeps_it_on_the_surface_without_shrinking():
+    from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    V, F = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    labels = (V[F].mean(axis=1)[:, 2] > 0.3).astype(int)
+    chains = chain_edges(cut_edges(V, F, labels))
+    assert len(chains) == 1 and chains[0][0] == chains[0][-1]
+    circle = 2 * np.pi * np.sqrt(1 - 0.3**2)
+    raw = polyline_length(V[chains[0]])
+    smooth = smooth_chains(V, F, chains, 20)[0]
+    assert circle * 0.97 < polyline_length(smooth) < raw
+    assert np.abs(np.linalg.norm(smooth, axis=1) - 1).max() < 5e-3  # on the faceted sphere
+    assert np.array_equal(smooth[0], smooth[-1])

@@ -1,0 +1,150 @@
+"""A region of a mesh carrying a signal, in the form the transfer stages use.
+
+A :class:`Signal` is defined per face corner, so texture seams and per-face values need no
+welding: ``values (#F, 3, C)`` (vertex colours, PLY attributes, displacement vectors) interpolated
+barycentrically, or ``uv (#F, 3, 2)`` into ``texture (H, W, C)`` read bilinearly (v up).
+A :class:`Surface` is the region's submesh (``V (#V, 3)``, ``F (#F, 3)`` with vertices welded),
+its signal, per-face tangent frames taken from potpourri3d's vertex frames (the frames its log map
+is expressed in) and a cached :class:`potpourri3d.MeshVectorHeatSolver` for log maps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
+
+__all__ = ["Signal", "Surface", "make_surface", "bilinear"]
+
+
+def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``img (H, W, C)`` read at ``uv (n, 2)`` (u right, v up, [0, 1] spans the image; clamped at
+    the border): ``(n, C)`` float64."""
+    H, W = img.shape[:2]
+    x = np.clip(uv[:, 0] * W - 0.5, 0, W - 1)
+    y = np.clip((1.0 - uv[:, 1]) * H - 0.5, 0, H - 1)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, W - 1), np.minimum(y0 + 1, H - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
+    bot = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    return (top * (1 - fy) + bot * fy).astype(np.float64)
+
+
+@dataclass
+class Signal:
+    """``phi``: per-corner ``values (#F, 3, C)``, or per-corner ``uv (#F, 3, 2)`` into ``texture``.
+
+    ``kind`` is ``color``, ``texture``, ``displacement`` or ``attribute``."""
+
+    kind: str
+    values: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    texture: np.ndarray | None = None
+
+    @property
+    def channels(self) -> int:
+        return int(self.texture.shape[2] if self.values is None else self.values.shape[2])
+
+    def subset(self, faces: np.ndarray) -> Signal:
+        """The signal of the faces ``faces (k,)`` only."""
+        if self.values is not None:
+            return Signal(self.kind, values=self.values[faces])
+        return Signal(self.kind, uv=self.uv[faces], texture=self.texture)
+
+    def uv_at(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """Texture coordinates ``(n, 2)`` at ``faces (n,)``, barycentric ``bary (n, 3)``."""
+        return np.einsum("nk,nkc->nc", bary, self.uv[faces])
+
+    def sample(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """Signal ``(n, C)`` at ``faces (n,)`` with barycentric coordinates ``bary (n, 3)``."""
+        if self.values is not None:
+            return np.einsum("nk,nkc->nc", bary, self.values[faces])
+        return bilinear(self.texture, self.uv_at(faces, bary))
+
+
+@dataclass
+class Surface:
+    """A region submesh with its signal (see the module docstring).
+
+    ``face_ids (#F,)`` are the faces of the full mesh, ``vertex_ids (#V,)`` its vertices;
+    ``pairs (k, 2)`` adjacent faces and ``edges (k, 2)`` their shared edge; ``X``, ``Y``, ``N``
+    ``(#F, 3)`` the face frames; ``vertex_frames`` ``(#V, 3, 3)`` potpourri3d's (X, Y, N) rows."""
+
+    V: np.ndarray
+    F: np.ndarray
+    face_ids: np.ndarray
+    vertex_ids: np.ndarray
+    signal: Signal | None
+    pairs: np.ndarray
+    edges: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    N: np.ndarray
+    areas: np.ndarray
+    vertex_frames: np.ndarray
+    _solver: object = field(default=None, repr=False)
+
+    @property
+    def centroids(self) -> np.ndarray:
+        return self.V[self.F].mean(axis=1)
+
+    @property
+    def area(self) -> float:
+        return float(self.areas.sum())
+
+    def log_map(self, vertex: int) -> np.ndarray:
+        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame."""
+        return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
+
+
+def _face_frames(V, F, vframes):
+    N = face_normals(V, F)
+    X = vframes[F[:, 0], 0]
+    X = X - (X * N).sum(axis=1, keepdims=True) * N
+    bad = np.linalg.norm(X, axis=1) < 1e-9
+    X[bad] = (V[F[bad, 1]] - V[F[bad, 0]])
+    X /= np.maximum(np.linalg.norm(X, axis=1, keepdims=True), 1e-300)
+    return X, np.cross(N, X), N
+
+
+def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, largest: bool = True) -> Surface:
+    """The surface of ``faces (k,)`` of ``V (#V, 3)``, ``F (#F, 3)`` carrying ``signal`` (of the full
+    mesh), vertices welded within ``weld_tol`` (texture seams), degenerate faces dropped and, with
+    ``largest``, reduced to its largest connected piece. ValueError when the region is empty."""
+    import potpourri3d as pp3d
+
+    faces = np.asarray(faces, np.int64)
+    if not len(faces):
+        raise ValueError("region is empty")
+    V2, F2, old = remove_unreferenced(np.asarray(V, np.float64), np.asarray(F, np.int64)[faces])
+    if weld_tol > 0:
+        from synthkit.core.mesh import weld
+
+        _, _, o2n = weld(V2, F2, weld_tol, return_index=True)
+        F2 = o2n[F2]
+        keep_v, F2r = np.unique(F2, return_inverse=True)
+        V2, F2, old = V2[keep_v], F2r.reshape(-1, 3), old[keep_v]
+    ok = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 0] != F2[:, 2]) & (face_areas(V2, F2) > 0)
+    pairs, _ = face_adjacency(F2[ok])
+    keep = _largest_piece(int(ok.sum()), pairs) if largest else np.arange(int(ok.sum()))
+    sel = np.flatnonzero(ok)[keep]
+    V3, F3, old3 = remove_unreferenced(V2, F2[sel])
+    pairs, edges = face_adjacency(F3)
+    solver = pp3d.MeshVectorHeatSolver(V3, F3)
+    frames = np.stack(solver.get_tangent_frames(), axis=1)
+    X, Y, N = _face_frames(V3, F3, frames)
+    sig = None if signal is None else signal.subset(faces[sel])
+    return Surface(V3, F3, faces[sel], old[old3], sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver)
+
+
+def _largest_piece(n: int, pairs: np.ndarray) -> np.ndarray:
+    if n == 0:
+        raise ValueError("region has no non-degenerate faces")
+    A = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, comp = connected_components(A, directed=False)
+    return np.flatnonzero(comp == np.bincount(comp).argmax())

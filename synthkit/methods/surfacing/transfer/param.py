@@ -109,6 +109,15 @@ class Patch:
     seed: int
     source_face: int
 
+    def jacobians(self, source: Surface, tri: np.ndarray) -> np.ndarray:
+        """``(n, 2, 3)`` linear maps of the source triangles ``tri`` (rows of ``src_faces``) from 3-D
+        tangent vectors to the domain (zero on the face normal)."""
+        P = source.V[source.F[self.src_faces[tri]]]
+        Q = self.locator.T[tri]
+        A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], source.N[self.src_faces[tri]]], axis=2)
+        B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0], np.zeros((len(tri), 2))], axis=2)
+        return B @ np.linalg.inv(A)
+
     def to_source(self, Q: np.ndarray):
         """Source faces ``(n,)``, barycentric ``(n, 3)`` and inside flags of domain points ``Q (n, 2)``."""
         tri, bary, inside = self.locator.locate(Q)

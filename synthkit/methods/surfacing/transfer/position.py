@@ -21,7 +21,8 @@ def grading_matrix(centroids: np.ndarray, midpoints: np.ndarray, radius: float) 
     """``(#F, E)`` 0/1 matrix: edge midpoint ``midpoints (E, 3)`` within ``radius`` of face
     centroid ``centroids (#F, 3)``."""
     D = cKDTree(centroids).sparse_distance_matrix(cKDTree(midpoints), radius, output_type="coo_matrix")
-    W = sp.coo_matrix((np.ones(D.nnz), (D.row, D.col)), shape=(len(centroids), len(midpoints)))
+    W = sp.coo_matrix((np.ones(D.nnz, np.float32), (D.row.astype(np.int32), D.col.astype(np.int32))),
+                      shape=(len(centroids), len(midpoints)))
     return W.tocsr()
 
 

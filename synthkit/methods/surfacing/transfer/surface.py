@@ -60,8 +60,17 @@ class Signal:
         """Texture coordinates ``(n, 2)`` at ``faces (n,)``, barycentric ``bary (n, 3)``."""
         return np.einsum("nk,nkc->nc", bary, self.uv[faces])
 
-    def sample(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
-        """Signal ``(n, C)`` at ``faces (n,)`` with barycentric coordinates ``bary (n, 3)``."""
+    def sample(self, faces: np.ndarray, bary: np.ndarray, *, nearest: bool = False) -> np.ndarray:
+        """Signal ``(n, C)`` at ``faces (n,)`` with barycentric coordinates ``bary (n, 3)``;
+        ``nearest``: the value of the nearest corner (or texel), so no new value is made."""
+        if nearest and self.values is not None:
+            return self.values[faces, np.argmax(bary, axis=1)].astype(np.float64)
+        if nearest:
+            H, W = self.texture.shape[:2]
+            uv = self.uv_at(faces, bary)
+            x = np.clip(np.floor(uv[:, 0] * W), 0, W - 1).astype(np.int64)
+            y = np.clip(np.floor((1.0 - uv[:, 1]) * H), 0, H - 1).astype(np.int64)
+            return self.texture[y, x].astype(np.float64)
         if self.values is not None:
             return np.einsum("nk,nkc->nc", bary, self.values[faces])
         return bilinear(self.texture, self.uv_at(faces, bary))

@@ -16,7 +16,7 @@ kept patches (``3 max_patches`` iterations at most).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,7 +26,10 @@ from synthkit.methods.surfacing.transfer.param import Patch, mutual_patch
 from synthkit.methods.surfacing.transfer.surface import Surface
 from synthkit.methods.surfacing.transfer.trim import seam_costs, trim_cut
 
-__all__ = ["Options", "Result", "Synthesis", "synthesize"]
+__all__ = ["Options", "Result", "Synthesis", "synthesize", "GRADE_SHARE"]
+
+GRADE_SHARE = 0.25
+"""Radius of the grading neighbourhood (4.1) as a share of the patch radius."""
 
 
 @dataclass
@@ -51,7 +54,8 @@ class Options:
 @dataclass
 class Result:
     """``patch_of (#F,)``, ``corner_uv (#F, 3, 2)``, ``patches``, per-face ``distortion (#F,)``,
-    ``seam_cost`` per iteration, timings per step kind, ``failed (#F,) bool`` skipped faces."""
+    ``seam_cost`` per iteration, timings per step kind, ``failed (#F,) bool`` skipped faces and the
+    final edge ``samples (E, 2, ns, C)``."""
 
     patch_of: np.ndarray
     corner_uv: np.ndarray
@@ -60,8 +64,8 @@ class Result:
     seam_cost: list[float]
     timings: dict
     failed: np.ndarray
-    iterations: int = 0
-    snapshots: list = field(default_factory=list)
+    iterations: int
+    samples: np.ndarray
 
 
 def _corner_index(F: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -92,7 +96,7 @@ class Synthesis:
         C = len(channels) if channels is not None else source.signal.channels
         self.samples = np.zeros((len(pairs), 2, opt.edge_samples, C))
         mid = 0.5 * (target.V[edges[:, 0]] + target.V[edges[:, 1]])
-        self.W = position.grading_matrix(target.centroids, mid, 0.5 * opt.patch_radius)
+        self.W = position.grading_matrix(target.centroids, mid, GRADE_SHARE * opt.patch_radius)
         t1 = time.perf_counter()
         cloud_s = make_cloud(source)
         vals = self._source_values(cloud_s.faces, cloud_s.bary)
@@ -275,7 +279,7 @@ class Synthesis:
             if covered and not o.fixed_patches and stall >= o.patience:
                 break
         return Result(self.patch_of, self.corner_uv, self.patches, self.dist, self.seam_history,
-                      self.timings, self.failed, iterations)
+                      self.timings, self.failed, iterations, self.samples)
 
 
 def synthesize(target: Surface, source: Surface, opt: Options, *, rng, channels=None) -> Result:

@@ -150,7 +150,7 @@ def _image_source(src, key: str) -> Surface:
     return make_surface(V, F, np.arange(len(F)), Signal("texture", uv=uv[F], texture=img[..., :3]))
 
 
-def _source(cfg, ctx, k: int, target_mesh, target_labels) -> tuple[Surface, list[int] | None]:
+def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float) -> tuple[Surface, list[int] | None]:
     pair = cfg.transfer.pairs[k]
     src, key = pair.source, f"transfer.pairs[{k}]"
     if src.image is not None:
@@ -169,7 +169,7 @@ def _source(cfg, ctx, k: int, target_mesh, target_labels) -> tuple[Surface, list
     faces = _faces(labels, names, src.region, src.labels, src.label, len(mesh.faces), f"{key}.source")
     signal, channels, weld = _mesh_signal(pair.signal, pair.attribute, mesh, path, key, cfg.transfer.extraction.smoothing)
     try:
-        return make_surface(mesh.vertices, mesh.faces, faces, signal, weld_tol=weld), channels
+        return make_surface(mesh.vertices, mesh.faces, faces, signal, weld_tol=weld, margin=margin / pair.scale), channels
     except ValueError as exc:
         raise ConfigError(f"{key}.source: {exc}") from None
 
@@ -186,6 +186,13 @@ def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
     return float(radius)
 
 
+def _margin(cfg, k: int, mesh) -> float:
+    """Support margin of the log maps: twice the given patch radius, or a fifth of the mesh's
+    bounding-box diagonal when the radius is automatic."""
+    r = cfg.transfer.synthesis.patch_radius
+    return 2.0 * r if r else 0.2 * float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
+
+
 def _prepare(cfg, ctx, mesh) -> list[Prepared]:
     names = [r.name for r in cfg.regions]
     strokes = any(p.target.region is not None or (p.source.mesh is None and p.source.region is not None)
@@ -198,11 +205,12 @@ def _prepare(cfg, ctx, mesh) -> list[Prepared]:
             faces = _faces(labels, names, pair.target.region, pair.target.labels, pair.target.label,
                            len(mesh.faces), f"{key}.target")
             ctx.budget.require(f"{key}.target", len(faces), len(faces), "target faces", bytes_each=BYTES_PER_FACE)
+            margin = _margin(cfg, k, mesh)
             try:
-                target = make_surface(mesh.vertices, mesh.faces, faces, None, largest=False)
+                target = make_surface(mesh.vertices, mesh.faces, faces, None, largest=False, margin=margin)
             except ValueError as exc:
                 raise ConfigError(f"{key}.target: {exc}") from None
-            source, channels = _source(cfg, ctx, k, mesh, labels)
+            source, channels = _source(cfg, ctx, k, mesh, labels, margin)
             out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key))
     return out
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
 
@@ -97,6 +98,7 @@ class Surface:
     areas: np.ndarray
     vertex_frames: np.ndarray
     _solver: object = field(default=None, repr=False)
+    _support_index: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def centroids(self) -> np.ndarray:
@@ -107,8 +109,12 @@ class Surface:
         return float(self.areas.sum())
 
     def log_map(self, vertex: int) -> np.ndarray:
-        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame."""
-        return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
+        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame
+        (computed over the support mesh, so the region's own border does not bend it)."""
+        if self._support_index is None:
+            return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
+        L = self._solver.compute_log_map(int(self._support_index[vertex]))
+        return np.asarray(L, np.float64)[self._support_index]
 
 
 def _face_frames(V, F, vframes):
@@ -121,10 +127,43 @@ def _face_frames(V, F, vframes):
     return X, np.cross(N, X), N
 
 
-def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, largest: bool = True) -> Surface:
+def _support(V, F, faces, region_vertices, margin: float):
+    """Faces ``(k,)`` of ``F`` with a corner within ``margin`` of the region's vertices, or None
+    when they are the region's own faces."""
+    if margin <= 0:
+        return None
+    near = np.zeros(len(V), bool)
+    d, _ = cKDTree(V[region_vertices]).query(V, distance_upper_bound=margin)
+    near[np.isfinite(d)] = True
+    sup = np.flatnonzero(near[F].any(axis=1))
+    return None if len(sup) == len(faces) else sup
+
+
+def _solver_over(V, F, faces, vertex_ids, support):
+    """potpourri3d vector heat solver over the support faces and the index of each surface vertex
+    in it (None without a support)."""
+    import potpourri3d as pp3d
+
+    if support is None:
+        return None, None
+    Vs, Fs, old = remove_unreferenced(V, F[support])
+    ok = (Fs[:, 0] != Fs[:, 1]) & (Fs[:, 1] != Fs[:, 2]) & (Fs[:, 0] != Fs[:, 2]) & (face_areas(Vs, Fs) > 0)
+    Vs, Fs, old2 = remove_unreferenced(Vs, Fs[ok])
+    pos = np.full(len(V), -1, np.int64)
+    pos[old[old2]] = np.arange(len(old2))
+    index = pos[vertex_ids]
+    if (index < 0).any():
+        return None, None
+    return pp3d.MeshVectorHeatSolver(Vs, Fs), index
+
+
+def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, largest: bool = True,
+                 margin: float = 0.0) -> Surface:
     """The surface of ``faces (k,)`` of ``V (#V, 3)``, ``F (#F, 3)`` carrying ``signal`` (of the full
     mesh), vertices welded within ``weld_tol`` (texture seams), degenerate faces dropped and, with
-    ``largest``, reduced to its largest connected piece. ValueError when the region is empty."""
+    ``largest``, reduced to its largest connected piece. Log maps run over the faces within
+    ``margin`` of the region (0: the region alone; without welding only). ValueError when the
+    region is empty."""
     import potpourri3d as pp3d
 
     faces = np.asarray(faces, np.int64)
@@ -144,11 +183,18 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     sel = np.flatnonzero(ok)[keep]
     V3, F3, old3 = remove_unreferenced(V2, F2[sel])
     pairs, edges = face_adjacency(F3)
-    solver = pp3d.MeshVectorHeatSolver(V3, F3)
+    vertex_ids = old[old3]
+    V0, F0 = np.asarray(V, np.float64), np.asarray(F, np.int64)
+    support = _support(V0, F0, faces, vertex_ids, margin) if weld_tol == 0 else None
+    big, index = _solver_over(V0, F0, faces, vertex_ids, support)
+    solver = big if big is not None else pp3d.MeshVectorHeatSolver(V3, F3)
     frames = np.stack(solver.get_tangent_frames(), axis=1)
+    if index is not None:
+        frames = frames[index]
     X, Y, N = _face_frames(V3, F3, frames)
     sig = None if signal is None else signal.subset(faces[sel])
-    return Surface(V3, F3, faces[sel], old[old3], sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver)
+    return Surface(V3, F3, faces[sel], vertex_ids, sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver,
+                   index)
 
 
 def _largest_piece(n: int, pairs: np.ndarray) -> np.ndarray:

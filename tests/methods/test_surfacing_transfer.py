@@ -1,0 +1,273 @@
+"""surface-by-numbers, mode transfer (section 4): the stages on tiny fixtures with exact answers,
+and whole runs on generated inputs with known stripe periods, palettes and bump fields, the
+random/no-trim baseline, determinism and the bad-input lines. Real inputs from ../shared/data are
+used when present."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import trimesh
+import yaml
+from click.testing import CliRunner
+
+from synthkit.cli.main import cli
+from synthkit.core.mesh import vertex_graph_edges
+from synthkit.methods.surfacing.transfer.extract import smooth
+from synthkit.methods.surfacing.transfer.fans import FanIndex
+from synthkit.methods.surfacing.transfer.param import Locator, distortion, rotation
+from synthkit.methods.surfacing.transfer.surface import Signal, bilinear, make_surface
+from synthkit.methods.surfacing.transfer.synth import Options, synthesize
+from synthkit.methods.surfacing.transfer.trim import trim_cut
+from synthkit.samples import surfacing_transfer as sample
+
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+# ------------------------------------------------------------------------------------------------
+# measurements made here, independently of the pipeline
+
+
+def face_gradients(V, F, h):
+    """Per-face gradient ``(#F, 3)`` of the piecewise-linear ``h (#V,)`` (real or complex)."""
+    P = V[F]
+    n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    area2 = np.linalg.norm(n, axis=1)
+    n = n / area2[:, None]
+    g = 0
+    for k in range(3):
+        e = P[:, (k + 2) % 3] - P[:, (k + 1) % 3]
+        g = g + h[F[:, k]][:, None] * np.cross(n, e) / area2[:, None]
+    return g
+
+
+def neighbour_mean(V, F):
+    E = vertex_graph_edges(F)
+    n = len(V)
+    A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
+    deg = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
+    return lambda x: A @ x / deg
+
+
+def stripe_period(V, F, colors, palette, *, smoothing=3):
+    """Stripe period along the surface: the palette index k of each vertex as the phase
+    exp(2 pi i k / 3) (monotone across stripes), lightly smoothed; the period is 2 pi over the
+    area-weighted mean of |grad phase| (the phase rises by 2 pi per period whatever its profile)."""
+    k = np.argmin(np.linalg.norm(colors[:, None, :].astype(float) - palette[None].astype(float), axis=2), axis=1)
+    w = np.exp(2j * np.pi * k / 3)
+    mean = neighbour_mean(V, F)
+    for _ in range(smoothing):
+        w = 0.5 * (w + mean(w))
+    g = face_gradients(V, F, w)
+    wc = w[F].mean(axis=1)
+    grad_phase = (np.conj(wc)[:, None] * g).imag / np.maximum(np.abs(wc) ** 2, 1e-12)[:, None]
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    strong = np.abs(wc) > 0.3
+    mean_grad = (area[strong] * np.linalg.norm(grad_phase[strong], axis=1)).sum() / area[strong].sum()
+    return float(2 * np.pi / mean_grad)
+
+
+def normal_field_wavelength(V, F, h):
+    """``2 pi RMS(h) / RMS(|grad h|)``, area-weighted: the wavelength of a pure wave."""
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    g = np.linalg.norm(face_gradients(V, F, h), axis=1)
+    hf = h[F].mean(axis=1)
+    return float(2 * np.pi * np.sqrt((area * hf**2).sum() / (area * g**2).sum()))
+
+
+def write_config(folder: Path, name: str, **transfer) -> Path:
+    cfg = {"method": "surface-by-numbers", "seed": 0, "mode": "transfer", **transfer.pop("top", {})}
+    cfg["transfer"] = transfer
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def run(path: Path, out: Path, *extra):
+    return CliRunner().invoke(cli, ["surface-by-numbers", str(path), "--out", str(out), "--no-progress", *extra])
+
+
+# ------------------------------------------------------------------------------------------------
+# stages on tiny fixtures
+
+
+def test_distortion_exact_on_stretched_isometric_and_flipped_triangles():
+    P = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * 3, float)
+    Q = np.array([[[0, 0], [2, 0], [0, 1]], [[0, 0], [0, 1], [-1, 0]], [[0, 0], [0, 1], [1, 0]]], float)
+    d, det = distortion(P, Q)
+    np.testing.assert_allclose(d, [2.0, 1.0, 1.0])
+    assert det[0] > 0 and det[1] > 0 and det[2] < 0
+    shrink = np.array([[[0, 0], [0.25, 0], [0, 1]]], float)
+    np.testing.assert_allclose(distortion(P[:1], shrink)[0], [4.0])
+
+
+def test_locator_finds_triangle_and_barycentrics():
+    T = np.array([[[0, 0], [1, 0], [0, 1]], [[1, 0], [1, 1], [0, 1]]], float)
+    tri, bary, inside = Locator(T).locate(np.array([[0.2, 0.2], [0.9, 0.8], [3.0, 3.0]]))
+    assert tri[:2].tolist() == [0, 1] and inside.tolist() == [True, True, False]
+    np.testing.assert_allclose(bary[0], [0.6, 0.2, 0.2])
+    np.testing.assert_allclose(bary[1] @ T[1], [0.9, 0.8])
+
+
+def test_bilinear_reads_texel_centres_and_flips_v():
+    img = np.arange(12, dtype=float).reshape(2, 2, 3)
+    out = bilinear(img, np.array([[0.25, 0.75], [0.75, 0.25], [0.5, 0.5]]))
+    np.testing.assert_allclose(out[0], img[0, 0])
+    np.testing.assert_allclose(out[1], img[1, 1])
+    np.testing.assert_allclose(out[2], img.reshape(4, 3).mean(axis=0))
+
+
+def _energy(take, forced, keep, take_cost, edges, ca, cb, old, seam):
+    if np.any(forced & ~take):
+        return np.inf
+    e = np.where(take, take_cost, keep).sum()
+    for (f, g), a, b, o, s in zip(edges, ca, cb, old, seam, strict=True):
+        tf, tg = take[f], take[g]
+        if s:
+            e += o if not tf and not tg else (0 if tf and tg else (a if not tf else b))
+        elif tf != tg:
+            e += a
+    return e
+
+
+def test_trim_cut_with_seam_nodes_equals_brute_force():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        n = 6
+        edges = np.array([(i, j) for i, j in itertools.combinations(range(n), 2) if rng.random() < 0.5] or [(0, 1)])
+        E = len(edges)
+        ca, cb = rng.random(E), rng.random(E)
+        seam = rng.random(E) < 0.5
+        old = np.minimum(ca + cb, rng.random(E))  # an old seam never costs more than the two new ones
+        keep, take_cost = rng.random(n), rng.random(n)
+        forced = np.zeros(n, bool)
+        forced[0] = True
+        take, flow = trim_cut(n, forced, keep, take_cost, edges, ca, cb, old, seam)
+        best = min(_energy(np.array(t, bool), forced, keep, take_cost, edges, ca, cb, old, seam)
+                   for t in itertools.product([0, 1], repeat=n))
+        assert take[0]
+        assert _energy(take, forced, keep, take_cost, edges, ca, cb, old, seam) == pytest.approx(best)
+        assert flow == pytest.approx(best)
+
+
+def test_fan_match_recovers_the_rotation_and_works_on_partial_fans():
+    rng = np.random.default_rng(0)
+    k, m, C = 8, 3, 2
+    fans = rng.random((5, k, m, C))
+    A = np.stack([np.roll(fans, -j, axis=1) for j in range(k)], axis=1).reshape(5 * k, -1).astype(np.float32)
+    index = FanIndex(A, A * A, np.arange(10, 15), k, m)
+    target = np.roll(fans[3], 2, axis=0)  # target spoke i = source spoke i - 2
+    face, theta = index.match(target, np.ones((k, m), bool), rng=rng, tolerance=0.0)
+    assert face == 13 and theta == pytest.approx(2 * np.pi * 6 / k)
+    mask = np.zeros((k, m), bool)
+    mask[:3] = True
+    face, theta = index.match(np.where(mask[..., None], target, 9.0), mask, rng=rng, tolerance=0.0)
+    assert face == 13 and theta == pytest.approx(2 * np.pi * 6 / k)
+    assert np.allclose(rotation(theta) @ rotation(-theta), np.eye(2))
+
+
+def test_log_map_patch_on_a_plane_is_isometric_and_rotated():
+    V, F = sample.grid(20)
+    colors = V[:, :2].copy()
+    src = make_surface(V, F, np.arange(len(F)), Signal("attribute", values=np.c_[colors, np.zeros(len(V))][F]))
+    tgt = make_surface(V, F, np.arange(len(F)), None)
+    from synthkit.methods.surfacing.transfer.param import mutual_patch
+
+    seed = int(np.argmin(np.linalg.norm(tgt.centroids - [1.0, 1.0, 0], axis=1)))
+    patch = mutual_patch(tgt, seed, src, seed, np.pi / 2, radius=0.5, bound=1.5, scale=1.0)
+    assert patch is not None and patch.distortion.max() < 1.01 and len(patch.faces) > 50
+    f, b, inside = patch.to_source(patch.corner_uv.reshape(-1, 2))
+    assert inside.all()
+    mapped = src.signal.sample(f, b)[:, :2].reshape(-1, 3, 2)
+    P = tgt.V[tgt.F[patch.faces]][..., :2] - tgt.centroids[seed, :2]
+    Q = mapped - src.centroids[seed, :2]
+    # the source point is the target point turned by theta (a quarter turn, up to the frames' axis)
+    np.testing.assert_allclose(np.linalg.norm(Q, axis=2), np.linalg.norm(P, axis=2), atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------------
+# whole runs on generated inputs
+
+
+def _ply(path: Path, V, F, colors=None) -> Path:
+    trimesh.Trimesh(V, F, vertex_colors=colors, process=False).export(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def stripes_inputs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("stripes")
+    V, F, colors = sample.stripes(60)
+    _ply(folder / "stripes.ply", V, F, colors)
+    V, F, labels = sample.cylinder(64, 32)
+    _ply(folder / "cylinder.ply", V, F)
+    (folder / "cylinder.seg").write_text("".join(f"{v}\n" for v in labels.tolist()))
+    return folder
+
+
+def stripes_config(folder: Path, name: str, **synthesis) -> Path:
+    pair = {"target": {"labels": "cylinder.seg", "label": 0}, "source": {"mesh": "stripes.ply"}, "signal": "color"}
+    return write_config(folder, name, top={"input": "cylinder.ply"}, pairs=[pair], synthesis=synthesis,
+                        extraction={"sampling": "nearest", "blend": "none"})
+
+
+@pytest.fixture(scope="module")
+def stripes_run(stripes_inputs):
+    out = stripes_inputs / "out"
+    result = run(stripes_config(stripes_inputs, "stripes"), out)
+    assert result.exit_code == 0, result.output
+    return out, json.loads((out / "report.json").read_text())
+
+
+def test_stripes_keep_their_period_on_the_cylinder_and_the_palette(stripes_run, stripes_inputs):
+    out, report = stripes_run
+    mesh = trimesh.load(out / "transferred.ply", process=False)
+    colors = np.asarray(mesh.visual.vertex_colors)[:, :3]
+    V, F, labels = sample.cylinder(64, 32)
+    side = F[labels == 0]
+    used = np.unique(side)
+    # every output colour is a source colour
+    assert {tuple(c) for c in colors[used].tolist()} <= {tuple(c) for c in sample.PALETTE.tolist()}
+    period = stripe_period(V, side, colors, sample.PALETTE)
+    source = stripe_period(*sample.stripes(60)[:2], sample.stripes(60)[2], sample.PALETTE)
+    assert abs(source - sample.PERIOD) <= 0.05 * sample.PERIOD  # the measurement itself
+    assert abs(period - sample.PERIOD) <= 0.10 * sample.PERIOD, period
+
+
+def test_seam_cost_at_most_half_the_random_untrimmed_baseline(stripes_run):
+    m = stripes_run[1]["metrics"]
+    assert m["baseline_seam_cost"] > 0
+    assert m["seam_cost"]["final"] <= 0.5 * m["baseline_seam_cost"], (m["seam_cost"]["final"], m["baseline_seam_cost"])
+    assert m["pairs"][0]["baseline_patches"] == m["patches"]
+    assert m["seam_ratio"] == pytest.approx(m["seam_cost"]["final"] / m["baseline_seam_cost"])
+
+
+def test_coverage_and_report_metrics(stripes_run):
+    out, report = stripes_run
+    m = report["metrics"]
+    assert m["coverage"] == 1.0 and m["uncovered_faces"] == [] and report["status"] == "ok"
+    assert m["distortion_max"] <= 2.0 and 1.0 <= m["distortion_mean"] <= m["distortion_max"]
+    assert len(m["seam_cost"]["per_iteration"]) == m["pairs"][0]["iterations"]
+    assert set(m["seconds"]) >= {"position", "match", "parameterize", "trim", "precompute_fans"}
+    labels = np.asarray(trimesh.load(out / "patches.ply", process=False).metadata["_ply_raw"]["face"]["data"]["label"])
+    V, F, side = sample.cylinder(64, 32)
+    assert (labels[side == 0] >= 0).all() and (labels[side == 1] == -1).all()
+    assert len(np.unique(labels[side == 0])) <= m["patches"]
+    for name in ("transfer.png", "patches.png", "seams.png", "params.png"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_same_seed_same_bytes(stripes_inputs, stripes_run):
+    out2 = stripes_inputs / "again"
+    result = run(stripes_config(stripes_inputs, "stripes"), out2, "--previews", "none")
+    assert result.exit_code == 0, result.output
+    for name in ("transferred.ply", "patches.ply"):
+        assert (out2 / name).read_bytes() == (stripes_run[0] / name).read_bytes()
+    other = stripes_inputs / "other"
+    assert run(stripes_config(stripes_inputs, "stripes"), other, "--seed", "5", "--previews", "none").exit_code == 0
+    assert (other / "patches.ply").read_bytes() != (out2 / "patches.ply").read_bytes()

@@ -65,7 +65,9 @@ def image_grid(mask: np.ndarray, *, width: float, resolution: int):
     ok = (inside[:-1, :-1] & inside[:-1, 1:] & inside[1:, :-1] & inside[1:, 1:]).ravel()
     if not ok.any() or nx < 2:
         raise ValueError("region holds no full grid cell")
-    F = np.concatenate([np.stack([c.ravel(), b.ravel(), a.ravel()], 1)[ok], np.stack([c.ravel(), d.ravel(), b.ravel()], 1)[ok]])
+    lower = np.stack([c.ravel(), b.ravel(), a.ravel()], 1)[ok]
+    upper = np.stack([c.ravel(), d.ravel(), b.ravel()], 1)[ok]
+    F = np.concatenate([lower, upper])
     px = (gx.ravel() + 0.5).astype(np.float64)
     py = (gy.ravel() + 0.5).astype(np.float64)
     V = np.stack([px * width / W, (H - py) * width / W, np.zeros(len(px))], 1)

@@ -271,3 +271,124 @@ def test_same_seed_same_bytes(stripes_inputs, stripes_run):
     other = stripes_inputs / "other"
     assert run(stripes_config(stripes_inputs, "stripes"), other, "--seed", "5", "--previews", "none").exit_code == 0
     assert (other / "patches.ply").read_bytes() != (out2 / "patches.ply").read_bytes()
+
+
+def test_no_accepted_patch_triangle_exceeds_the_bound():
+    """Recomputed here from the result's corner domain coordinates and the patches' source domains."""
+    V, F, colors = sample.stripes(30)
+    src = make_surface(V, F, np.arange(len(F)), Signal("color", values=(colors / 255.0)[F]))
+    S, G = sample.sphere(4)
+    cap = np.flatnonzero(S[G].mean(axis=1)[:, 2] > 0.2)
+    tgt = make_surface(S, G, cap, None, largest=False, margin=0.6)
+    bound = 1.3
+    res = synthesize(tgt, src, Options(patch_radius=0.5, bound=bound, max_patches=40), rng=np.random.default_rng(1))
+    cov = res.patch_of >= 0
+    d, det = distortion(tgt.V[tgt.F[cov]], res.corner_uv[cov])
+    assert d.max() <= bound + 1e-9 and (det > 0).all()
+    assert d.max() > 1.02  # the sphere does stretch: the bound is what stops it
+    for p in np.unique(res.patch_of[cov]):
+        patch = res.patches[p]
+        ds, dets = distortion(src.V[src.F[patch.src_faces]], patch.locator.T)
+        assert ds.max() <= bound + 1e-9 and (dets > 0).all()
+
+
+def test_geometry_transfer_keeps_rms_and_wavelength_and_the_smooth_shape(tmp_path):
+    amplitude, wavelength = 0.03, 0.4
+    V, F = sample.bumps(60, amplitude=amplitude, wavelength=wavelength)
+    _ply(tmp_path / "bumps.ply", V, F)
+    S, G = sample.sphere(5)
+    region = S[G].mean(axis=1)[:, 2] > 0.3
+    _ply(tmp_path / "sphere.ply", S, G)
+    (tmp_path / "sphere.seg").write_text("".join(f"{int(not r)}\n" for r in region))
+    pair = {"target": {"labels": "sphere.seg", "label": 0}, "source": {"mesh": "bumps.ply"}, "signal": "displacement"}
+    cfg = write_config(tmp_path, "geo", top={"input": "sphere.ply"}, pairs=[pair], baseline=False,
+                       extraction={"smoothing": 0.4})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    out = np.asarray(trimesh.load(tmp_path / "out" / "transferred.ply", process=False).vertices, np.float64)
+    inner = np.zeros(len(S), bool)
+    inner[G[region].ravel()] = True
+    inner &= S[:, 2] > 0.4  # away from the region's border, where the kernel blend tapers
+    h = ((out - S) * S).sum(axis=1)  # normal displacement on the unit sphere
+    src_h = V[:, 2]
+    centre = (np.abs(V[:, 0] - 1) < 0.7) & (np.abs(V[:, 1] - 1) < 0.7)
+    rms_src, rms_out = np.sqrt(np.mean(src_h[centre] ** 2)), np.sqrt(np.mean(h[inner] ** 2))
+    assert abs(rms_out - rms_src) <= 0.15 * rms_src, (rms_out, rms_src)
+    faces = G[region & inner[G].all(axis=1)]
+    src_faces = F[centre[F].all(axis=1)]
+    wl_src = normal_field_wavelength(V, src_faces, src_h)
+    wl_out = normal_field_wavelength(S, faces, h)
+    assert abs(wl_out - wl_src) <= 0.15 * wl_src, (wl_out, wl_src)
+    # the smoothed output stays on the sphere
+    smooth_out = smooth(out, G, length=0.4)
+    smooth_in = smooth(S, G, length=0.4)
+    offset = ((smooth_out - smooth_in) * S).sum(axis=1)[inner]
+    assert np.abs(np.median(offset)) <= 0.1 * amplitude and np.sqrt(np.mean(offset**2)) <= 0.25 * amplitude
+
+
+def test_image_rectangle_source_with_scale(stripes_inputs, tmp_path):
+    from synthkit.io.images import save_image
+
+    x = np.arange(300)
+    img = sample.PALETTE[(3 * x // 40) % 3][None].repeat(200, axis=0)  # period 40 px along x
+    save_image(tmp_path / "stripes.png", img)
+    for name in ("cylinder.ply", "cylinder.seg"):
+        (tmp_path / name).write_bytes((stripes_inputs / name).read_bytes())
+    # 300 px span 1.5 units, so the period is 0.2 source units; scale 2.5 makes it 0.5 target units
+    src = {"image": "stripes.png", "rect": [10, 0, 290, 200], "width": 1.5}
+    pair = {"target": {"labels": "cylinder.seg", "label": 0}, "source": src, "signal": "texture", "scale": 2.5}
+    cfg = write_config(tmp_path, "img", top={"input": "cylinder.ply"}, pairs=[pair], baseline=False,
+                       extraction={"sampling": "nearest", "blend": "none"})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    colors = np.asarray(trimesh.load(tmp_path / "out" / "transferred.ply", process=False).visual.vertex_colors)[:, :3]
+    V, F, labels = sample.cylinder(64, 32)
+    side = F[labels == 0]
+    assert {tuple(c) for c in colors[np.unique(side)].tolist()} <= {tuple(c) for c in sample.PALETTE.tolist()}
+    period = stripe_period(V, side, colors, sample.PALETTE)
+    assert abs(period - 0.5) <= 0.10 * 0.5, period
+
+
+BAD = [
+    ({"target": {"labels": "cylinder.seg", "label": 7}}, "transfer.pairs[0].target: label 7 of", "is empty"),
+    ({"source": {"mesh": "cylinder.ply"}}, "transfer.pairs[0].signal: color:", "has no vertex colours"),
+    ({"signal": "texture"}, "transfer.pairs[0].signal: texture:", "has no UVs or no texture image"),
+    ({"source": {"mesh": "stripes.ply", "labels": "tiny.seg", "label": 5}}, "transfer.pairs[0].source: label 5 of",
+     "is empty"),
+    ({"signal": "attribute", "attribute": "rough"}, "transfer.pairs[0].attribute:", "no vertex property 'rough'"),
+    ({"source": {"mesh": "stripes.ply", "labels": "tiny.seg", "label": 1}}, "transfer.pairs[0].source:",
+     "smaller than one patch"),
+    ({"source": {"image": "img.png", "rect": [0, 0, 50, 9]}}, "transfer.pairs[0].source.rect: [0, 0, 50, 9]",
+     "lies outside the image"),
+    ({"scale": 0}, "scale", "scale must be positive"),
+    ({"scale": -2}, "scale", "scale must be positive"),
+]
+
+
+@pytest.mark.parametrize("change,key,message", BAD, ids=lambda v: str(v)[:30])
+def test_bad_input_one_line_exit_2_nothing_written(stripes_inputs, tmp_path, change, key, message):
+    from synthkit.io.images import save_image
+
+    for name in ("cylinder.ply", "cylinder.seg", "stripes.ply"):
+        (tmp_path / name).write_bytes((stripes_inputs / name).read_bytes())
+    save_image(tmp_path / "img.png", np.zeros((8, 64, 3), np.uint8))
+    V, F, _ = sample.stripes(60)
+    tiny = np.zeros(len(F), np.int64)
+    tiny[np.argsort(np.linalg.norm(V[F].mean(axis=1), axis=1))[:8]] = 1
+    (tmp_path / "tiny.seg").write_text("".join(f"{v}\n" for v in tiny.tolist()))
+    pair = {"target": {"labels": "cylinder.seg", "label": 0}, "source": {"mesh": "stripes.ply"}, "signal": "color",
+            **change}
+    cfg = write_config(tmp_path, "bad", top={"input": "cylinder.ply"}, pairs=[pair])
+    result = run(cfg, tmp_path / "out")
+    assert result.exit_code == 2, result.output
+    line = result.output.strip().splitlines()[-1]
+    assert key in line and message in line, line
+    assert not (tmp_path / "out").exists()
+
+
+def test_distortion_bound_below_one_is_refused(stripes_inputs, tmp_path):
+    cfg = stripes_config(stripes_inputs, "lowbound", bound=0.8)
+    result = run(cfg, tmp_path / "out")
+    assert result.exit_code == 2 and "transfer.synthesis.bound" in result.output
+    assert "distortion bound must be at least 1, got 0.8" in result.output
+    assert not (tmp_path / "out").exists()

@@ -159,7 +159,9 @@ class TransferSource(StrictModel):
     label: int | None = Field(None, ge=0, description="The source region's label in labels.")
     image: InputFile | None = Field(None, description="Source image (instead of a mesh).")
     mask: InputFile | None = Field(None, description="PNG the size of image; non-black pixels are the region.")
-    rect: tuple[int, int, int, int] | None = Field(None, description="Region [x0, y0, x1, y1] in pixels (x1, y1 excluded).")
+    rect: tuple[int, int, int, int] | None = Field(
+        None, description="Region [x0, y0, x1, y1] in pixels (x1, y1 excluded)."
+    )
     width: float = Field(1.0, gt=0, description="Source units the image's width spans.")
     resolution: int = Field(192, ge=8, le=2048, description="Grid cells along the image's longer side.")
 
@@ -201,7 +203,8 @@ class SynthesisSection(StrictModel):
     """The four steps of section 4 and their stopping rule."""
 
     patch_radius: float | None = Field(
-        None, gt=0, description="Patch radius in target units; null = 0.3 sqrt(min(source area x scale^2, target area))."
+        None, gt=0, description="Patch radius in target units; null = 0.3 sqrt(min(source area x scale^2, target "
+        "area)), at least three mean target edge lengths."
     )
     bound: float = Field(2.0, le=10, description="Distortion bound max(s1, 1/s2) of every patch triangle "
                          "(paper: 1.5 to 3, 2 by default); at least 1.")
@@ -237,7 +240,10 @@ class ExtractionSection(StrictModel):
         "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "
         "the region's border); none = one corner's value."
     )
-    smoothing: int = Field(10, ge=1, le=1000, description="Taubin smoothing steps that make the displacement field.")
+    smoothing: float | None = Field(
+        None, gt=0, description="Smoothing length (source units) of the smoothed source whose difference is the "
+        "displacement field; null = 5% of the source's bounding-box diagonal."
+    )
 
 
 class TransferSection(StrictModel):

@@ -7,16 +7,17 @@ corners around the vertex: ``blend: kernel`` averages them weighted by face area
 kernel blend across patch seams, one ring wide), ``blend: none`` takes the corner of the first
 covered face (with ``sampling: nearest``, every output value is then a source value).
 
-Geometry: the source's displacement field is the source minus its smoothed copy (``iterations``
-steps of cotangent-free umbrella smoothing, Taubin's lambda/mu pair so the smooth surface does not
-shrink). A displacement is carried in the source face's frame (along its two domain directions
-and its normal) and rebuilt in the target face's frame of the same patch, scaled by ``scale``.
+Geometry: the source's displacement field is the source minus its smoothed copy (implicit
+umbrella smoothing over a given length, one sparse solve). A displacement is carried in the
+source face's frame (along its two domain directions and its normal) and rebuilt in the target
+face's frame of the same patch, scaled by ``scale``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from synthkit.core.mesh import vertex_graph_edges
 from synthkit.methods.surfacing.transfer.surface import Surface
@@ -69,23 +70,24 @@ def vertex_values(F: np.ndarray, values: np.ndarray, areas: np.ndarray, n_vertic
     return out
 
 
-def smooth(V: np.ndarray, F: np.ndarray, *, iterations: int = 10, lam: float = 0.5, mu: float = -0.53) -> np.ndarray:
-    """Taubin lambda/mu smoothing ``(#V, 3)`` of ``V (#V, 3)`` over the edges of ``F`` (boundary
-    vertices move too)."""
+def smooth(V: np.ndarray, F: np.ndarray, *, length: float) -> np.ndarray:
+    """Implicit umbrella smoothing ``(#V, 3)`` of ``V (#V, 3)`` over the edges of ``F``: solve
+    ``(D + t (D - A)) X = D V`` with ``t = (length / mean edge)^2``, so detail of wavelength
+    ``lambda`` keeps about ``1 / (1 + (2 pi length / lambda)^2)`` of its amplitude."""
     E = vertex_graph_edges(F)
     n = len(V)
     A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
-    deg = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
-    X = np.asarray(V, np.float64).copy()
-    for _ in range(iterations):
-        for f in (lam, mu):
-            X = X + f * (A @ X / deg[:, None] - X)
-    return X
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    mean_edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
+    t = (length / mean_edge) ** 2
+    D = sp.diags(deg)
+    M = (D + t * (D - A)).tocsc()
+    return np.asarray(spla.spsolve(M, D @ np.asarray(V, np.float64)))
 
 
-def displacement_field(V: np.ndarray, F: np.ndarray, *, iterations: int = 10) -> np.ndarray:
+def displacement_field(V: np.ndarray, F: np.ndarray, *, length: float) -> np.ndarray:
     """Displacement ``(#V, 3)``: ``V`` minus its smoothed copy (:func:`smooth`)."""
-    return np.asarray(V, np.float64) - smooth(V, F, iterations=iterations)
+    return np.asarray(V, np.float64) - smooth(V, F, length=length)
 
 
 def _target_frames(V: np.ndarray, F: np.ndarray, corner_uv: np.ndarray) -> np.ndarray:

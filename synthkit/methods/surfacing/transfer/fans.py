@@ -55,7 +55,8 @@ def fan_points(surface: Surface, cloud: Cloud, faces, *, spokes: int, steps: int
     c = surface.centroids[faces]
     a = 2 * np.pi * np.arange(spokes) / spokes
     r = radius * (np.arange(steps) + 1) / steps
-    d = (np.cos(a)[None, :, None] * surface.X[faces][:, None, :] + np.sin(a)[None, :, None] * surface.Y[faces][:, None, :])
+    X, Y = surface.X[faces][:, None, :], surface.Y[faces][:, None, :]
+    d = np.cos(a)[None, :, None] * X + np.sin(a)[None, :, None] * Y
     P = c[:, None, None, :] + r[None, None, :, None] * d[:, :, None, :]
     dist, idx = cloud.tree.query(P.reshape(-1, 3))
     shape = (len(faces), spokes, steps)

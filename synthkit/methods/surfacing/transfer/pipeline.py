@@ -60,6 +60,8 @@ PALETTE = np.array(
     dtype=np.uint8,
 )
 BYTES_PER_FACE = 4000
+MIN_PATCH_EDGES = 3.0
+"""The automatic patch radius spans at least this many mean target edge lengths."""
 """Peak bytes per target face (edge samples, grading neighbourhoods, patches), measured at 20k faces."""
 
 
@@ -102,7 +104,7 @@ def _faces(labels, names, region, label_file, label, n_faces: int, key: str) -> 
     return faces
 
 
-def _mesh_signal(kind: str, attribute, mesh: trimesh.Trimesh, path, key: str, smoothing: int):
+def _mesh_signal(kind: str, attribute, mesh: trimesh.Trimesh, path, key: str, smoothing: float | None):
     """``(Signal, channels compared, weld tolerance)`` of a mesh source."""
     F = np.asarray(mesh.faces)
     diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
@@ -122,7 +124,8 @@ def _mesh_signal(kind: str, attribute, mesh: trimesh.Trimesh, path, key: str, sm
             raise ConfigError(f"{key}.attribute: {path} has no vertex property {attribute!r}")
         return Signal("attribute", values=a[F]), None, 0.0
     V = np.asarray(mesh.vertices, np.float64)
-    d = displacement_field(V, F, iterations=smoothing)
+    length = smoothing if smoothing else 0.05 * diag
+    d = displacement_field(V, F, length=length)
     n = np.asarray(mesh.vertex_normals, np.float64)
     return Signal("displacement", values=np.c_[d, (d * n).sum(axis=1)][F]), [3], 0.0
 
@@ -167,18 +170,21 @@ def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float) -> tupl
             sub = cfg.model_copy(update={"regions": src.regions, "images": [], "input": src.mesh, "mode": "segment"})
             labels = _segmentation(sub, ctx, mesh)
     faces = _faces(labels, names, src.region, src.labels, src.label, len(mesh.faces), f"{key}.source")
-    signal, channels, weld = _mesh_signal(pair.signal, pair.attribute, mesh, path, key, cfg.transfer.extraction.smoothing)
+    smoothing = cfg.transfer.extraction.smoothing
+    signal, channels, weld = _mesh_signal(pair.signal, pair.attribute, mesh, path, key, smoothing)
     try:
-        return make_surface(mesh.vertices, mesh.faces, faces, signal, weld_tol=weld, margin=margin / pair.scale), channels
+        surface = make_surface(mesh.vertices, mesh.faces, faces, signal, weld_tol=weld, margin=margin / pair.scale)
     except ValueError as exc:
         raise ConfigError(f"{key}.source: {exc}") from None
+    return surface, channels
 
 
 def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
     """The patch radius; ConfigError when the source region is smaller than one patch."""
     pair, syn = cfg.transfer.pairs[k], cfg.transfer.synthesis
     src_area = source.area * pair.scale**2
-    radius = syn.patch_radius or 0.3 * np.sqrt(min(src_area, target.area))
+    edge = float(np.linalg.norm(target.V[target.edges[:, 0]] - target.V[target.edges[:, 1]], axis=1).mean())
+    radius = syn.patch_radius or max(0.3 * np.sqrt(min(src_area, target.area)), MIN_PATCH_EDGES * edge)
     if src_area < np.pi * radius**2:
         raise ConfigError(f"transfer.pairs[{k}].source: the source region ({src_area:.4g} square target units at "
                           f"scale {pair.scale:g}) is smaller than one patch (pi r^2 = {np.pi * radius**2:.4g}, "
@@ -353,7 +359,8 @@ def _export(cfg, ctx, mesh, ext: Extracted) -> None:
     write_signal_ply(ctx.path("transferred", "transferred.ply"), ext.positions, F, colors, ext.attributes)
     suffix = cfg.input.suffix.lower()
     if any(p.signal == "displacement" for p in cfg.transfer.pairs) and suffix in (".obj", ".off", ".stl"):
-        save_mesh(trimesh.Trimesh(ext.positions, F, process=False), ctx.path("transferred_mesh", f"transferred{suffix}"))
+        displaced = trimesh.Trimesh(ext.positions, F, process=False)
+        save_mesh(displaced, ctx.path("transferred_mesh", f"transferred{suffix}"))
     pal = np.vstack([PALETTE, [[90, 90, 90]]])
     fc = pal[np.where(ext.patch_ids >= 0, ext.patch_ids % len(PALETTE), len(PALETTE))]
     save_mesh(trimesh.Trimesh(ext.positions, F, process=False), ctx.path("patches", "patches.ply"),

@@ -240,6 +240,8 @@ class ExtractionSection(StrictModel):
         "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "
         "the region's border); none = one corner's value."
     )
+    subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
+                           "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")
     smoothing: float | None = Field(
         None, gt=0, description="Smoothing length (source units) of the smoothed source whose difference is the "
         "displacement field; null = 5% of the source's bounding-box diagonal."

@@ -50,7 +50,7 @@ from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_su
 from synthkit.methods.surfacing.transfer.synth import Options, Result, Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
 
-__all__ = ["run_transfer", "Prepared"]
+__all__ = ["run_transfer", "Prepared", "WorkMesh", "prefiltered"]
 
 log = logging.getLogger("synthkit")
 
@@ -179,11 +179,33 @@ def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float) -> tupl
     return surface, channels
 
 
+def _mean_edge(surface: Surface) -> float:
+    return float(np.linalg.norm(surface.V[surface.edges[:, 0]] - surface.V[surface.edges[:, 1]], axis=1).mean())
+
+
+def prefiltered(source: Surface, spacing: float) -> Signal:
+    """The source's texture blurred to the target's sampling: a Gaussian of ``spacing / 2``
+    (source units) in texels, so vertex samples read the texture's local mean, not aliased texels.
+    The texel size is ``sqrt(surface area / texture area covered)``."""
+    sig = source.signal
+    H, W = sig.texture.shape[:2]
+    uv = sig.uv * [W, H]
+    uv_area = 0.5 * np.abs(np.cross(uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0])).sum()
+    texel = np.sqrt(source.area / max(uv_area, 1e-300))
+    sigma = 0.5 * spacing / texel
+    if sigma < 0.5:
+        return sig
+    import cv2
+
+    blurred = cv2.GaussianBlur(sig.texture.astype(np.float32), (0, 0), sigmaX=float(sigma))
+    return Signal(sig.kind, uv=sig.uv, texture=blurred.astype(np.float64))
+
+
 def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
     """The patch radius; ConfigError when the source region is smaller than one patch."""
     pair, syn = cfg.transfer.pairs[k], cfg.transfer.synthesis
     src_area = source.area * pair.scale**2
-    edge = float(np.linalg.norm(target.V[target.edges[:, 0]] - target.V[target.edges[:, 1]], axis=1).mean())
+    edge = _mean_edge(target)
     radius = syn.patch_radius or max(0.3 * np.sqrt(min(src_area, target.area)), MIN_PATCH_EDGES * edge)
     if src_area < np.pi * radius**2:
         raise ConfigError(f"transfer.pairs[{k}].source: the source region ({src_area:.4g} square target units at "
@@ -199,7 +221,41 @@ def _margin(cfg, k: int, mesh) -> float:
     return 2.0 * r if r else 0.2 * float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
 
 
-def _prepare(cfg, ctx, mesh) -> list[Prepared]:
+@dataclass
+class WorkMesh:
+    """The target as the transfer works on it: texture seams welded (face order kept), refined by
+    ``extraction.subdivide`` midpoint steps. ``parent (#F,)`` is each face's face in the input,
+    ``colors (#V, 3)`` the input's colours (vertex colours or the texture at the vertices) or None."""
+
+    mesh: trimesh.Trimesh
+    parent: np.ndarray
+    colors: np.ndarray | None
+
+
+def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
+    from synthkit.core.mesh import weld
+    from synthkit.methods.surfacing.pipeline import mesh_colors
+
+    colors = mesh_colors(mesh)
+    V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+    if mesh.visual.kind == "texture":
+        _, _, o2n = weld(V, F, 1e-7 * float(np.linalg.norm(np.ptp(V, axis=0))), return_index=True)
+        _, first = np.unique(o2n, return_index=True)
+        V, F = V[first], o2n[F]
+        colors = None if colors is None else colors[first]
+    parent = np.arange(len(F))
+    for _ in range(cfg.transfer.extraction.subdivide):
+        if colors is not None:  # trimesh returns attributes or the face index, not both
+            colors = trimesh.remesh.subdivide(V, F, vertex_attributes={"c": colors})[2]["c"]
+        V, F, children = trimesh.remesh.subdivide(V, F, return_index=True)
+        new_parent = np.empty(len(F), np.int64)
+        for old, new in children.items():
+            new_parent[new] = parent[old]
+        parent = new_parent
+    return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors)
+
+
+def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
     names = [r.name for r in cfg.regions]
     strokes = any(p.target.region is not None or (p.source.mesh is None and p.source.region is not None)
                   for p in cfg.transfer.pairs)
@@ -210,13 +266,16 @@ def _prepare(cfg, ctx, mesh) -> list[Prepared]:
             key = f"transfer.pairs[{k}]"
             faces = _faces(labels, names, pair.target.region, pair.target.labels, pair.target.label,
                            len(mesh.faces), f"{key}.target")
+            faces = np.flatnonzero(np.isin(work.parent, faces))
             ctx.budget.require(f"{key}.target", len(faces), len(faces), "target faces", bytes_each=BYTES_PER_FACE)
             margin = _margin(cfg, k, mesh)
             try:
-                target = make_surface(mesh.vertices, mesh.faces, faces, None, largest=False, margin=margin)
+                target = make_surface(work.mesh.vertices, work.mesh.faces, faces, None, largest=False, margin=margin)
             except ValueError as exc:
                 raise ConfigError(f"{key}.target: {exc}") from None
             source, channels = _source(cfg, ctx, k, mesh, labels, margin)
+            if source.signal.texture is not None:
+                source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
             out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key))
     return out
 
@@ -274,10 +333,11 @@ class Extracted:
     patch_ids: np.ndarray
 
 
-def _extract(cfg, mesh, preps, results) -> Extracted:
+def _extract(cfg, work: WorkMesh, preps, results) -> Extracted:
+    mesh = work.mesh
     F = np.asarray(mesh.faces)
     nV = len(mesh.vertices)
-    original = vertex_colors(mesh)
+    original = work.colors
     ext = Extracted(np.array(mesh.vertices, np.float64), np.full((nV, 3), 0.75) if original is None else
                     original.copy(), {}, np.full(len(F), -1, np.int64))
     ex, offset = cfg.transfer.extraction, 0
@@ -403,12 +463,12 @@ def _param_tiles(results, size: int) -> list[np.ndarray]:
     return tiles
 
 
-def _previews(cfg, ctx, mesh, preps, results, ext: Extracted) -> None:
+def _previews(cfg, ctx, work: WorkMesh, preps, results, ext: Extracted) -> None:
     if not ctx.wants_preview("summary"):
         return
-    V0, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    V0, F = np.asarray(work.mesh.vertices), np.asarray(work.mesh.faces)
     size = cfg.preview_size
-    before = vertex_colors(mesh)
+    before = work.colors
     before = np.full((len(V0), 3), 0.75) if before is None else before
     views = ("front", "side", "iso")
     imgs = [preview.rasterize_mesh(V0, F, face_colors=_face_colors(F, before), view=v, size=size) for v in views]
@@ -437,12 +497,15 @@ def run_transfer(cfg, ctx) -> None:
     """Run ``cfg`` (mode transfer) into ``ctx.out_dir``."""
     with ctx.stage("load"):
         mesh = load_mesh(cfg.input)
-    preps = _prepare(cfg, ctx, mesh)
+        work = _work_mesh(cfg, mesh)
+    ctx.budget.require("extraction.subdivide", cfg.transfer.extraction.subdivide, len(work.mesh.faces),
+                       "faces after refinement", bytes_each=BYTES_PER_FACE)
+    preps = _prepare(cfg, ctx, mesh, work)
     results = _synthesize(cfg, ctx, preps)
     with ctx.stage("extract"):
-        ext = _extract(cfg, mesh, preps, results)
+        ext = _extract(cfg, work, preps, results)
     _metrics(cfg, ctx, preps, results)
     with ctx.stage("export"):
-        _export(cfg, ctx, mesh, ext)
+        _export(cfg, ctx, work.mesh, ext)
     with ctx.stage("previews"):
-        _previews(cfg, ctx, mesh, preps, results, ext)
+        _previews(cfg, ctx, work, preps, results, ext)

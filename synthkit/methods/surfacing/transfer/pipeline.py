@@ -190,7 +190,8 @@ def prefiltered(source: Surface, spacing: float) -> Signal:
     sig = source.signal
     H, W = sig.texture.shape[:2]
     uv = sig.uv * [W, H]
-    uv_area = 0.5 * np.abs(np.cross(uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0])).sum()
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    uv_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
     texel = np.sqrt(source.area / max(uv_area, 1e-300))
     sigma = 0.5 * spacing / texel
     if sigma < 0.5:

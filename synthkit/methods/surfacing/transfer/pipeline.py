@@ -275,7 +275,7 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
             except ValueError as exc:
                 raise ConfigError(f"{key}.target: {exc}") from None
             source, channels = _source(cfg, ctx, k, mesh, labels, margin)
-            if source.signal.texture is not None:
+            if source.signal.texture is not None and cfg.transfer.extraction.sampling == "linear":
                 source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
             out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key))
     return out

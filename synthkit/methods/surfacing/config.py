@@ -234,8 +234,8 @@ class ExtractionSection(StrictModel):
     """Extraction (4.5) and blending."""
 
     sampling: Literal["linear", "nearest"] = Field(
-        "linear", description="linear = barycentric (bilinear in textures, prefiltered by a Gaussian of half the target's "
-        "mean edge); nearest = the nearest source value (corner or texel, no prefilter)."
+        "linear", description="linear = barycentric (bilinear in textures, prefiltered by a Gaussian of half the "
+        "target's mean edge); nearest = the nearest source value (corner or texel, no prefilter)."
     )
     blend: Literal["kernel", "none"] = Field(
         "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "

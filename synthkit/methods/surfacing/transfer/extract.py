@@ -70,19 +70,31 @@ def vertex_values(F: np.ndarray, values: np.ndarray, areas: np.ndarray, n_vertic
     return out
 
 
-def smooth(V: np.ndarray, F: np.ndarray, *, length: float) -> np.ndarray:
+def smooth(V: np.ndarray, F: np.ndarray, *, length: float, edge: float | None = None) -> np.ndarray:
     """Implicit umbrella smoothing ``(#V, 3)`` of ``V (#V, 3)`` over the edges of ``F``: solve
-    ``(D + t (D - A)) X = D V`` with ``t = (length / mean edge)^2``, so detail of wavelength
-    ``lambda`` keeps about ``1 / (1 + (2 pi length / lambda)^2)`` of its amplitude."""
+    ``(D + t (D - A)) X = D V`` with ``t = (length / edge)^2`` (``edge``: the mean edge length of
+    ``V`` unless given, so the same operator can smooth another field), boundary vertices held, so
+    detail of wavelength ``lambda`` keeps about ``1 / (1 + (2 pi length / lambda)^2)`` of its
+    amplitude and an open flat piece does not shrink."""
     E = vertex_graph_edges(F)
     n = len(V)
     A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
     deg = np.asarray(A.sum(axis=1)).ravel()
-    mean_edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
-    t = (length / mean_edge) ** 2
-    D = sp.diags(deg)
-    M = (D + t * (D - A)).tocsc()
-    return np.asarray(spla.spsolve(M, D @ np.asarray(V, np.float64)))
+    if edge is None:
+        edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
+    t = (length / edge) ** 2
+    held = np.zeros(n)
+    held[np.unique(boundary_edges(F))] = 1.0
+    free = sp.diags(1.0 - held)
+    M = (sp.diags(deg) + t * free @ (sp.diags(deg) - A)).tocsc()
+    return np.asarray(spla.spsolve(M, sp.diags(deg) @ np.asarray(V, np.float64)))
+
+
+def boundary_edges(F: np.ndarray) -> np.ndarray:
+    """Edges ``(k, 2)`` used by exactly one face of ``F``."""
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(E, axis=0, return_counts=True)
+    return uniq[count == 1].reshape(-1, 2)
 
 
 def displacement_field(V: np.ndarray, F: np.ndarray, *, length: float) -> np.ndarray:

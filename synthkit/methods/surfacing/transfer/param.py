@@ -124,10 +124,62 @@ class Patch:
         return self.src_faces[tri], bary, inside
 
 
-def _centred_log_map(surface: Surface, face: int) -> np.ndarray:
-    """Log map from the face's first corner, moved so the face's centroid is the origin."""
+def _centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
+    """Log map from the face's first corner, moved so the face's centroid is the origin; where the
+    log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
+    the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`)."""
     L = surface.log_map(surface.F[face, 0])
-    return L - L[surface.F[face]].mean(axis=0)
+    L = L - L[surface.F[face]].mean(axis=0)
+    d, det = distortion(surface.V[surface.F[[face]]], L[surface.F[[face]]])
+    if np.isfinite(L[surface.F[face]]).all() and d[0] <= bound and det[0] > 0:
+        return L
+    return unfold(surface, face, radius=radius)
+
+
+def _place_third(pa, pb, qa, qb, pc, away):
+    """Domain position of ``pc`` for the triangle (pa, pb, pc) laid rigidly on the domain edge
+    (qa, qb), on the side opposite to the domain point ``away``."""
+    e = pb - pa
+    L = max(float(np.linalg.norm(e)), 1e-300)
+    x = float(np.dot(pc - pa, e)) / L
+    y = float(np.linalg.norm(pc - pa - x * e / L))
+    u = (qb - qa) / max(float(np.linalg.norm(qb - qa)), 1e-300)
+    n = np.array([-u[1], u[0]])
+    if np.dot(away - qa, n) > 0:
+        n = -n
+    return qa + x * u + y * n
+
+
+def unfold(surface: Surface, face: int, *, radius: float) -> np.ndarray:
+    """Domain coordinates ``(#V, 2)`` (NaN unreached) by unfolding faces rigidly across their
+    edges, breadth first from ``face`` (laid in its frame, centroid at the origin), over faces whose
+    centroid lies within ``2 radius`` (3-D distance) of the seed's: exact on developable pieces."""
+    V, F = surface.V, surface.F
+    U = np.full((len(V), 2), np.nan)
+    c = V[F[face]].mean(axis=0)
+    for v in F[face]:
+        U[v] = [np.dot(V[v] - c, surface.X[face]), np.dot(V[v] - c, surface.Y[face])]
+    near = np.linalg.norm(surface.centroids - c, axis=1) < 2 * radius
+    nbrs: dict[int, list[int]] = {}
+    for f, g in surface.pairs[near[surface.pairs].all(axis=1)].tolist():
+        nbrs.setdefault(f, []).append(g)
+        nbrs.setdefault(g, []).append(f)
+    seen, queue = {face}, [face]
+    while queue:
+        f = queue.pop(0)
+        for g in nbrs.get(f, []):
+            if g in seen:
+                continue
+            seen.add(g)
+            shared = [v for v in F[g] if v in set(F[f].tolist())]
+            if len(shared) != 2:
+                continue
+            (a, b), cv = shared, [v for v in F[g] if v not in shared][0]
+            if np.isnan(U[cv, 0]):
+                away = U[[v for v in F[f] if v not in shared][0]]
+                U[cv] = _place_third(V[a], V[b], U[a], U[b], V[cv], away)
+            queue.append(g)
+    return U
 
 
 def _piece(pairs: np.ndarray, ok: np.ndarray, seed: int) -> np.ndarray:
@@ -167,7 +219,8 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
     """Faces of ``surface`` accepted with domain coordinates ``U (#V, 2)`` (see the module
     docstring): ``(faces (p,), distortion (p,))``."""
     F = surface.F
-    near = (np.linalg.norm(U, axis=1) < radius)[F].all(axis=1)
+    with np.errstate(invalid="ignore"):
+        near = (np.linalg.norm(U, axis=1) < radius)[F].all(axis=1)
     near[seed] = True
     cand = np.flatnonzero(near)
     dist, det = distortion(surface.V[F[cand]], U[F[cand]] / scale)
@@ -190,8 +243,8 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
     the seed face itself cannot be placed within the bound inside the source patch."""
-    Ut = _centred_log_map(target, seed)
-    Us = scale * (_centred_log_map(source, source_face) @ rotation(-theta).T)
+    Ut = _centred_log_map(target, seed, radius=radius, bound=bound)
+    Us = scale * (_centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound) @ rotation(-theta).T)
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):
         return None

@@ -30,7 +30,7 @@ import trimesh
 
 from synthkit import preview
 from synthkit.errors import ConfigError
-from synthkit.io.images import load_image
+from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.io.signals import (
     image_grid,
@@ -39,8 +39,10 @@ from synthkit.io.signals import (
     vertex_attribute,
     vertex_colors,
     write_signal_ply,
+    write_textured_obj,
 )
 from synthkit.methods.surfacing.transfer.extract import (
+    corner_sources,
     corner_values,
     displacement_field,
     transfer_displacement,
@@ -74,6 +76,7 @@ class Prepared:
     channels: list[int] | None
     radius: float
     key: str
+    texture: np.ndarray | None = None
 
 
 def _segmentation(cfg, ctx, mesh) -> np.ndarray:
@@ -224,13 +227,25 @@ def _margin(cfg, k: int, mesh) -> float:
 
 @dataclass
 class WorkMesh:
-    """The target as the transfer works on it: texture seams welded (face order kept), refined by
+    """The target as the transfer works on it: texture seams welded (face order kept) and faces
+    wound consistently, refined by
     ``extraction.subdivide`` midpoint steps. ``parent (#F,)`` is each face's face in the input,
     ``colors (#V, 3)`` the input's colours (vertex colours or the texture at the vertices) or None."""
 
     mesh: trimesh.Trimesh
     parent: np.ndarray
     colors: np.ndarray | None
+    original: np.ndarray | None = None
+    texture: np.ndarray | None = None
+
+
+def _consistent_winding(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """``F`` with faces flipped so each connected piece winds one way (trimesh's ``fix_winding``;
+    log maps need it) and the mask of flipped faces."""
+    m = trimesh.Trimesh(V, F, process=False)
+    trimesh.repair.fix_winding(m)
+    G = np.asarray(m.faces, np.int64)
+    return G, (G != F).any(axis=1)
 
 
 def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
@@ -239,11 +254,16 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
 
     colors = mesh_colors(mesh)
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+    tex = texture_of(mesh) if cfg.transfer.extraction.subdivide == 0 else None
+    original, texture = (tex[0][F], tex[1]) if tex is not None else (None, None)
     if mesh.visual.kind == "texture":
         _, _, o2n = weld(V, F, 1e-7 * float(np.linalg.norm(np.ptp(V, axis=0))), return_index=True)
         _, first = np.unique(o2n, return_index=True)
         V, F = V[first], o2n[F]
         colors = None if colors is None else colors[first]
+        F, flipped = _consistent_winding(V, F)
+        if original is not None:
+            original[flipped] = original[flipped][:, ::-1]
     parent = np.arange(len(F))
     for _ in range(cfg.transfer.extraction.subdivide):
         if colors is not None:  # trimesh returns attributes or the face index, not both
@@ -253,7 +273,7 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
         for old, new in children.items():
             new_parent[new] = parent[old]
         parent = new_parent
-    return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors)
+    return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors, original, texture)
 
 
 def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
@@ -275,9 +295,10 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
             except ValueError as exc:
                 raise ConfigError(f"{key}.target: {exc}") from None
             source, channels = _source(cfg, ctx, k, mesh, labels, margin)
+            sharp = source.signal.texture
             if source.signal.texture is not None and cfg.transfer.extraction.sampling == "linear":
                 source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
-            out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key))
+            out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key, sharp))
     return out
 
 
@@ -332,6 +353,22 @@ class Extracted:
     colors: np.ndarray
     attributes: dict
     patch_ids: np.ndarray
+    uv: np.ndarray | None = None
+    material: np.ndarray | None = None
+
+
+def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res: Result) -> None:
+    """Corner UVs into pair ``k``'s source texture (material ``k + 1``) on its covered faces."""
+    nF = len(work.mesh.faces)
+    if ext.uv is None:
+        ext.uv, ext.material = np.full((nF, 3, 2), np.nan), np.zeros(nF, np.int64)
+        if work.original is not None:
+            ext.uv[:] = work.original
+    src, bary = corner_sources(res, len(prep.target.F))
+    cov = (src >= 0).all(axis=1)
+    faces = prep.target.face_ids[cov]
+    ext.uv[faces] = prep.source.signal.uv_at(src[cov].ravel(), bary[cov].reshape(-1, 3)).reshape(-1, 3, 2)
+    ext.material[faces] = k + 1
 
 
 def _extract(cfg, work: WorkMesh, preps, results) -> Extracted:
@@ -342,11 +379,13 @@ def _extract(cfg, work: WorkMesh, preps, results) -> Extracted:
     ext = Extracted(np.array(mesh.vertices, np.float64), np.full((nV, 3), 0.75) if original is None else
                     original.copy(), {}, np.full(len(F), -1, np.int64))
     ex, offset = cfg.transfer.extraction, 0
-    for pair, prep, (res, _) in zip(cfg.transfer.pairs, preps, results, strict=True):
+    for k, (pair, prep, (res, _)) in enumerate(zip(cfg.transfer.pairs, preps, results, strict=True)):
         t = prep.target
         cov = res.patch_of >= 0
         ext.patch_ids[t.face_ids[cov]] = res.patch_of[cov] + offset
         offset += len(res.patches)
+        if pair.signal == "texture":
+            _texture_corners(ext, work, k, prep, res)
         if pair.signal == "displacement":
             corner = transfer_displacement(res, t, prep.source, prep.source.signal.values[..., :3], scale=pair.scale)
         else:
@@ -414,7 +453,26 @@ def _metrics(cfg, ctx, preps, results) -> None:
         log.warning("%d target faces stayed uncovered (report.json metrics.uncovered_faces)", len(m["uncovered_faces"]))
 
 
-def _export(cfg, ctx, mesh, ext: Extracted) -> None:
+def _export_obj(cfg, ctx, work: WorkMesh, preps, ext: Extracted) -> None:
+    """``transferred.obj`` + ``.mtl``: the target's own material (its texture as ``original.png``
+    when it has one) and one material per texture pair with its source texture (``source_<k>.png``)."""
+    materials = [("original", None)]
+    if work.texture is not None:
+        save_image(ctx.path("texture_original", "original.png"), work.texture)
+        materials[0] = ("original", "original.png")
+    for k, pair in enumerate(cfg.transfer.pairs):
+        name = f"source_{k}.png"
+        tex = preps[k].texture if pair.signal == "texture" else None
+        if tex is not None:
+            save_image(ctx.path(f"texture_source_{k}", name), tex)
+        materials.append((f"transfer_{k}", name if tex is not None else None))
+    ctx.path("transferred_mtl", "transferred.mtl")
+    write_textured_obj(ctx.path("transferred_obj", "transferred.obj"), ext.positions, work.mesh.faces, ext.uv,
+                       ext.material, materials)
+
+
+def _export(cfg, ctx, work: WorkMesh, preps, ext: Extracted) -> None:
+    mesh = work.mesh
     F = np.asarray(mesh.faces)
     colors = np.round(np.clip(ext.colors, 0, 1) * 255).astype(np.uint8)
     write_signal_ply(ctx.path("transferred", "transferred.ply"), ext.positions, F, colors, ext.attributes)
@@ -422,6 +480,8 @@ def _export(cfg, ctx, mesh, ext: Extracted) -> None:
     if any(p.signal == "displacement" for p in cfg.transfer.pairs) and suffix in (".obj", ".off", ".stl"):
         displaced = trimesh.Trimesh(ext.positions, F, process=False)
         save_mesh(displaced, ctx.path("transferred_mesh", f"transferred{suffix}"))
+    if ext.uv is not None:
+        _export_obj(cfg, ctx, work, preps, ext)
     pal = np.vstack([PALETTE, [[90, 90, 90]]])
     fc = pal[np.where(ext.patch_ids >= 0, ext.patch_ids % len(PALETTE), len(PALETTE))]
     save_mesh(trimesh.Trimesh(ext.positions, F, process=False), ctx.path("patches", "patches.ply"),
@@ -507,6 +567,6 @@ def run_transfer(cfg, ctx) -> None:
         ext = _extract(cfg, work, preps, results)
     _metrics(cfg, ctx, preps, results)
     with ctx.stage("export"):
-        _export(cfg, ctx, work.mesh, ext)
+        _export(cfg, ctx, work, preps, ext)
     with ctx.stage("previews"):
         _previews(cfg, ctx, work, preps, results, ext)

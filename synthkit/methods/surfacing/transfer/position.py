@@ -3,9 +3,11 @@
 Each face is graded by the sum of the seam costs of all edges whose midpoint lies within
 ``radius`` of its centroid (Euclidean, a stand-in for the geodesic distance at patch scale); an
 edge between a covered and an uncovered face counts as a seam of maximal signal difference
-(``max_difference * length``). The new position is drawn uniformly among the faces graded at least
-``(1 - tolerance)`` of the best; when no face has a grade (the first patch, or an uncovered piece
-far from any patch) it is drawn among the uncovered faces.
+(``max_difference * length``). The new position is drawn uniformly among the allowed faces graded
+at least ``(1 - tolerance)`` of the best; when no face has a grade (the first patch, or an
+uncovered piece far from any patch) it is drawn among the uncovered faces. The synthesis allows
+only uncovered faces while any is left (so every patch covers a new face: on meshes of large
+triangles a patch may not reach past its seed), then every face.
 """
 
 from __future__ import annotations

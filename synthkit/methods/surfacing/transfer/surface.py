@@ -163,7 +163,8 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     mesh), vertices welded within ``weld_tol`` (texture seams), degenerate faces dropped and, with
     ``largest``, reduced to its largest connected piece. Log maps run over the faces within
     ``margin`` of the region (0: the region alone; without welding only). ValueError when the
-    region is empty."""
+    region is empty or not manifold (potpourri3d's log maps need a manifold mesh; a non-manifold
+    support margin falls back to the region alone)."""
     import potpourri3d as pp3d
 
     faces = np.asarray(faces, np.int64)
@@ -186,8 +187,21 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     vertex_ids = old[old3]
     V0, F0 = np.asarray(V, np.float64), np.asarray(F, np.int64)
     support = _support(V0, F0, faces, vertex_ids, margin) if weld_tol == 0 else None
-    big, index = _solver_over(V0, F0, faces, vertex_ids, support)
-    solver = big if big is not None else pp3d.MeshVectorHeatSolver(V3, F3)
+    try:
+        big, index = _solver_over(V0, F0, faces, vertex_ids, support)
+    except RuntimeError:  # geometry-central refuses non-manifold support: log maps over the region alone
+        big, index = None, None
+    if big is not None:
+        solver = big
+    else:
+        try:
+            solver = pp3d.MeshVectorHeatSolver(V3, F3)
+        except RuntimeError:  # faces touching only at a vertex: split those vertices and try again
+            F3, split = split_bowties(F3)
+            V3, old3 = V3[split], old3[split]
+            vertex_ids, index = old[old3], None
+            pairs, edges = face_adjacency(F3)
+            solver = _manifold_solver(V3, F3)
     frames = np.stack(solver.get_tangent_frames(), axis=1)
     if index is not None:
         frames = frames[index]
@@ -195,6 +209,36 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     sig = None if signal is None else signal.subset(faces[sel])
     return Surface(V3, F3, faces[sel], vertex_ids, sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver,
                    index)
+
+
+def split_bowties(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``F (#F, 3)`` with every vertex split into one copy per fan of faces joined through edges
+    around it (so faces touching only at a vertex no longer share it): ``(F2 (#F, 3), old (#V2,))``,
+    ``old`` the vertex each new vertex copies."""
+    F = np.asarray(F, np.int64)
+    n = 3 * len(F)
+    pairs, edges = face_adjacency(F)
+    links = []
+    for end in (0, 1):
+        v = edges[:, end]
+        cf = 3 * pairs[:, 0] + np.argmax(F[pairs[:, 0]] == v[:, None], axis=1)
+        cg = 3 * pairs[:, 1] + np.argmax(F[pairs[:, 1]] == v[:, None], axis=1)
+        links.append(np.stack([cf, cg], 1))
+    L = np.concatenate(links)
+    A = sp.coo_matrix((np.ones(len(L)), (L[:, 0], L[:, 1])), shape=(n, n))
+    _, comp = connected_components(A, directed=False)
+    old = np.zeros(comp.max() + 1, np.int64)
+    old[comp] = F.ravel()
+    return comp.reshape(-1, 3), old
+
+
+def _manifold_solver(V, F):
+    import potpourri3d as pp3d
+
+    try:
+        return pp3d.MeshVectorHeatSolver(V, F)
+    except RuntimeError as exc:
+        raise ValueError(f"the region is not a manifold surface (potpourri3d: {str(exc).splitlines()[0]})") from None
 
 
 def _largest_piece(n: int, pairs: np.ndarray) -> np.ndarray:

@@ -116,6 +116,8 @@ class Synthesis:
 
     def _through(self, patch: Patch, Q: np.ndarray) -> np.ndarray:
         """Signal ``(n, C)`` at domain points ``Q (n, 2)`` of ``patch``."""
+        if not len(Q):
+            return np.zeros((0, self.samples.shape[3]))
         f, b, _ = patch.to_source(Q)
         return self._source_values(f, b)
 
@@ -148,8 +150,10 @@ class Synthesis:
 
     def _position(self) -> int | None:
         g = position.edge_grades(self.patch_of, self.t.pairs, self.seams(), self.lengths, self.max_difference)
-        return position.choose_position(self.W @ g, self.patch_of < 0, ~self.failed, rng=self.rng,
-                                        tolerance=self.opt.tolerance)
+        allowed = ~self.failed
+        open_faces = allowed & (self.patch_of < 0)
+        return position.choose_position(self.W @ g, self.patch_of < 0, open_faces if open_faces.any() else allowed,
+                                        rng=self.rng, tolerance=self.opt.tolerance)
 
     def _fan(self, seed: int):
         o = self.opt
@@ -191,7 +195,8 @@ class Synthesis:
         side = np.where(inq[pairs[rows, 0]], 0, 1)
         f = pairs[rows, side]
         uv = self._edge_uv(patch.corner_uv, pos[f], self.ci[rows, side], self.cj[rows, side])
-        sp = self._through(patch, uv.reshape(-1, 2)).reshape(len(rows), self.opt.edge_samples, -1)
+        C = self.samples.shape[3]
+        sp = self._through(patch, uv.reshape(-1, 2)).reshape(len(rows), self.opt.edge_samples, C)
         return rows, sp, inq, pos
 
     def _trim(self, patch: Patch, rows, sp, inq, pos) -> np.ndarray:

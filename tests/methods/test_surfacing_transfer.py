@@ -506,3 +506,76 @@ def test_real_bunny_detail_from_one_region_onto_another(tmp_path):
     assert moved[tgt_v].max() > 0
     assert abs(rms_tgt_after - np.hypot(rms_tgt_before, rms_src)) <= 0.35 * rms_src, (
         rms_tgt_after, rms_tgt_before, rms_src)
+
+
+def test_two_pairs_from_one_photograph_fig6(stripes_inputs, tmp_path):
+    """Skin and hair from one image: two rectangles of one PNG onto two target regions."""
+    from synthkit.io.images import save_image
+
+    x = np.arange(200)
+    left = sample.PALETTE[(3 * x // 30) % 3][None].repeat(100, axis=0)
+    right = np.array([[20, 200, 90], [230, 230, 230]], np.uint8)[(x // 25) % 2][None].repeat(100, axis=0)
+    save_image(tmp_path / "photo.png", np.concatenate([left, right], axis=1))
+    for name in ("cylinder.ply", "cylinder.seg"):
+        (tmp_path / name).write_bytes((stripes_inputs / name).read_bytes())
+    pairs = [{"target": {"labels": "cylinder.seg", "label": lab}, "signal": "texture", "scale": 2.0,
+              "source": {"image": "photo.png", "rect": rect, "width": 2.0}}
+             for lab, rect in ((0, [0, 0, 200, 100]), (1, [200, 0, 400, 100]))]
+    cfg = write_config(tmp_path, "fig6", top={"input": "cylinder.ply"}, pairs=pairs, baseline=False,
+                       extraction={"sampling": "nearest", "blend": "none"})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    m = json.loads((tmp_path / "out" / "report.json").read_text())["metrics"]
+    assert len(m["pairs"]) == 2 and m["coverage"] == 1.0
+    colors = np.asarray(trimesh.load(tmp_path / "out" / "transferred.ply", process=False).visual.vertex_colors)[:, :3]
+    V, F, labels = sample.cylinder(64, 32)
+    inner_side = np.setdiff1d(np.unique(F[labels == 0]), np.unique(F[labels == 1]))
+    inner_caps = np.setdiff1d(np.unique(F[labels == 1]), np.unique(F[labels == 0]))
+    as_set = lambda a: {tuple(c) for c in a.tolist()}  # noqa: E731
+    assert as_set(colors[inner_side]) <= as_set(sample.PALETTE)
+    assert as_set(colors[inner_caps]) <= {(20, 200, 90), (230, 230, 230)}
+    ids = np.asarray(trimesh.load(tmp_path / "out" / "patches.ply", process=False)
+                     .metadata["_ply_raw"]["face"]["data"]["label"])
+    assert set(ids[labels == 0]).isdisjoint(ids[labels == 1])
+
+
+def test_target_region_from_inline_strokes_and_attribute_signal(tmp_path):
+    from synthkit.samples import surfacing as seg_sample
+
+    V, F, part = seg_sample.crease_boxes()
+    strokes = seg_sample.part_centre_vertices(V, F, part)
+    _ply(tmp_path / "boxes.ply", V, F)
+    S, G, _ = sample.stripes(40)
+    rough = np.mod(S[:, 0], 0.3)
+    header = ("ply\nformat ascii 1.0\n"
+              f"element vertex {len(S)}\nproperty float x\nproperty float y\nproperty float z\nproperty float rough\n"
+              f"element face {len(G)}\nproperty list uchar int vertex_indices\nend_header\n")
+    body = "".join(f"{x} {y} {z} {r}\n" for (x, y, z), r in zip(S.tolist(), rough.tolist(), strict=True))
+    body += "".join(f"3 {a} {b} {c}\n" for a, b, c in G.tolist())
+    (tmp_path / "rough.ply").write_text(header + body)
+    top = {"input": "boxes.ply", "regions": [{"name": "a", "vertices": [strokes[0]]},
+                                             {"name": "b", "vertices": [strokes[1]]}]}
+    pair = {"target": {"region": "a"}, "source": {"mesh": "rough.ply"}, "signal": "attribute", "attribute": "rough",
+            "scale": 0.5}
+    result = run(write_config(tmp_path, "strokes", top=top, pairs=[pair], baseline=False), tmp_path / "out",
+                 "--previews", "none")
+    assert result.exit_code == 0, result.output
+    out = trimesh.load(tmp_path / "out" / "transferred.ply", process=False)
+    values = np.asarray(out.metadata["_ply_raw"]["vertex"]["data"]["rough"])
+    ids = np.asarray(trimesh.load(tmp_path / "out" / "patches.ply", process=False)
+                     .metadata["_ply_raw"]["face"]["data"]["label"])
+    region = ids >= 0
+    uncovered = json.loads((tmp_path / "out" / "report.json").read_text())["metrics"]["uncovered_faces"]
+    region[uncovered] = True
+    # the target region is exactly what mode segment makes of the same strokes
+    seg_cfg = tmp_path / "seg.yaml"
+    seg_cfg.write_text(yaml.safe_dump({"method": "surface-by-numbers", "seed": 0, "mode": "segment", **top}))
+    assert run(seg_cfg, tmp_path / "seg", "--previews", "none").exit_code == 0
+    from synthkit.io.segmentation import read_seg
+
+    assert np.array_equal(region, read_seg(tmp_path / "seg" / "labels.seg") == 0)
+    assert ((region & (part == 0)).sum() / (region | (part == 0)).sum()) > 0.8  # and it is the stroked part
+    region = ids >= 0
+    used = np.unique(F[region])
+    assert values[used].min() >= rough.min() - 1e-6 and values[used].max() <= rough.max() + 1e-6
+    assert values[used].std() > 0.3 * rough.std()

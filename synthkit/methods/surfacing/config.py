@@ -204,7 +204,7 @@ class SynthesisSection(StrictModel):
 
     patch_radius: float | None = Field(
         None, gt=0, description="Patch radius in target units; null = 0.3 sqrt(min(source area x scale^2, target "
-        "area)), at least three mean target edge lengths."
+        "area)), at least three mean target edges, at most 0.9 sqrt(source area / pi)."
     )
     bound: float = Field(2.0, le=10, description="Distortion bound max(s1, 1/s2) of every patch triangle "
                          "(paper: 1.5 to 3, 2 by default); at least 1.")

@@ -206,12 +206,17 @@ def prefiltered(source: Surface, spacing: float) -> Signal:
 
 
 def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
-    """The patch radius; ConfigError when the source region is smaller than one patch."""
+    """The patch radius: ``synthesis.patch_radius``, or ``0.3 sqrt(min(source, target area))``
+    clipped to ``[3 target edges, 0.9 sqrt(source area / pi)]``. ConfigError when the source region
+    is smaller than one patch: than the given radius's disc, or (automatic radius) than a disc of
+    one mean target edge."""
     pair, syn = cfg.transfer.pairs[k], cfg.transfer.synthesis
     src_area = source.area * pair.scale**2
     edge = _mean_edge(target)
-    radius = syn.patch_radius or max(0.3 * np.sqrt(min(src_area, target.area)), MIN_PATCH_EDGES * edge)
-    if src_area < np.pi * radius**2:
+    fits = 0.9 * np.sqrt(src_area / np.pi)
+    radius = syn.patch_radius or min(max(0.3 * np.sqrt(min(src_area, target.area)), MIN_PATCH_EDGES * edge), fits)
+    if src_area < np.pi * radius**2 or (not syn.patch_radius and radius < edge):
+        radius = max(radius, edge)
         raise ConfigError(f"transfer.pairs[{k}].source: the source region ({src_area:.4g} square target units at "
                           f"scale {pair.scale:g}) is smaller than one patch (pi r^2 = {np.pi * radius**2:.4g}, "
                           f"synthesis.patch_radius {radius:.4g})")

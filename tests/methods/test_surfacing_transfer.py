@@ -433,6 +433,9 @@ def test_real_bricks_photo_onto_the_body_of_spot(tmp_path):
     centres = uv[region].mean(axis=1)
     assert ((centres >= 0) & (centres <= 1)).all()
     got = bilinear(photo, centres)
+    print(f"spot: {region.sum()} faces, seam {m['seam_cost']['final']:.4g} vs {m['baseline_seam_cost']:.4g}, "
+          f"mean {got.mean(axis=0).round(3)} vs {photo.reshape(-1, 3).mean(axis=0).round(3)}, "
+          f"luminance std {got.mean(axis=1).std():.3f} vs {photo.mean(axis=2).std():.3f}")
     # the photo's colours and contrast, read where the body's faces map
     assert np.abs(got.mean(axis=0) - photo.reshape(-1, 3).mean(axis=0)).max() < 0.05
     assert got.mean(axis=1).std() > 0.6 * photo.mean(axis=2).std()
@@ -469,6 +472,9 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     assert ((1024 - px[:, 1]) >= rect[1] - 1).all() and ((1024 - px[:, 1]) <= rect[3] + 1).all()
     brick = atlas[rect[1]:rect[3], rect[0]:rect[2]].reshape(-1, 3).mean(axis=0)
     got = bilinear(atlas, uv[region].mean(axis=1)).mean(axis=0)
+    print(f"tudor: {plaster.sum()} plaster faces, coverage {m['coverage']:.3f}, patches {m['patches']}, "
+          f"mean colour {got.round(3)} vs brick {brick.round(3)}, seam {m['seam_cost']['final']:.4g} vs "
+          f"{m['baseline_seam_cost']:.4g}")
     assert np.abs(got - brick).max() < 0.08, (got, brick)
     assert got[0] > got[2] + 0.05  # brick red, where the plaster was white-grey
 
@@ -498,12 +504,13 @@ def test_real_bunny_detail_from_one_region_onto_another(tmp_path):
     detail_out = np.linalg.norm(out - smooth(out, F, length=0.08), axis=1)
     src_v, tgt_v = np.unique(F[labels == 0]), np.unique(F[labels == 1])
     moved = np.linalg.norm(out - V, axis=1)
-    assert moved[np.unique(F[labels == 2])].max() < 1e-9 or True  # border vertices of the target may move
     # the target flank now carries detail of the source flank's size
     rms_src = np.sqrt(np.mean(detail_in[src_v] ** 2))
     rms_tgt_after = np.sqrt(np.mean(detail_out[tgt_v] ** 2))
     rms_tgt_before = np.sqrt(np.mean(detail_in[tgt_v] ** 2))
     assert moved[tgt_v].max() > 0
+    print(f"bunny: coverage {m['coverage']:.3f}, detail RMS source {rms_src:.4f}, target before {rms_tgt_before:.4f} "
+          f"after {rms_tgt_after:.4f}, seam {m['seam_cost']['final']:.4g} vs {m['baseline_seam_cost']:.4g}")
     assert abs(rms_tgt_after - np.hypot(rms_tgt_before, rms_src)) <= 0.35 * rms_src, (
         rms_tgt_after, rms_tgt_before, rms_src)
 

@@ -9,8 +9,8 @@ a random source face and rotation (:mod:`.fans`); grow the mutual patch (:mod:`.
 twice with a random match when the seed cannot be placed, after which the face is skipped); trim
 it by the min cut (:mod:`.trim`) or take it whole (``trimming: none``). Once every face is covered,
 a patch that does not lower the total seam cost is undone. The loop ends when every face is
-covered and the seam cost has not fallen for ``patience`` iterations, or after ``max_patches``
-kept patches (``3 max_patches`` iterations at most).
+covered (or given up on) and the seam cost has not fallen for ``patience`` iterations, or after
+``max_patches`` kept patches (``3 max_patches`` iterations at most).
 """
 
 from __future__ import annotations
@@ -137,6 +137,10 @@ class Synthesis:
             out[sel] = self._through(self.patches[p], Q)
         return out
 
+    def covered(self) -> bool:
+        """Whether every face is covered, or was given up on (no patch could be placed at it)."""
+        return bool(((self.patch_of >= 0) | self.failed).all())
+
     def seams(self) -> np.ndarray:
         """Seam cost ``(E,)`` of every dual edge (0 inside a patch or next to an uncovered face)."""
         a, b = self.patch_of[self.t.pairs[:, 0]], self.patch_of[self.t.pairs[:, 1]]
@@ -258,7 +262,7 @@ class Synthesis:
         t = time.perf_counter()
         rows, sp, inq, pos = self._proposal(patch)
         take = self._trim(patch, rows, sp, inq, pos)
-        was_covered = bool((self.patch_of >= 0).all())
+        was_covered = self.covered()
         before = float(self.seams().sum())
         saved = self._apply(len(self.patches), patch, take, rows, sp)
         self.patches.append(patch)
@@ -279,7 +283,7 @@ class Synthesis:
                 break
             cost = float(self.seams().sum())
             self.seam_history.append(cost)
-            covered = bool((self.patch_of >= 0).all())
+            covered = self.covered()
             stall = stall + 1 if covered and cost >= before - 1e-12 else 0
             if covered and not o.fixed_patches and stall >= o.patience:
                 break

@@ -67,7 +67,6 @@ neighbourhoods, fan matrix, patches): 18.0 kB measured on the benchmark's 20k-fa
 10k-face source (peak RSS 526 MB against 165 MB after imports)."""
 MIN_PATCH_EDGES = 3.0
 """The automatic patch radius spans at least this many mean target edge lengths."""
-"""Peak bytes per target face (edge samples, grading neighbourhoods, patches), measured at 20k faces."""
 
 
 @dataclass

@@ -586,3 +586,13 @@ def test_target_region_from_inline_strokes_and_attribute_signal(tmp_path):
     used = np.unique(F[region])
     assert values[used].min() >= rough.min() - 1e-6 and values[used].max() <= rough.max() + 1e-6
     assert values[used].std() > 0.3 * rough.std()
+
+
+def test_fan_matching_beats_random_matching_with_the_same_trimming():
+    V, F, colors = sample.stripes(60)
+    src = make_surface(V, F, np.arange(len(F)), Signal("color", values=(colors / 255.0)[F]))
+    S, G, labels = sample.cylinder(64, 32)
+    tgt = make_surface(S, G, np.flatnonzero(labels == 0), None, largest=False, margin=1.0)
+    cost = {m: synthesize(tgt, src, Options(patch_radius=0.6, matching=m), rng=np.random.default_rng(0)).seam_cost[-1]
+            for m in ("fans", "random")}
+    assert cost["fans"] <= 0.6 * cost["random"], cost  # measured 1.36 vs 4.52

@@ -596,3 +596,18 @@ def test_fan_matching_beats_random_matching_with_the_same_trimming():
     cost = {m: synthesize(tgt, src, Options(patch_radius=0.6, matching=m), rng=np.random.default_rng(0)).seam_cost[-1]
             for m in ("fans", "random")}
     assert cost["fans"] <= 0.6 * cost["random"], cost  # measured 1.36 vs 4.52
+
+
+def test_uncovered_faces_are_named_and_the_run_says_so(stripes_inputs, tmp_path):
+    cfg = stripes_config(stripes_inputs, "short", max_patches=2)
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    m = report["metrics"]
+    ids = np.asarray(trimesh.load(tmp_path / "out" / "patches.ply", process=False)
+                     .metadata["_ply_raw"]["face"]["data"]["label"])
+    _, _, labels = sample.cylinder(64, 32)
+    expected = np.flatnonzero((labels == 0) & (ids < 0))
+    assert m["patches"] == 2 and 0 < m["coverage"] < 1 and report["status"] == "partial"
+    assert m["uncovered_faces"] == expected.tolist()
+    assert f"{len(expected)} target faces stayed uncovered" in result.output

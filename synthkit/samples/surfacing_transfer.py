@@ -4,8 +4,10 @@
   period ``PERIOD`` along x in a three-colour palette (each stripe one colour);
 - ``surfacing-transfer-cylinder.ply`` with ``.seg``: a capped cylinder (radius 0.6, height 2);
   label 0 is the side (the target region), 1 the caps;
-- ``surfacing-transfer-bumps.ply``: a flat grid displaced along +z by ``AMPLITUDE`` sin-bumps of
-  wavelength ``WAVELENGTH`` in x and y, and ``surfacing-transfer-sphere.ply``, a smooth sphere.
+- :func:`bumps` (a flat grid displaced along +z by ``AMPLITUDE`` sin-bumps of wavelength
+  ``WAVELENGTH`` in x and y) and :func:`sphere` for the geometry tests, which generate them.
+
+Each written input has its ``<name>.truth.json`` beside it.
 """
 
 from __future__ import annotations
@@ -79,27 +81,25 @@ def sphere(subdivisions: int = 5, radius: float = 1.0):
     return np.asarray(m.vertices), np.asarray(m.faces, np.int64)
 
 
-def _ply(path: Path, V, F, colors=None) -> Path:
+def _ply(path: Path, V, F, colors=None, truth: dict | None = None) -> list[Path]:
     mesh = trimesh.Trimesh(V, F, vertex_colors=colors, process=False)
     path.write_bytes(trimesh.exchange.ply.export_ply(mesh, encoding="binary", vertex_normal=False))
-    return path
+    tpath = path.with_name(path.stem + ".truth.json")
+    tpath.write_text(json.dumps({"faces": int(len(F)), "vertices": int(len(V)), **(truth or {})}) + "\n")
+    return [path, tpath]
 
 
 def generate(out_dir: Path) -> list[Path]:
-    """Write the samples and ``surfacing-transfer.truth.json`` into ``out_dir``."""
+    """Write the stripe source and the cylinder target (with its labels) into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     V, F, colors = stripes()
-    written = [_ply(out_dir / "surfacing-transfer-stripes.ply", V, F, colors)]
+    written = _ply(out_dir / "surfacing-transfer-stripes.ply", V, F, colors,
+                   {"period": PERIOD, "palette": PALETTE.tolist(), "stripes_per_period": 3})
     V, F, labels = cylinder()
-    written.append(_ply(out_dir / "surfacing-transfer-cylinder.ply", V, F))
+    written += _ply(out_dir / "surfacing-transfer-cylinder.ply", V, F, None,
+                    {"radius": 0.6, "height": 2.0, "side_label": 0, "side_faces": int((labels == 0).sum())})
     seg = out_dir / "surfacing-transfer-cylinder.seg"
     seg.write_text("".join(f"{v}\n" for v in labels.tolist()))
     written.append(seg)
-    written.append(_ply(out_dir / "surfacing-transfer-bumps.ply", *bumps()))
-    written.append(_ply(out_dir / "surfacing-transfer-sphere.ply", *sphere(4)))
-    truth = out_dir / "surfacing-transfer.truth.json"
-    truth.write_text(json.dumps({"period": PERIOD, "palette": PALETTE.tolist(), "amplitude": AMPLITUDE,
-                                 "wavelength": WAVELENGTH, "cylinder_side_label": 0}) + "\n")
-    written.append(truth)
     return written

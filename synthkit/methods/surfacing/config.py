@@ -163,6 +163,8 @@ class TransferSource(StrictModel):
         None, description="Region [x0, y0, x1, y1] in pixels (x1, y1 excluded)."
     )
     width: float = Field(1.0, gt=0, description="Source units the image's width spans.")
+    up: Point3 = Field((0.0, 1.0, 0.0), description="With synthesis.orientation: up, the source's up direction "
+                       "(an image's is +y, its rows upwards).")
     resolution: int = Field(192, ge=8, le=2048, description="Grid cells along the image's longer side.")
 
     @model_validator(mode="after")
@@ -212,6 +214,11 @@ class SynthesisSection(StrictModel):
                                                 "random source face and rotation (the paper's other option).")
     trimming: Literal["graphcut", "none"] = Field("graphcut", description="graphcut = dual-graph min cut with seam "
                                                   "nodes (4.4); none = a patch overwrites all it covers.")
+    orientation: Literal["free", "up"] = Field(
+        "free", description="free = any rotation (the paper's orientation-independent matching); up = frames follow "
+        "synthesis.up on the target and source.up on the source and only the unrotated match is allowed."
+    )
+    up: Point3 = Field((0.0, 1.0, 0.0), description="The target's up direction for orientation: up.")
     spokes: int = Field(8, ge=3, le=64, description="Geodesics per fan.")
     steps: int = Field(4, ge=1, le=32, description="Samples per geodesic.")
     fan_share: float = Field(0.5, gt=0, le=2, description="Fan radius as a share of the patch radius.")

@@ -83,21 +83,28 @@ class FanIndex:
         d = self.A2 @ w - 2.0 * (self.A @ t) + float(t @ t)
         return np.maximum(d, 0.0).reshape(len(self.faces), self.spokes) / max(float(w.sum()), 1.0)
 
-    def match(self, fan, mask, *, rng, tolerance: float = 0.1) -> tuple[int, float]:
+    def match(self, fan, mask, *, rng, tolerance: float = 0.1, fixed: bool = False) -> tuple[int, float]:
         """Source face and rotation (radians) of a good match of ``fan (k, m, C)``, ``mask (k, m)``:
         uniformly among the (face, shift) pairs within ``(1 + tolerance)`` of the best distance,
-        or uniformly at random when the mask is empty. Randomness enters through ``rng``."""
+        or uniformly at random when the mask is empty. ``fixed``: shift 0 only (frames already
+        aligned by an up direction). Randomness enters through ``rng``."""
         if not mask.any():
-            return self.random(rng)
-        d = self.distances(fan, mask).ravel()
+            return self.random(rng, fixed=fixed)
+        d = self.distances(fan, mask)
+        if fixed:
+            d = np.where(np.arange(self.spokes)[None, :] == 0, d, np.inf)
+        d = d.ravel()
         best = float(d.min())
         near = np.flatnonzero(d <= best * (1 + tolerance) + 1e-12)
         pick = int(near[rng.integers(len(near))])
         return int(self.faces[pick // self.spokes]), 2 * np.pi * (pick % self.spokes) / self.spokes
 
-    def random(self, rng) -> tuple[int, float]:
-        """A uniformly random source face and rotation (``matching: random``)."""
-        return int(self.faces[rng.integers(len(self.faces))]), float(rng.uniform(0, 2 * np.pi))
+    def random(self, rng, *, fixed: bool = False) -> tuple[int, float]:
+        """A uniformly random source face and rotation (``matching: random``; rotation 0 when
+        ``fixed``)."""
+        face = int(self.faces[rng.integers(len(self.faces))])
+        theta = float(rng.uniform(0, 2 * np.pi))
+        return face, 0.0 if fixed else theta
 
 
 def build_index(surface: Surface, cloud: Cloud, values: np.ndarray, *, spokes: int, steps: int,

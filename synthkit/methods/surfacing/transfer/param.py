@@ -128,8 +128,11 @@ def _centred_log_map(surface: Surface, face: int, *, radius: float, bound: float
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
     the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`)."""
-    L = surface.log_map(surface.F[face, 0])
-    L = L - L[surface.F[face]].mean(axis=0)
+    v = surface.F[face, 0]
+    L = surface.log_map(v)
+    bx, by = surface.vertex_frames[v, 0], surface.vertex_frames[v, 1]
+    angle = np.arctan2(surface.X[face] @ by, surface.X[face] @ bx)  # the face frame in the vertex's basis
+    L = (L - L[surface.F[face]].mean(axis=0)) @ rotation(-angle).T
     d, det = distortion(surface.V[surface.F[[face]]], L[surface.F[[face]]])
     if np.isfinite(L[surface.F[face]]).all() and d[0] <= bound and det[0] > 0:
         return L

@@ -305,6 +305,9 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
             sharp = source.signal.texture
             if source.signal.texture is not None and cfg.transfer.extraction.sampling == "linear":
                 source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
+            if cfg.transfer.synthesis.orientation == "up":
+                target.orient(cfg.transfer.synthesis.up)
+                source.orient(pair.source.up)
             out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key, sharp))
     return out
 
@@ -317,7 +320,7 @@ def _options(cfg, k: int, prep: Prepared) -> Options:
     return Options(patch_radius=prep.radius, scale=pair.scale, bound=syn.bound, matching=syn.matching,
                    trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
                    tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
-                   patience=syn.patience)
+                   patience=syn.patience, fixed_orientation=syn.orientation == "up")
 
 
 def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Result, Result | None]]:

@@ -100,6 +100,15 @@ class Surface:
     _solver: object = field(default=None, repr=False)
     _support_index: np.ndarray | None = field(default=None, repr=False)
 
+    def orient(self, up) -> None:
+        """Face frames with ``X = up x N`` (level, when ``up`` is the vertical) and ``Y = N x X``;
+        faces whose normal is parallel to ``up`` keep their frame."""
+        X = np.cross(np.asarray(up, np.float64)[None, :], self.N)
+        n = np.linalg.norm(X, axis=1)
+        ok = n > 1e-6
+        self.X[ok] = X[ok] / n[ok, None]
+        self.Y[ok] = np.cross(self.N[ok], self.X[ok])
+
     @property
     def centroids(self) -> np.ndarray:
         return self.V[self.F].mean(axis=1)

@@ -49,6 +49,7 @@ class Options:
     max_patches: int = 200
     patience: int = 5
     fixed_patches: bool = False
+    fixed_orientation: bool = False
 
 
 @dataclass
@@ -175,9 +176,10 @@ class Synthesis:
         for attempt in range(3):
             t = time.perf_counter()
             if o.matching == "fans" and attempt == 0:
-                face, theta = self.index.match(*self._fan(seed), rng=self.rng, tolerance=o.tolerance)
+                face, theta = self.index.match(*self._fan(seed), rng=self.rng, tolerance=o.tolerance,
+                                               fixed=o.fixed_orientation)
             else:
-                face, theta = self.index.random(self.rng)
+                face, theta = self.index.random(self.rng, fixed=o.fixed_orientation)
             t1 = time.perf_counter()
             self.timings["match"] += t1 - t
             patch = mutual_patch(self.t, seed, self.s, face, theta, radius=o.patch_radius, bound=o.bound,

@@ -8,7 +8,9 @@ a region is given by strokes), ``sources``, ``precompute`` (grading, edge tables
 
 Outputs: ``transferred.ply`` (the target mesh with vertex colours, displaced positions and, for
 ``signal: attribute``, the transferred property), ``transferred<suffix>`` in the input's format
-for displacement when the input is not PLY, ``patches.ply`` (int32 ``label`` = patch id per face,
+for displacement when the input is not PLY, ``transferred.obj`` + ``.mtl`` for texture signals
+(the target's material, with ``original.png`` when it has a texture, and one material per texture
+pair whose faces have UVs into ``source_<k>.png``), ``patches.ply`` (int32 ``label`` = patch id per face,
 -1 outside every target region; ids count on over the pairs), and the previews ``transfer.png``
 (before and after from three views: the summary), ``patches.png``, ``seams.png`` (seam cost per
 edge on its faces) and ``params.png`` (the first patches' source and target domains, Fig. 4).

@@ -624,3 +624,34 @@ def test_uncovered_faces_are_named_and_the_run_says_so(stripes_inputs, tmp_path)
     assert m["patches"] == 2 and 0 < m["coverage"] < 1 and report["status"] == "partial"
     assert m["uncovered_faces"] == expected.tolist()
     assert f"{len(expected)} target faces stayed uncovered" in result.output
+
+
+def test_adaptive_refinement_splits_where_the_signal_needs_it(tmp_path):
+    from synthkit.methods.surfacing.transfer.refine import edge_index
+
+    V, F, colors = sample.stripes(60)
+    _ply(tmp_path / "stripes.ply", V, F, colors)
+    S, G, labels = sample.cylinder(24, 8)
+    _ply(tmp_path / "coarse.ply", S, G)
+    (tmp_path / "coarse.seg").write_text("".join(f"{v}\n" for v in labels.tolist()))
+    pair = {"target": {"labels": "coarse.seg", "label": 0}, "source": {"mesh": "stripes.ply"}, "signal": "color"}
+    out = {}
+    for name, tol in (("plain", None), ("refined", 0.2)):
+        cfg = write_config(tmp_path, name, top={"input": "coarse.ply"}, pairs=[pair], baseline=False,
+                           extraction={"refine_tolerance": tol, "refine_levels": 2})
+        result = run(cfg, tmp_path / name, "--previews", "none")
+        assert result.exit_code == 0, result.output
+        out[name] = trimesh.load(tmp_path / name / "transferred.ply", process=False)
+    plain, refined = out["plain"], out["refined"]
+    assert len(plain.faces) == len(G)
+    assert len(G) < len(refined.faces) < 0.8 * 16 * len(G)  # refined, but not everywhere
+    area = lambda m: np.linalg.norm(np.cross(*(m.vertices[m.faces[:, k]] - m.vertices[m.faces[:, 0]]  # noqa: E731
+                                               for k in (1, 2))), axis=1).sum()
+    assert area(refined) == pytest.approx(area(plain), rel=1e-9)
+    edge, _ = edge_index(np.asarray(refined.faces))
+    counts = np.bincount(edge.ravel())
+    assert counts.max() == 2 and (counts == 1).sum() == 0  # conforming: the closed cylinder stays closed
+    print(f"refinement: {len(G)} -> {len(refined.faces)} faces")
+    ids = np.asarray(trimesh.load(tmp_path / "refined" / "patches.ply", process=False)
+                     .metadata["_ply_raw"]["face"]["data"]["label"])
+    assert len(ids) == len(refined.faces) and (ids >= 0).sum() > (labels == 0).sum()

@@ -250,6 +250,11 @@ class ExtractionSection(StrictModel):
     )
     subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
                            "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")
+    refine_tolerance: float | None = Field(
+        None, gt=0, description="Adaptive refinement (4.5): bisect edges where the signal at an edge midpoint or face "
+        "centre differs from the linear reconstruction by more than this (signal units; null = off)."
+    )
+    refine_levels: int = Field(2, ge=1, le=4, description="At most this many refinement steps.")
     smoothing: float | None = Field(
         None, gt=0, description="Smoothing length (source units) of the smoothed source whose difference is the "
         "displacement field; null = 5% of the source's bounding-box diagonal."

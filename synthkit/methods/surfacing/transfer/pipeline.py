@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 import trimesh
 
 from synthkit import preview
+from synthkit.core.mesh import face_areas, face_normals
 from synthkit.errors import ConfigError
 from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
@@ -43,6 +45,7 @@ from synthkit.io.signals import (
     write_signal_ply,
     write_textured_obj,
 )
+from synthkit.methods.surfacing.transfer import refine
 from synthkit.methods.surfacing.transfer.extract import (
     corner_sources,
     corner_values,
@@ -369,51 +372,115 @@ class Extracted:
     material: np.ndarray | None = None
 
 
-def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res: Result) -> None:
+@dataclass
+class Layout:
+    """Per face of the work mesh: its ``pair (#F,)`` (-1 outside every target region), ``patch
+    (#F,)`` (-1 uncovered), corner domain coordinates ``uv (#F, 3, 2)`` and the face of the
+    synthesis mesh it was refined from, ``origin (#F,)``."""
+
+    pair: np.ndarray
+    patch: np.ndarray
+    uv: np.ndarray
+    origin: np.ndarray
+
+    def result(self, k: int, res: Result) -> SimpleNamespace:
+        """Pair ``k``'s patches over the whole work mesh, in the form the extract stages read."""
+        return SimpleNamespace(patch_of=np.where(self.pair == k, self.patch, -1), corner_uv=self.uv,
+                               patches=res.patches)
+
+
+def _layout(work: WorkMesh, preps, results) -> Layout:
+    nF = len(work.mesh.faces)
+    out = Layout(np.full(nF, -1, np.int64), np.full(nF, -1, np.int64), np.zeros((nF, 3, 2)), np.arange(nF))
+    for k, (prep, (res, _)) in enumerate(zip(preps, results, strict=True)):
+        f = prep.target.face_ids
+        out.pair[f], out.patch[f], out.uv[f] = k, res.patch_of, res.corner_uv
+    return out
+
+
+def _face_errors(layout: Layout, preps, results) -> tuple[np.ndarray, np.ndarray]:
+    """Signal error of the linear reconstruction at edge midpoints ``(#F, 3)`` and centres ``(#F,)``
+    (NaN where not covered), in the channels the pair compares."""
+    nF = len(layout.pair)
+    mid, centre = np.full((nF, 3), np.nan), np.full(nF, np.nan)
+    for k, (prep, (res, _)) in enumerate(zip(preps, results, strict=True)):
+        for p in np.unique(layout.patch[(layout.pair == k) & (layout.patch >= 0)]):
+            faces = np.flatnonzero((layout.pair == k) & (layout.patch == p))
+            Q = layout.uv[faces]
+            probes = np.concatenate([Q, 0.5 * (Q + np.roll(Q, -1, axis=1)), Q.mean(axis=1, keepdims=True)], axis=1)
+            f, b, _ = res.patches[p].to_source(probes.reshape(-1, 2))
+            v = prep.source.signal.sample(f, b).reshape(len(faces), 7, -1)
+            v = v if prep.channels is None else v[..., prep.channels]
+            linear = 0.5 * (v[:, :3] + np.roll(v[:, :3], -1, axis=1))
+            mid[faces] = np.linalg.norm(v[:, 3:6] - linear, axis=2)
+            centre[faces] = np.linalg.norm(v[:, 6] - v[:, :3].mean(axis=1), axis=1)
+    return mid, centre
+
+
+def _refine(cfg, ctx, work: WorkMesh, layout: Layout, preps, results) -> tuple[WorkMesh, Layout]:
+    """Adaptive refinement (:mod:`.refine`) until no edge is marked or ``refine_levels`` steps."""
+    ex = cfg.transfer.extraction
+    for _ in range(ex.refine_levels if ex.refine_tolerance else 0):
+        V, F = np.asarray(work.mesh.vertices), np.asarray(work.mesh.faces)
+        edge, edges = refine.edge_index(F)
+        marked = refine.mark_edges(V, F, edge, len(edges), *_face_errors(layout, preps, results), ex.refine_tolerance)
+        if not marked.any():
+            break
+        F2, parent, W, new = refine.split_faces(F, edge, marked, len(V))
+        ctx.budget.require("extraction.refine_tolerance", ex.refine_tolerance, len(F2), "faces after refinement",
+                           bytes_each=BYTES_PER_FACE)
+        corners = lambda a, W=W, parent=parent: np.einsum("fjk,fkc->fjc", W, a[parent])  # noqa: E731
+        ends = edges[new]
+        mids = lambda a, ends=ends: None if a is None else np.concatenate([a, a[ends].mean(axis=1)])  # noqa: E731
+        work = WorkMesh(trimesh.Trimesh(mids(V), F2, process=False), work.parent[parent], mids(work.colors),
+                        None if work.original is None else corners(work.original), work.texture)
+        layout = Layout(layout.pair[parent], layout.patch[parent], corners(layout.uv), layout.origin[parent])
+    return work, layout
+
+
+def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res) -> None:
     """Corner UVs into pair ``k``'s source texture (material ``k + 1``) on its covered faces."""
     nF = len(work.mesh.faces)
     if ext.uv is None:
         ext.uv, ext.material = np.full((nF, 3, 2), np.nan), np.zeros(nF, np.int64)
         if work.original is not None:
             ext.uv[:] = work.original
-    src, bary = corner_sources(res, len(prep.target.F))
-    cov = (src >= 0).all(axis=1)
-    faces = prep.target.face_ids[cov]
-    ext.uv[faces] = prep.source.signal.uv_at(src[cov].ravel(), bary[cov].reshape(-1, 3)).reshape(-1, 3, 2)
+    src, bary = corner_sources(res, nF)
+    faces = np.flatnonzero((src >= 0).all(axis=1))
+    ext.uv[faces] = prep.source.signal.uv_at(src[faces].ravel(), bary[faces].reshape(-1, 3)).reshape(-1, 3, 2)
     ext.material[faces] = k + 1
 
 
-def _extract(cfg, work: WorkMesh, preps, results) -> Extracted:
+def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
     mesh = work.mesh
-    F = np.asarray(mesh.faces)
-    nV = len(mesh.vertices)
-    original = work.colors
-    ext = Extracted(np.array(mesh.vertices, np.float64), np.full((nV, 3), 0.75) if original is None else
-                    original.copy(), {}, np.full(len(F), -1, np.int64))
-    ex, offset = cfg.transfer.extraction, 0
+    V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    nV, original = len(V), work.colors
+    ext = Extracted(V.copy(), np.full((nV, 3), 0.75) if original is None else original.copy(), {},
+                    np.full(len(F), -1, np.int64))
+    ex, areas, offset = cfg.transfer.extraction, face_areas(V, F), 0
     for k, (pair, prep, (res, _)) in enumerate(zip(cfg.transfer.pairs, preps, results, strict=True)):
-        t = prep.target
-        cov = res.patch_of >= 0
-        ext.patch_ids[t.face_ids[cov]] = res.patch_of[cov] + offset
+        mine = layout.result(k, res)
+        cov = mine.patch_of >= 0
+        ext.patch_ids[cov] = mine.patch_of[cov] + offset
         offset += len(res.patches)
         if pair.signal == "texture":
-            _texture_corners(ext, work, k, prep, res)
+            _texture_corners(ext, work, k, prep, mine)
         if pair.signal == "displacement":
-            corner = transfer_displacement(res, t, prep.source, prep.source.signal.values[..., :3], scale=pair.scale)
+            frame = SimpleNamespace(V=V, F=F, N=face_normals(V, F))
+            corner = transfer_displacement(mine, frame, prep.source, prep.source.signal.values[..., :3],
+                                           scale=pair.scale)
         else:
-            corner = corner_values(res, prep.source, len(t.F), nearest=ex.sampling == "nearest")
-        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=ex.blend)
-        ok = np.isfinite(vals[:, 0])
-        ids = t.vertex_ids[ok]
+            corner = corner_values(mine, prep.source, len(F), nearest=ex.sampling == "nearest")
+        vals = vertex_values(F, corner, areas, nV, blend=ex.blend)
+        ids = np.flatnonzero(np.isfinite(vals[:, 0]))
         if pair.signal == "displacement":
-            ext.positions[ids] += vals[ok]
+            ext.positions[ids] += vals[ids]
         elif pair.signal == "attribute":
-            full = ext.attributes.setdefault(pair.attribute, np.zeros((nV, vals.shape[1])))
-            full[ids] = vals[ok]
+            ext.attributes.setdefault(pair.attribute, np.zeros((nV, vals.shape[1])))[ids] = vals[ids]
         else:
-            new = np.clip(vals[ok], 0, 1)
+            new = np.clip(vals[ids], 0, 1)
             if original is not None and ex.blend == "kernel":
-                border = _border_vertices(F, t.face_ids, nV)[ids]
+                border = _border_vertices(F, np.flatnonzero(layout.pair == k), nV)[ids]
                 new[border] = 0.5 * (new[border] + original[ids[border]])
             ext.colors[ids] = new
     return ext
@@ -536,7 +603,7 @@ def _param_tiles(results, size: int) -> list[np.ndarray]:
     return tiles
 
 
-def _previews(cfg, ctx, work: WorkMesh, preps, results, ext: Extracted) -> None:
+def _previews(cfg, ctx, work: WorkMesh, layout: Layout, preps, results, ext: Extracted) -> None:
     if not ctx.wants_preview("summary"):
         return
     V0, F = np.asarray(work.mesh.vertices), np.asarray(work.mesh.faces)
@@ -555,7 +622,7 @@ def _previews(cfg, ctx, work: WorkMesh, preps, results, ext: Extracted) -> None:
     pc = pal[np.where(ext.patch_ids >= 0, ext.patch_ids % len(PALETTE), len(PALETTE))]
     imgs = [preview.rasterize_mesh(ext.positions, F, face_colors=pc, view=v, size=size) for v in views]
     preview.montage_png(ctx.path("preview_patches", "patches.png"), imgs, titles=list(views), height=size)
-    field = _seam_field(preps, results, len(F))
+    field = _seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin]
     sc = preview.colorize(field[None, :])[0]
     imgs = [preview.rasterize_mesh(ext.positions, F, face_colors=sc, view=v, size=size) for v in views]
     preview.montage_png(ctx.path("preview_seams", "seams.png"), imgs, titles=[f"seam cost {v}" for v in views],
@@ -576,9 +643,11 @@ def run_transfer(cfg, ctx) -> None:
     preps = _prepare(cfg, ctx, mesh, work)
     results = _synthesize(cfg, ctx, preps)
     with ctx.stage("extract"):
-        ext = _extract(cfg, work, preps, results)
+        layout = _layout(work, preps, results)
+        work, layout = _refine(cfg, ctx, work, layout, preps, results)
+        ext = _extract(cfg, work, layout, preps, results)
     _metrics(cfg, ctx, preps, results)
     with ctx.stage("export"):
         _export(cfg, ctx, work, preps, ext)
     with ctx.stage("previews"):
-        _previews(cfg, ctx, work, preps, results, ext)
+        _previews(cfg, ctx, work, layout, preps, results, ext)

@@ -2,7 +2,7 @@
 
 Extraction copies: every corner of a covered target face is mapped through its face's patch to a
 source face and barycentric position, and the signal (or, for textures, the texture coordinate)
-is read there; no refinement is made (the paper's first option). Vertex values come from the
+is read there (the paper's first option; :mod:`.refine` adds its adaptive refinement first). Vertex values come from the
 corners around the vertex: ``blend: kernel`` averages them weighted by face area (the simple
 kernel blend across patch seams, one ring wide), ``blend: none`` takes the corner of the first
 covered face (with ``sampling: nearest``, every output value is then a source value).

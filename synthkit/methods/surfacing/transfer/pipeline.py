@@ -556,7 +556,9 @@ def _export(cfg, ctx, work: WorkMesh, preps, ext: Extracted) -> None:
     colors = np.round(np.clip(ext.colors, 0, 1) * 255).astype(np.uint8)
     write_signal_ply(ctx.path("transferred", "transferred.ply"), ext.positions, F, colors, ext.attributes)
     suffix = cfg.input.suffix.lower()
-    if any(p.signal == "displacement" for p in cfg.transfer.pairs) and suffix in (".obj", ".off", ".stl"):
+    textured_obj = ext.uv is not None and suffix == ".obj"  # that OBJ carries the displaced positions too
+    if any(p.signal == "displacement" for p in cfg.transfer.pairs) and suffix in (".obj", ".off", ".stl") \
+            and not textured_obj:
         displaced = trimesh.Trimesh(ext.positions, F, process=False)
         save_mesh(displaced, ctx.path("transferred_mesh", f"transferred{suffix}"))
     if ext.uv is not None:

@@ -6,5 +6,5 @@ periods, counts) that tests compare against. Generators are deterministic: the s
 every run, checked against ``data-samples/SHA256SUMS``.
 """
 
-SAMPLE_SETS = ("textures", "retarget", "petri", "textured", "reshape", "surfacing")
+SAMPLE_SETS = ("textures", "retarget", "petri", "textured", "reshape", "surfacing", "surfacing_transfer")
 """Module names under :mod:`synthkit.samples`, in generation order."""

@@ -15,7 +15,8 @@ from synthkit.config import InputFile, RunConfig, StrictModel
 
 __all__ = [
     "CONFIG", "SurfacingConfig", "Region", "ImageStrokes", "ViewsSection", "BoundarySection", "RegionTermSection",
-    "MultiresSection",
+    "MultiresSection", "TransferSection", "TransferPair", "TargetRegion", "TransferSource", "SynthesisSection",
+    "ExtractionSection",
 ]
 
 Point3 = tuple[float, float, float]
@@ -127,12 +128,156 @@ class MultiresSection(StrictModel):
     )
 
 
+class TargetRegion(StrictModel):
+    """Where a transfer goes: a region of the top-level ``regions`` (segmented from their strokes,
+    as mode segment does), or a label of a labels file from an earlier segment run."""
+
+    region: str | None = Field(None, description="Name of a region in the top-level regions (strokes).")
+    labels: InputFile | None = Field(None, description="labels.seg or labels.ply of an earlier segment run.")
+    label: int | None = Field(None, ge=0, description="The label in labels (0-based, as labels.seg writes it).")
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if (self.region is None) == (self.labels is None):
+            raise ValueError("give either region (a stroked region's name) or labels with label")
+        if self.labels is not None and self.label is None:
+            raise ValueError("labels needs label (the region's label in the file)")
+        return self
+
+
+class TransferSource(StrictModel):
+    """Where the detail comes from: a region of a mesh (the target mesh itself when ``mesh`` is
+    null) or a region of an image (``mask`` or ``rect``; a flat surface with a colour signal)."""
+
+    mesh: InputFile | None = Field(None, description="Source mesh; null = the target mesh (input).")
+    regions: list[Region] = Field(
+        default_factory=list, description="Strokes segmenting the source mesh (when mesh is given), as in mode segment."
+    )
+    region: str | None = Field(None, description="Source region: a name in regions (or, without mesh, in the "
+                               "top-level regions); null with no labels = the whole mesh.")
+    labels: InputFile | None = Field(None, description="labels.seg or labels.ply of the source mesh.")
+    label: int | None = Field(None, ge=0, description="The source region's label in labels.")
+    image: InputFile | None = Field(None, description="Source image (instead of a mesh).")
+    mask: InputFile | None = Field(None, description="PNG the size of image; non-black pixels are the region.")
+    rect: tuple[int, int, int, int] | None = Field(
+        None, description="Region [x0, y0, x1, y1] in pixels (x1, y1 excluded)."
+    )
+    width: float = Field(1.0, gt=0, description="Source units the image's width spans.")
+    up: Point3 = Field((0.0, 1.0, 0.0), description="With synthesis.orientation: up, the source's up direction "
+                       "(an image's is +y, its rows upwards).")
+    resolution: int = Field(192, ge=8, le=2048, description="Grid cells along the image's longer side.")
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        if self.image is not None and (self.mesh is not None or self.region or self.labels is not None):
+            raise ValueError("an image source takes mask or rect, not mesh, region or labels")
+        if self.image is None and (self.mask is not None or self.rect is not None):
+            raise ValueError("mask and rect need image")
+        if self.mask is not None and self.rect is not None:
+            raise ValueError("give mask or rect, not both")
+        if self.labels is not None and self.label is None:
+            raise ValueError("labels needs label (the region's label in the file)")
+        return self
+
+
+class TransferPair(StrictModel):
+    """One (target region, source) correspondence with its signal and scale."""
+
+    target: TargetRegion
+    source: TransferSource
+    signal: Literal["color", "texture", "displacement", "attribute"] = Field(
+        "color", description="color = vertex colours; texture = the texture through UVs (images: the image); "
+        "displacement = geometric detail (4.6); attribute = the PLY vertex property named by attribute."
+    )
+    attribute: str | None = Field(None, description="PLY vertex property (or NAME_* columns) for signal: attribute.")
+    scale: float = Field(1.0, description="Target units per source unit (the paper's global scale); > 0.")
+
+    @model_validator(mode="after")
+    def _attribute(self):
+        if (self.signal == "attribute") != (self.attribute is not None):
+            raise ValueError("signal: attribute goes with attribute: NAME (and attribute only with it)")
+        if not self.scale > 0:
+            raise ValueError(f"scale must be positive, got {self.scale}")
+        return self
+
+
+class SynthesisSection(StrictModel):
+    """The four steps of section 4 and their stopping rule."""
+
+    patch_radius: float | None = Field(
+        None, gt=0, description="Patch radius in target units; null = 0.3 sqrt(min(source area x scale^2, target "
+        "area)), at least three mean target edges, at most 0.9 sqrt(source area / pi)."
+    )
+    bound: float = Field(2.0, le=10, description="Distortion bound max(s1, 1/s2) of every patch triangle "
+                         "(paper: 1.5 to 3, 2 by default); at least 1.")
+    matching: Literal["fans", "random"] = Field("fans", description="fans = geodesic-fan matching (4.2); random = "
+                                                "random source face and rotation (the paper's other option).")
+    trimming: Literal["graphcut", "none"] = Field("graphcut", description="graphcut = dual-graph min cut with seam "
+                                                  "nodes (4.4); none = a patch overwrites all it covers.")
+    orientation: Literal["free", "up"] = Field(
+        "free", description="free = any rotation (the paper's orientation-independent matching); up = frames follow "
+        "synthesis.up on the target and source.up on the source and only the unrotated match is allowed."
+    )
+    up: Point3 = Field((0.0, 1.0, 0.0), description="The target's up direction for orientation: up.")
+    spokes: int = Field(8, ge=3, le=64, description="Geodesics per fan.")
+    steps: int = Field(4, ge=1, le=32, description="Samples per geodesic.")
+    fan_share: float = Field(0.5, gt=0, le=2, description="Fan radius as a share of the patch radius.")
+    tolerance: float = Field(0.1, ge=0, le=10, description="Choose among positions and matches within (1 + tolerance) "
+                             "of the best.")
+    edge_samples: int = Field(4, ge=1, le=64, description="Samples per edge of the seam path integral.")
+    max_patches: int = Field(200, ge=1, le=100000, description="Stop after this many kept patches.")
+    patience: int = Field(5, ge=1, le=1000, description="Stop once covered and the seam cost has not fallen for this "
+                          "many iterations.")
+
+    @field_validator("bound")
+    @classmethod
+    def _bound(cls, value):
+        if value < 1:
+            raise ValueError(f"distortion bound must be at least 1, got {value}")
+        return value
+
+
+class ExtractionSection(StrictModel):
+    """Extraction (4.5) and blending."""
+
+    sampling: Literal["linear", "nearest"] = Field(
+        "linear", description="linear = barycentric (bilinear in textures, prefiltered by a Gaussian of half the "
+        "target's mean edge); nearest = the nearest source value (corner or texel, no prefilter)."
+    )
+    blend: Literal["kernel", "none"] = Field(
+        "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "
+        "the region's border); none = one corner's value."
+    )
+    subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
+                           "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")
+    refine_tolerance: float | None = Field(
+        None, gt=0, description="Adaptive refinement (4.5): bisect edges where the signal at an edge midpoint or face "
+        "centre differs from the linear reconstruction by more than this (signal units; null = off)."
+    )
+    refine_levels: int = Field(2, ge=1, le=4, description="At most this many refinement steps.")
+    smoothing: float | None = Field(
+        None, gt=0, description="Smoothing length (source units) of the smoothed source whose difference is the "
+        "displacement field; null = 5% of the source's bounding-box diagonal."
+    )
+
+
+class TransferSection(StrictModel):
+    """mode: transfer (section 4)."""
+
+    pairs: list[TransferPair] = Field(min_length=1, description="(target region, source) pairs, done in order.")
+    synthesis: SynthesisSection = Field(default_factory=SynthesisSection)
+    extraction: ExtractionSection = Field(default_factory=ExtractionSection)
+    baseline: bool = Field(True, description="Also run matching: random, trimming: none with the same number of "
+                           "patches and report its seam cost (baseline_seam_cost).")
+
+
 class SurfacingConfig(RunConfig):
     """``synthkit surface-by-numbers``: region-centric segmentation by graph cut (mode: segment)."""
 
     method: Literal["surface-by-numbers"] = "surface-by-numbers"
-    mode: Literal["segment", "views"] = Field(
-        "segment", description="segment = cut the mesh into the stroked regions; views = only write the view renders."
+    mode: Literal["segment", "views", "transfer"] = Field(
+        "segment", description="segment = cut the mesh into the stroked regions; views = only write the view renders; "
+        "transfer = synthesize detail over target regions from sources (section 4)."
     )
     input: InputFile = Field(description="Input mesh (OBJ, PLY, GLB, OFF, STL).")
     regions: list[Region] = Field(
@@ -153,6 +298,7 @@ class SurfacingConfig(RunConfig):
     )
     compare_single_level: bool = Field(False, description="Also solve on the full graph and report its cut cost.")
     preview_size: int = Field(512, ge=64, le=4096, description="Side of the PNG previews in pixels.")
+    transfer: TransferSection | None = Field(None, description="mode: transfer: the pairs and the synthesis settings.")
 
     @model_validator(mode="after")
     def _unique_names(self):
@@ -162,11 +308,28 @@ class SurfacingConfig(RunConfig):
             raise ValueError(f"region names must be unique, got {', '.join(dup)} twice")
         if self.mode == "segment" and len(names) < 2:
             raise ValueError(f"regions: mode segment needs at least two regions (got {len(names)})")
+        if self.mode == "transfer":
+            self._check_transfer(names)
         for k, item in enumerate(self.images):
             unknown = sorted(set(item.colors) - set(names))
             if unknown:
                 raise ValueError(f"images[{k}].colors: {unknown[0]!r} is not a region (regions: {', '.join(names)})")
         return self
+
+
+    def _check_transfer(self, names: list[str]) -> None:
+        if self.transfer is None:
+            raise ValueError("transfer: mode transfer needs a transfer section with pairs")
+        for k, pair in enumerate(self.transfer.pairs):
+            used = [("target", pair.target.region)]
+            if pair.source.mesh is None:
+                used.append(("source", pair.source.region))
+            for side, name in used:
+                if name is not None and name not in names:
+                    raise ValueError(f"transfer.pairs[{k}].{side}.region: {name!r} is not a region "
+                                     f"(regions: {', '.join(names) or 'none'})")
+            if any(name is not None for _, name in used) and len(names) < 2:
+                raise ValueError(f"regions: segmenting the target needs at least two regions (got {len(names)})")
 
 
 CONFIG = SurfacingConfig

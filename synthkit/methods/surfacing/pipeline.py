@@ -235,7 +235,12 @@ def _write_views(cfg: SurfacingConfig, ctx, cache: ViewCache) -> None:
 
 
 def run(cfg: SurfacingConfig, ctx) -> None:
-    """Run ``cfg`` (mode segment, or mode views: only the view renders) into ``ctx.out_dir``."""
+    """Run ``cfg`` (mode segment; mode views: only the view renders; mode transfer:
+    :func:`synthkit.methods.surfacing.transfer.pipeline.run_transfer`) into ``ctx.out_dir``."""
+    if cfg.mode == "transfer":
+        from synthkit.methods.surfacing.transfer.pipeline import run_transfer
+
+        return run_transfer(cfg, ctx)
     with ctx.stage("load"):
         mesh = load_mesh(cfg.input)
     cache = ViewCache(mesh, cfg.views.size)

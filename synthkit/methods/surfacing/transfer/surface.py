@@ -1,0 +1,258 @@
+"""A region of a mesh carrying a signal, in the form the transfer stages use.
+
+A :class:`Signal` is defined per face corner, so texture seams and per-face values need no
+welding: ``values (#F, 3, C)`` (vertex colours, PLY attributes, displacement vectors) interpolated
+barycentrically, or ``uv (#F, 3, 2)`` into ``texture (H, W, C)`` read bilinearly (v up).
+A :class:`Surface` is the region's submesh (``V (#V, 3)``, ``F (#F, 3)`` with vertices welded),
+its signal, per-face tangent frames taken from potpourri3d's vertex frames (the frames its log map
+is expressed in) and a cached :class:`potpourri3d.MeshVectorHeatSolver` for log maps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
+
+__all__ = ["Signal", "Surface", "make_surface", "bilinear"]
+
+
+def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``img (H, W, C)`` read at ``uv (n, 2)`` (u right, v up, [0, 1] spans the image; clamped at
+    the border): ``(n, C)`` float64."""
+    H, W = img.shape[:2]
+    x = np.clip(uv[:, 0] * W - 0.5, 0, W - 1)
+    y = np.clip((1.0 - uv[:, 1]) * H - 0.5, 0, H - 1)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, W - 1), np.minimum(y0 + 1, H - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
+    bot = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    return (top * (1 - fy) + bot * fy).astype(np.float64)
+
+
+@dataclass
+class Signal:
+    """``phi``: per-corner ``values (#F, 3, C)``, or per-corner ``uv (#F, 3, 2)`` into ``texture``.
+
+    ``kind`` is ``color``, ``texture``, ``displacement`` or ``attribute``."""
+
+    kind: str
+    values: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    texture: np.ndarray | None = None
+
+    @property
+    def channels(self) -> int:
+        return int(self.texture.shape[2] if self.values is None else self.values.shape[2])
+
+    def subset(self, faces: np.ndarray) -> Signal:
+        """The signal of the faces ``faces (k,)`` only."""
+        if self.values is not None:
+            return Signal(self.kind, values=self.values[faces])
+        return Signal(self.kind, uv=self.uv[faces], texture=self.texture)
+
+    def uv_at(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """Texture coordinates ``(n, 2)`` at ``faces (n,)``, barycentric ``bary (n, 3)``."""
+        return np.einsum("nk,nkc->nc", bary, self.uv[faces])
+
+    def sample(self, faces: np.ndarray, bary: np.ndarray, *, nearest: bool = False) -> np.ndarray:
+        """Signal ``(n, C)`` at ``faces (n,)`` with barycentric coordinates ``bary (n, 3)``;
+        ``nearest``: the value of the nearest corner (or texel), so no new value is made."""
+        if nearest and self.values is not None:
+            return self.values[faces, np.argmax(bary, axis=1)].astype(np.float64)
+        if nearest:
+            H, W = self.texture.shape[:2]
+            uv = self.uv_at(faces, bary)
+            x = np.clip(np.floor(uv[:, 0] * W), 0, W - 1).astype(np.int64)
+            y = np.clip(np.floor((1.0 - uv[:, 1]) * H), 0, H - 1).astype(np.int64)
+            return self.texture[y, x].astype(np.float64)
+        if self.values is not None:
+            return np.einsum("nk,nkc->nc", bary, self.values[faces])
+        return bilinear(self.texture, self.uv_at(faces, bary))
+
+
+@dataclass
+class Surface:
+    """A region submesh with its signal (see the module docstring).
+
+    ``face_ids (#F,)`` are the faces of the full mesh, ``vertex_ids (#V,)`` its vertices;
+    ``pairs (k, 2)`` adjacent faces and ``edges (k, 2)`` their shared edge; ``X``, ``Y``, ``N``
+    ``(#F, 3)`` the face frames; ``vertex_frames`` ``(#V, 3, 3)`` potpourri3d's (X, Y, N) rows."""
+
+    V: np.ndarray
+    F: np.ndarray
+    face_ids: np.ndarray
+    vertex_ids: np.ndarray
+    signal: Signal | None
+    pairs: np.ndarray
+    edges: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    N: np.ndarray
+    areas: np.ndarray
+    vertex_frames: np.ndarray
+    _solver: object = field(default=None, repr=False)
+    _support_index: np.ndarray | None = field(default=None, repr=False)
+
+    def orient(self, up) -> None:
+        """Face frames with ``X = up x N`` (level, when ``up`` is the vertical) and ``Y = N x X``;
+        faces whose normal is parallel to ``up`` keep their frame."""
+        X = np.cross(np.asarray(up, np.float64)[None, :], self.N)
+        n = np.linalg.norm(X, axis=1)
+        ok = n > 1e-6
+        self.X[ok] = X[ok] / n[ok, None]
+        self.Y[ok] = np.cross(self.N[ok], self.X[ok])
+
+    @property
+    def centroids(self) -> np.ndarray:
+        return self.V[self.F].mean(axis=1)
+
+    @property
+    def area(self) -> float:
+        return float(self.areas.sum())
+
+    def log_map(self, vertex: int) -> np.ndarray:
+        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame
+        (computed over the support mesh, so the region's own border does not bend it)."""
+        if self._support_index is None:
+            return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
+        L = self._solver.compute_log_map(int(self._support_index[vertex]))
+        return np.asarray(L, np.float64)[self._support_index]
+
+
+def _face_frames(V, F, vframes):
+    N = face_normals(V, F)
+    X = vframes[F[:, 0], 0]
+    X = X - (X * N).sum(axis=1, keepdims=True) * N
+    bad = np.linalg.norm(X, axis=1) < 1e-9
+    X[bad] = (V[F[bad, 1]] - V[F[bad, 0]])
+    X /= np.maximum(np.linalg.norm(X, axis=1, keepdims=True), 1e-300)
+    return X, np.cross(N, X), N
+
+
+def _support(V, F, faces, region_vertices, margin: float):
+    """Faces ``(k,)`` of ``F`` with a corner within ``margin`` of the region's vertices, or None
+    when they are the region's own faces."""
+    if margin <= 0:
+        return None
+    near = np.zeros(len(V), bool)
+    d, _ = cKDTree(V[region_vertices]).query(V, distance_upper_bound=margin)
+    near[np.isfinite(d)] = True
+    sup = np.flatnonzero(near[F].any(axis=1))
+    return None if len(sup) == len(faces) else sup
+
+
+def _solver_over(V, F, faces, vertex_ids, support):
+    """potpourri3d vector heat solver over the support faces and the index of each surface vertex
+    in it (None without a support)."""
+    import potpourri3d as pp3d
+
+    if support is None:
+        return None, None
+    Vs, Fs, old = remove_unreferenced(V, F[support])
+    ok = (Fs[:, 0] != Fs[:, 1]) & (Fs[:, 1] != Fs[:, 2]) & (Fs[:, 0] != Fs[:, 2]) & (face_areas(Vs, Fs) > 0)
+    Vs, Fs, old2 = remove_unreferenced(Vs, Fs[ok])
+    pos = np.full(len(V), -1, np.int64)
+    pos[old[old2]] = np.arange(len(old2))
+    index = pos[vertex_ids]
+    if (index < 0).any():
+        return None, None
+    return pp3d.MeshVectorHeatSolver(Vs, Fs), index
+
+
+def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, largest: bool = True,
+                 margin: float = 0.0) -> Surface:
+    """The surface of ``faces (k,)`` of ``V (#V, 3)``, ``F (#F, 3)`` carrying ``signal`` (of the full
+    mesh), vertices welded within ``weld_tol`` (texture seams), degenerate faces dropped and, with
+    ``largest``, reduced to its largest connected piece. Log maps run over the faces within
+    ``margin`` of the region (0: the region alone; without welding only). ValueError when the
+    region is empty or not manifold (potpourri3d's log maps need a manifold mesh; a non-manifold
+    support margin falls back to the region alone)."""
+    import potpourri3d as pp3d
+
+    faces = np.asarray(faces, np.int64)
+    if not len(faces):
+        raise ValueError("region is empty")
+    V2, F2, old = remove_unreferenced(np.asarray(V, np.float64), np.asarray(F, np.int64)[faces])
+    if weld_tol > 0:
+        from synthkit.core.mesh import weld
+
+        _, _, o2n = weld(V2, F2, weld_tol, return_index=True)
+        F2 = o2n[F2]
+        keep_v, F2r = np.unique(F2, return_inverse=True)
+        V2, F2, old = V2[keep_v], F2r.reshape(-1, 3), old[keep_v]
+    ok = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 0] != F2[:, 2]) & (face_areas(V2, F2) > 0)
+    pairs, _ = face_adjacency(F2[ok])
+    keep = _largest_piece(int(ok.sum()), pairs) if largest else np.arange(int(ok.sum()))
+    sel = np.flatnonzero(ok)[keep]
+    V3, F3, old3 = remove_unreferenced(V2, F2[sel])
+    pairs, edges = face_adjacency(F3)
+    vertex_ids = old[old3]
+    V0, F0 = np.asarray(V, np.float64), np.asarray(F, np.int64)
+    support = _support(V0, F0, faces, vertex_ids, margin) if weld_tol == 0 else None
+    try:
+        big, index = _solver_over(V0, F0, faces, vertex_ids, support)
+    except RuntimeError:  # geometry-central refuses non-manifold support: log maps over the region alone
+        big, index = None, None
+    if big is not None:
+        solver = big
+    else:
+        try:
+            solver = pp3d.MeshVectorHeatSolver(V3, F3)
+        except RuntimeError:  # faces touching only at a vertex: split those vertices and try again
+            F3, split = split_bowties(F3)
+            V3, old3 = V3[split], old3[split]
+            vertex_ids, index = old[old3], None
+            pairs, edges = face_adjacency(F3)
+            solver = _manifold_solver(V3, F3)
+    frames = np.stack(solver.get_tangent_frames(), axis=1)
+    if index is not None:
+        frames = frames[index]
+    X, Y, N = _face_frames(V3, F3, frames)
+    sig = None if signal is None else signal.subset(faces[sel])
+    return Surface(V3, F3, faces[sel], vertex_ids, sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver,
+                   index)
+
+
+def split_bowties(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``F (#F, 3)`` with every vertex split into one copy per fan of faces joined through edges
+    around it (so faces touching only at a vertex no longer share it): ``(F2 (#F, 3), old (#V2,))``,
+    ``old`` the vertex each new vertex copies."""
+    F = np.asarray(F, np.int64)
+    n = 3 * len(F)
+    pairs, edges = face_adjacency(F)
+    links = []
+    for end in (0, 1):
+        v = edges[:, end]
+        cf = 3 * pairs[:, 0] + np.argmax(F[pairs[:, 0]] == v[:, None], axis=1)
+        cg = 3 * pairs[:, 1] + np.argmax(F[pairs[:, 1]] == v[:, None], axis=1)
+        links.append(np.stack([cf, cg], 1))
+    L = np.concatenate(links)
+    A = sp.coo_matrix((np.ones(len(L)), (L[:, 0], L[:, 1])), shape=(n, n))
+    _, comp = connected_components(A, directed=False)
+    old = np.zeros(comp.max() + 1, np.int64)
+    old[comp] = F.ravel()
+    return comp.reshape(-1, 3), old
+
+
+def _manifold_solver(V, F):
+    import potpourri3d as pp3d
+
+    try:
+        return pp3d.MeshVectorHeatSolver(V, F)
+    except RuntimeError as exc:
+        raise ValueError(f"the region is not a manifold surface (potpourri3d: {str(exc).splitlines()[0]})") from None
+
+
+def _largest_piece(n: int, pairs: np.ndarray) -> np.ndarray:
+    if n == 0:
+        raise ValueError("region has no non-degenerate faces")
+    A = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, comp = connected_components(A, directed=False)
+    return np.flatnonzero(comp == np.bincount(comp).argmax())

@@ -12,7 +12,7 @@ import numpy as np
 
 from synthkit.errors import InputError
 
-__all__ = ["write_labels_ply", "write_seg", "read_seg", "write_polylines_obj"]
+__all__ = ["write_labels_ply", "write_seg", "read_seg", "write_polylines_obj", "write_point_polylines_obj"]
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
@@ -67,4 +67,19 @@ def write_polylines_obj(path, V, polylines) -> None:
     remap[used] = np.arange(1, len(used) + 1)
     lines = [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V[used].tolist()]
     lines += ["l " + " ".join(map(str, remap[p].tolist())) + "\n" for p in polylines]
+    _atomic_write(Path(path), "".join(lines).encode("ascii"))
+
+
+def write_point_polylines_obj(path, curves) -> None:
+    """OBJ with one ``l`` record per curve of ``curves`` (each ``(m, 3)`` points; a closed curve, whose
+    last point equals its first, reuses its first vertex)."""
+    lines, start = [], 1
+    for c in curves:
+        c = np.asarray(c, np.float64)
+        closed = len(c) > 2 and np.array_equal(c[0], c[-1])
+        pts = c[:-1] if closed else c
+        lines += [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in pts.tolist()]
+        idx = list(range(start, start + len(pts))) + ([start] if closed else [])
+        lines.append("l " + " ".join(map(str, idx)) + "\n")
+        start += len(pts)
     _atomic_write(Path(path), "".join(lines).encode("ascii"))

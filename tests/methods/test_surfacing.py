@@ -619,3 +619,21 @@ def test_smoothing_a_loop_keeps_it_on_the_surface_without_shrinking():
     assert circle * 0.97 < polyline_length(smooth) < raw
     assert np.abs(np.linalg.norm(smooth, axis=1) - 1).max() < 5e-3  # on the faceted sphere
     assert np.array_equal(smooth[0], smooth[-1])
+
+
+def test_smooth_cut_writes_straighter_curves_and_keeps_the_labels(samples, tmp_path):
+    body = ("input: surfacing-disc.ply\nregion_term: {model: color}\npreview_size: 64\n"
+            "regions:\n  - {name: disc, vertices: [0]}\n  - {name: rest, vertices: [5]}\n")
+    plain, smooth = tmp_path / "plain", tmp_path / "smooth"
+    assert invoke(write_config(samples, body, name="plain"), plain).exit_code == 0
+    assert invoke(write_config(samples, body + "smooth_cut: 10\n", name="smooth"), smooth).exit_code == 0
+    assert (plain / "labels.seg").read_bytes() == (smooth / "labels.seg").read_bytes()
+    assert not (plain / "cut_smooth.obj").exists()
+    text = (smooth / "cut_smooth.obj").read_text().splitlines()
+    raw = (smooth / "cut.obj").read_text().splitlines()
+    assert sum(t.startswith("l ") for t in text) == sum(t.startswith("l ") for t in raw)
+    pts = np.array([[float(x) for x in t.split()[1:]] for t in text if t.startswith("v ")])
+    radius = np.linalg.norm(np.asarray(trimesh.load(samples / "surfacing-disc.ply").vertices), axis=1).max()
+    assert np.abs(np.linalg.norm(pts, axis=1) - radius).max() < 0.01 * radius  # on the sphere
+    m = json.loads((smooth / "report.json").read_text())["metrics"]
+    assert m["cut_length_smoothed"] < 0.98 * m["cut_length"]

@@ -297,6 +297,11 @@ class SurfacingConfig(RunConfig):
         0.01, gt=0, le=1, description="Farthest a stroke point may lie from the surface (share of bbox diagonal)."
     )
     compare_single_level: bool = Field(False, description="Also solve on the full graph and report its cut cost.")
+    smooth_cut: int = Field(
+        0, ge=0, le=1000,
+        description="Taubin smoothing steps of the exported boundary curves (cut_smooth.obj; 0 = off, the paper's "
+        "cut along mesh edges). Face labels are not changed.",
+    )
     preview_size: int = Field(512, ge=64, le=4096, description="Side of the PNG previews in pixels.")
     transfer: TransferSection | None = Field(None, description="mode: transfer: the pairs and the synthesis settings.")
 

@@ -6,7 +6,8 @@ Stages (``report.json`` ``timings``): ``load``, ``strokes``, ``graph`` (graph, c
 
 Outputs: ``labels.ply`` (int32 ``label`` and a region colour on every face and vertex),
 ``labels.seg`` (one face label per line), ``regions/<name><suffix>`` (one mesh per region in the
-input's format), ``cut.obj`` (the boundary as OBJ ``l`` polylines), ``regions.png`` (four views,
+input's format), ``cut.obj`` (the boundary as OBJ ``l`` polylines; ``cut_smooth.obj`` the same
+curves smoothed over the surface with ``smooth_cut``), ``regions.png`` (four views,
 strokes darker, cut in red) and ``level_<k>.png`` (free band of each level in grey, Fig. 3); with
 ``views.render`` (``--render-views``) or ``mode: views``, ``views/<view>.png`` renders to paint
 strokes on and ``views/<view>.json`` their cameras (``mode: views`` stops there).
@@ -28,10 +29,11 @@ from synthkit import preview
 from synthkit.errors import ConfigError
 from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
-from synthkit.io.segmentation import write_labels_ply, write_polylines_obj, write_seg
+from synthkit.io.segmentation import write_labels_ply, write_point_polylines_obj, write_polylines_obj, write_seg
 from synthkit.methods.surfacing import views
 from synthkit.methods.surfacing.config import SurfacingConfig
 from synthkit.methods.surfacing.segment import Options, Segmentation, chain_edges, cut_edges, segment
+from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
 from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
 
 __all__ = ["run", "options_of", "region_colors", "mesh_colors", "resolve_strokes"]
@@ -203,15 +205,17 @@ def _stroked_faces(F, seg: Segmentation) -> np.ndarray:
     return (seg.seeds[F] >= 0).any(axis=1)
 
 
-def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray) -> None:
-    """``regions.png`` (the summary preview: four views, strokes darker, the cut in red) and one
-    ``level_<k>.png`` per level with its free band (Fig. 3)."""
+def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray, curves=None) -> None:
+    """``regions.png`` (the summary preview: four views, strokes darker, the cut in red: the smoothed
+    ``curves`` when there are) and one ``level_<k>.png`` per level with its free band (Fig. 3)."""
     if not ctx.wants_preview("summary"):
         return
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     base = region_colors(cfg).astype(np.float64)[seg.face_labels] / 255.0
     base[_stroked_faces(F, seg)] *= 0.45
     lines = V[cut] if len(cut) else None
+    if curves is not None and len(curves):
+        lines = np.concatenate([np.stack([c[:-1], c[1:]], axis=1) for c in curves])
     views = ("front", "side", "top", "iso")
     size = cfg.preview_size
     imgs = [preview.rasterize_mesh(V, F, face_colors=base, view=v, size=size, lines=lines) for v in views]
@@ -258,7 +262,14 @@ def run(cfg: SurfacingConfig, ctx) -> None:
         ctx.timings["single_level"] = seg.single_level["seconds"]
     cut = cut_edges(np.asarray(mesh.vertices), np.asarray(mesh.faces), seg.face_labels)
     ctx.metrics.update(_metrics(cfg, mesh, seg, cut))
+    curves = None
+    if cfg.smooth_cut:
+        with ctx.stage("smoothing"):
+            curves = smooth_chains(mesh.vertices, mesh.faces, chain_edges(cut), cfg.smooth_cut)
+        ctx.metrics["cut_length_smoothed"] = float(sum(polyline_length(c) for c in curves))
     with ctx.stage("export"):
         _export(cfg, ctx, mesh, seg, cut)
+        if curves is not None:
+            write_point_polylines_obj(ctx.path("cut_smooth", "cut_smooth.obj"), curves)
     with ctx.stage("previews"):
-        _previews(cfg, ctx, mesh, seg, cut)
+        _previews(cfg, ctx, mesh, seg, cut, curves)

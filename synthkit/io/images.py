@@ -113,7 +113,10 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
     if arr.ndim not in (2, 3) or arr.size == 0:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
     if arr.dtype not in (np.uint8, np.uint16):
-        arr = np.round(np.clip(np.nan_to_num(arr.astype(np.float64)), 0.0, 1.0) * 255.0).astype(np.uint8)
+        wide = np.nan_to_num(arr.astype(np.float64), copy=False)  # one float64 copy, then in place
+        np.clip(wide, 0.0, 1.0, out=wide)
+        np.multiply(wide, 255.0, out=wide)
+        arr = np.round(wide, out=wide).astype(np.uint8)
     if arr.ndim == 3:
         if arr.shape[2] == 1:
             arr = arr[..., 0]

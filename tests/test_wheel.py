@@ -56,6 +56,10 @@ def _as_unprivileged(cmd: list) -> list:
     return [*wrap, *cmd]
 
 
+EXTRA_CONFIGS = [("surface-by-numbers", "surface-by-numbers/transfer-stripes.yaml")]
+"""Further modes run from the wheel: surface-by-numbers' first config is a segmentation."""
+
+
 def _config_for(method: str) -> str:
     if method in FASTEST_CONFIG:
         return FASTEST_CONFIG[method]
@@ -145,9 +149,10 @@ def test_installed_wheel_is_the_whole_tool(installed, tmp_path):
     assert {"retarget", "petri-synth", "symmetry-texture"} <= set(methods)
     assert listed == [*methods, "init", "schema", "validate", "run"]
 
-    for method in methods:
-        out = work / "out" / method
-        proc = _run(_as_unprivileged([synthkit, method, f"configs/{_config_for(method)}", "--out", out,
+    runs = [(method, _config_for(method)) for method in methods] + EXTRA_CONFIGS
+    for method, config in runs:
+        out = work / "out" / Path(config).stem
+        proc = _run(_as_unprivileged([synthkit, method, f"configs/{config}", "--out", out,
                                       "--no-progress"]), env=env, cwd=work)
         assert proc.returncode == 0, proc.stderr
         assert re.fullmatch(rf"{re.escape(method)}: wrote {re.escape(str(out))} in [0-9.]+ s \(.*\)\n", proc.stderr), (

@@ -725,6 +725,22 @@ def alpha_expansion(
         ``labels`` (N,) int64, ``energy`` (equal to :func:`energy` of ``labels``), ``cycles``,
         ``history`` (initial energy, then the energy after each cycle) and ``moves`` (successful moves).
     """
+    u, e, pw, labels = _expansion_start(unary, edges, pairwise, init, max_cycles)
+    state = _Expansion(u, e, pw, labels)
+    cycles, history, moves = _cycle_moves(state, u.shape[1], max_cycles, rng)
+    final = state.energy()
+    if not np.isfinite(final) and not allow_infinite:
+        raise ValueError(
+            f"alpha_expansion found no finite-energy labeling after {cycles} cycles "
+            f"({int(np.isinf(state.un).sum())} infinite unary, {int(np.isinf(state.pv).sum())} infinite "
+            "pairwise terms remain)"
+        )
+    return ExpansionResult(labels=state.lab, energy=final, cycles=cycles, history=history, moves=moves)
+
+
+def _expansion_start(unary, edges, pairwise, init, max_cycles: int):
+    """The checked problem ``(u (N, L), e (E, 2), pairwise, labels (N,))`` of :func:`alpha_expansion`:
+    ``labels`` is ``init`` or, without it, each node's cheapest unary label."""
     u, e, pw = _check_problem(unary, edges, pairwise)
     n, n_labels = u.shape
     if max(n, len(e)) >= 2**31:
@@ -736,18 +752,18 @@ def alpha_expansion(
         p = int(np.flatnonzero(~feasible)[0])
         raise ValueError(f"unary row {p} has no finite label: node {p} cannot be labeled")
     if init is None:
-        labels = np.argmin(u, axis=1).astype(np.int64)
-    else:
-        labels = _check_labels(init, n, n_labels, "init")
-    gen = None if rng is None else np.random.default_rng(rng)
+        return u, e, pw, np.argmin(u, axis=1).astype(np.int64)
+    return u, e, pw, _check_labels(init, n, n_labels, "init")
 
-    state = _Expansion(u, e, pw, labels)
+
+def _cycle_moves(state: _Expansion, n_labels: int, max_cycles: int, rng) -> tuple[int, list[float], int]:
+    """Expansion cycles over the labels on ``state`` until one changes nothing or ``max_cycles``
+    have run, skipping a label whose last move failed with nothing changed since; returns
+    ``(cycles, energy history, successful moves)``."""
+    gen = None if rng is None else np.random.default_rng(rng)
     history = [state.energy()]
     last_fail = np.full(n_labels, -1, dtype=np.int64)
-    step = 0
-    last_change = 0
-    moves = 0
-    cycles = 0
+    step = last_change = moves = cycles = 0
     for _ in range(max_cycles):
         cycles += 1
         order = np.arange(n_labels) if gen is None else gen.permutation(n_labels)
@@ -765,14 +781,7 @@ def alpha_expansion(
         history.append(state.energy())
         if not changed:
             break
-    final = state.energy()
-    if not np.isfinite(final) and not allow_infinite:
-        raise ValueError(
-            f"alpha_expansion found no finite-energy labeling after {cycles} cycles "
-            f"({int(np.isinf(state.un).sum())} infinite unary, {int(np.isinf(state.pv).sum())} infinite "
-            "pairwise terms remain)"
-        )
-    return ExpansionResult(labels=state.lab, energy=final, cycles=cycles, history=history, moves=moves)
+    return cycles, history, moves
 
 
 def compile_kernels() -> None:

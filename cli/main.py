@@ -12,7 +12,7 @@ import sys
 import click
 
 from synthkit import __version__
-from synthkit.errors import Terminated
+from synthkit.errors import TERMINATION_REQUESTED, Terminated
 from synthkit.methods import available_methods, package_module
 
 from .options import DEFAULT_SET_EXAMPLE, configure_logging, method_command
@@ -22,15 +22,19 @@ _TOOLS = ("init", "schema", "validate", "run")
 
 
 def _raise_terminated(signum, frame):
+    TERMINATION_REQUESTED.set()
     raise Terminated()
 
 
 def _install_sigterm():
-    """Make SIGTERM raise :class:`Terminated`; return the previous handler (None off the main thread)."""
+    """Make SIGTERM raise :class:`Terminated` (and set ``TERMINATION_REQUESTED``, in case a library
+    swallows the exception); return the previous handler (None off the main thread)."""
     try:
-        return signal.signal(signal.SIGTERM, _raise_terminated)
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
     except ValueError:
         return None
+    TERMINATION_REQUESTED.clear()
+    return previous
 
 
 class _Group(click.Group):

@@ -6,6 +6,8 @@ data: a mesh or image a config names that does not exist, cannot be read or is d
 Any other exception is a bug or an environment problem and exits with 1.
 """
 
+import threading
+
 
 class SynthkitError(Exception):
     """Base class for errors reported to the user as one line, without a traceback.
@@ -40,3 +42,16 @@ class Terminated(BaseException):
     KeyboardInterrupt, so staging folders are removed, and exits with 128 + 15 = 143."""
 
     exit_code = 143
+
+
+TERMINATION_REQUESTED = threading.Event()
+"""Set by the CLI's SIGTERM handler before it raises :class:`Terminated`. A library may swallow
+that exception (OpenCV's import runs a bare ``except:``; a SIGTERM arriving there was lost and the
+run went on to exit 0), so :func:`raise_if_terminated` raises it again at every stage boundary and
+before an output is moved into place."""
+
+
+def raise_if_terminated() -> None:
+    """Raise :class:`Terminated` when SIGTERM was received (:data:`TERMINATION_REQUESTED`)."""
+    if TERMINATION_REQUESTED.is_set():
+        raise Terminated()

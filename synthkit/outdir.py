@@ -13,7 +13,7 @@ Guarantees (README "Output folders"):
   ``flock`` before any work and removed afterwards; a second run is refused at once.
 - Outputs are built in ``.NAME.partial-PID`` beside the target and renamed into place; staging
   and ``.NAME.old-PID`` folders of runs that are gone (killed) are removed by the next run of the
-  same name.
+  same name, and so is an empty ``.NAME.partial-PID`` of a gone PID (killed before its marker).
 """
 
 from __future__ import annotations
@@ -137,11 +137,16 @@ def _gone(marker: Path) -> bool:
         return False
     if host != socket.gethostname() or pid == os.getpid():
         return False
+    return _pid_gone(pid)
+
+
+def _pid_gone(pid: int) -> bool:
+    """Whether no process ``pid`` exists on this host."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return True
-    except PermissionError:
+    except (PermissionError, OverflowError):
         return False
     return False
 
@@ -152,10 +157,37 @@ def remove_leftovers(target: Path) -> list[Path]:
     removed = []
     for kind in _LEFTOVER_KINDS:
         for folder in target.parent.glob(f".{target.name}.{kind}-*"):
-            if folder.is_dir() and not folder.is_symlink() and _gone(folder / MARKER):
+            if not folder.is_dir() or folder.is_symlink():
+                continue
+            if _gone(folder / MARKER):
                 shutil.rmtree(folder, ignore_errors=True)
                 removed.append(folder)
+            elif kind == "partial" and _remove_if_unstarted(folder):
+                removed.append(folder)
     return removed
+
+
+def _remove_if_unstarted(folder: Path) -> bool:
+    """Remove a staging folder ``.NAME.partial-PID`` whose run was killed between creating it and
+    writing its marker: empty, or holding only an empty marker file, and PID (from the name) no
+    longer a process here. Called under the target's lock, so no live run is creating it; a folder
+    holding anything else, or named for a live process, is kept."""
+    try:
+        pid = int(folder.name.rsplit("-", 1)[1])
+    except ValueError:
+        return False
+    if pid == os.getpid() or not _pid_gone(pid):
+        return False
+    entries = list(folder.iterdir())
+    if any(e.name != MARKER or e.is_symlink() or not e.is_file() or e.stat().st_size for e in entries):
+        return False
+    try:
+        for e in entries:
+            e.unlink()
+        folder.rmdir()
+    except OSError:
+        return False
+    return True
 
 
 def staging_path(target: Path) -> Path:

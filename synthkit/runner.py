@@ -23,7 +23,7 @@ import numpy as np
 
 from synthkit import __version__, outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
-from synthkit.errors import ConfigError, SynthkitError
+from synthkit.errors import ConfigError, SynthkitError, raise_if_terminated
 from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
 
@@ -94,11 +94,14 @@ class RunContext:
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        """Time the enclosed block; seconds are added to ``timings[name]``."""
+        """Time the enclosed block; seconds are added to ``timings[name]``. A SIGTERM that a
+        library swallowed is raised again on entry and on a normal exit (:func:`raise_if_terminated`)."""
+        raise_if_terminated()
         log.info("stage %s ...", name)
         start = time.perf_counter()
         try:
             yield
+            raise_if_terminated()
         finally:
             elapsed = time.perf_counter() - start
             self.timings[name] = self.timings.get(name, 0.0) + elapsed
@@ -222,8 +225,10 @@ def run_config(
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:
+                raise_if_terminated()
                 outdir.move_into_place(staging, target, overwrite=overwrite)
                 raise kept.error from None
+            raise_if_terminated()
             outdir.move_into_place(staging, target, overwrite=overwrite)
         except BaseException:
             shutil.rmtree(staging, ignore_errors=True)

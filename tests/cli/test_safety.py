@@ -213,6 +213,35 @@ def test_sigterm_exits_143_and_removes_staging(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_sigterm_swallowed_by_a_library_still_ends_the_run(runner, user_tree, echo_config, monkeypatch):
+    """OpenCV's import runs a bare ``except:``; a SIGTERM handled inside it was lost and the run
+    exited 0. Here the load swallows it the same way: the run still ends at the stage's end with
+    exit 143, leaving neither output nor staging folder."""
+    import echo_method.pipeline as pipeline
+
+    from synthkit.errors import TERMINATION_REQUESTED, Terminated
+
+    real_load = pipeline.load_image
+
+    def load_swallowing_sigterm(*args, **kwargs):
+        try:
+            TERMINATION_REQUESTED.set()
+            raise Terminated()
+        except:  # noqa: E722 - what the library does
+            pass
+        return real_load(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "load_image", load_swallowing_sigterm)
+    before = snapshot(user_tree)
+    try:
+        result = runner.invoke(cli, ["echo", str(echo_config), "--out", str(user_tree / "out")])
+    finally:
+        TERMINATION_REQUESTED.clear()
+    assert result.exit_code == 143, result.stderr
+    assert result.stderr.strip() == "error: terminated (SIGTERM)"
+    assert snapshot(user_tree) == before
+
+
 def _dead_pid() -> int:
     proc = subprocess.Popen([sys.executable, "-c", "pass"])
     proc.wait()
@@ -228,12 +257,20 @@ def test_leftovers_of_dead_runs_are_removed_others_kept(runner, user_tree, echo_
     alive = user_tree / ".out.partial-1"  # pid 1 is alive
     alive.mkdir()
     (alive / MARKER).write_text(json.dumps({"synthkit": "0.1.0", "host": socket.gethostname(), "pid": 1}))
-    stranger = user_tree / ".out.partial-2"  # no marker: not ours
+    stranger = user_tree / ".out.partial-2"  # no marker, pid 2 alive: not ours
     stranger.mkdir()
+    unstarted = user_tree / f".out.partial-{_dead_pid()}"  # killed between mkdir and its marker
+    unstarted.mkdir()
+    (unstarted / MARKER).write_text("")
+    unmarked = user_tree / f".out.partial-{_dead_pid()}"  # no marker, holds a file: kept
+    unmarked.mkdir()
+    (unmarked / "notes.txt").write_text("mine")
     before = snapshot(user_tree, exclude=dead)
     result = runner.invoke(cli, ["echo", str(echo_config), "--out", str(out)])
     assert result.exit_code == 0, result.stderr
-    assert not dead.exists() and alive.is_dir() and stranger.is_dir()
+    assert not dead.exists() and not unstarted.exists()
+    assert alive.is_dir() and stranger.is_dir() and (unmarked / "notes.txt").read_text() == "mine"
+    before.pop(f"{unstarted.name}/{MARKER}"), before.pop(unstarted.name)
     assert snapshot(user_tree, exclude=out) == before
 
 

@@ -616,12 +616,14 @@ def _segments_cross(a, b, P: np.ndarray) -> bool:
     return bool(np.any((o1 * o2 < 0) & (o3 * o4 < 0)))
 
 
-def triangulate_polygons(P2, loops: list[np.ndarray]) -> np.ndarray:
+def triangulate_polygons(P2, loops: list[np.ndarray], *, best_ear: bool = False) -> np.ndarray:
     """Triangulate the region bounded by ``loops`` (vertex indices into ``P2 (n, 2)``), holes included.
 
     Counter-clockwise loops are outer boundaries, clockwise loops holes (each hole belongs to the
     smallest outer loop containing it). Holes are joined to their outer loop by a bridge from their
-    rightmost vertex to the nearest outer vertex it can see, then the polygon is ear-clipped.
+    rightmost vertex to the nearest outer vertex it can see, then the polygon is ear-clipped: the
+    first ear found in turn, or with ``best_ear`` the ear with the largest smallest angle each time
+    (:func:`_best_ear_clip`, which never clips a zero-area ear).
     Returns ``(k, 3)`` int64 triangles, counter-clockwise; a polygon that cannot be clipped (self-
     intersecting input) is skipped.
     """
@@ -658,8 +660,67 @@ def triangulate_polygons(P2, loops: list[np.ndarray]) -> np.ndarray:
                 pick = int(order[0])
             h_rot = h[m:] + h[: m + 1]
             poly = poly[: pick + 1] + h_rot + [poly[pick]] + poly[pick + 1 :]
-        tris.extend(_ear_clip(P2, poly))
+        tris.extend(_best_ear_clip(P2, poly) if best_ear else _ear_clip(P2, poly))
     return np.asarray(tris, np.int64).reshape(-1, 3)
+
+
+EAR_AREA_TOL = 1e-12
+"""Relative twice-area (times the polygon's squared extent) below which an ear counts as flat."""
+
+
+def _triangle_min_angles(A, B, C) -> np.ndarray:
+    """Smallest interior angle (radians) of each triangle ``A, B, C (k, 2)``."""
+    out = np.full(len(A), np.pi)
+    for p, q, r in ((A, B, C), (B, C, A), (C, A, B)):
+        e1, e2 = q - p, r - p
+        den = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+        cos = np.divide(np.einsum("ij,ij->i", e1, e2), den, out=np.ones(len(A)), where=den > 0)
+        out = np.minimum(out, np.arccos(np.clip(cos, -1.0, 1.0)))
+    return out
+
+
+def _best_ear_clip(P2: np.ndarray, poly: list[int]) -> list[list[int]]:
+    """Ear clipping of the simple polygon ``poly`` (counter-clockwise) that clips, each time, the
+    ear whose triangle has the largest smallest angle; ears with twice-area below
+    ``EAR_AREA_TOL`` times the squared extent (three collinear corners) are never clipped, so a
+    straight side's vertices end up in fans from across the polygon rather than in slivers of
+    zero area. [] when it gets stuck."""
+    Q = P2[poly]
+    n = len(poly)
+    flat = EAR_AREA_TOL * float(np.ptp(Q, axis=0).max()) ** 2 if n else 0.0
+    alive = list(range(n))
+    out: list[list[int]] = []
+    while len(alive) > 3:
+        idx = np.asarray(alive)
+        a, c = np.roll(idx, 1), np.roll(idx, -1)
+        A, B, C = Q[a], Q[idx], Q[c]
+        cross = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+        score = np.where(cross > flat, _triangle_min_angles(A, B, C), -1.0)
+        for j in np.argsort(-score, kind="stable"):
+            if score[j] < 0:
+                return []
+            if not _ear_blocked(Q, idx, a[j], idx[j], c[j], flat):
+                out.append([poly[a[j]], poly[idx[j]], poly[c[j]]])
+                alive.pop(int(j))
+                break
+        else:
+            return []
+    out.append([poly[k] for k in alive])
+    return out
+
+
+def _ear_blocked(Q, idx, a, b, c, tol: float) -> bool:
+    """Whether a polygon vertex of ``Q[idx]`` other than the corners lies in triangle a, b, c or
+    within ``tol`` (twice-area) of its sides: a vertex on the diagonal a-c blocks the ear, which
+    would otherwise leave a remainder of zero area."""
+    R = Q[idx]
+    same = np.all(R == Q[a], axis=1) | np.all(R == Q[b], axis=1) | np.all(R == Q[c], axis=1)
+    R = R[~same]
+    A, B, C = Q[a], Q[b], Q[c]
+    d1 = (B[0] - A[0]) * (R[:, 1] - A[1]) - (B[1] - A[1]) * (R[:, 0] - A[0])
+    d2 = (C[0] - B[0]) * (R[:, 1] - B[1]) - (C[1] - B[1]) * (R[:, 0] - B[0])
+    d3 = (A[0] - C[0]) * (R[:, 1] - C[1]) - (A[1] - C[1]) * (R[:, 0] - C[0])
+    return bool(np.any((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)))
 
 
 def _ear_clip(P2: np.ndarray, poly: list[int]) -> list[list[int]]:

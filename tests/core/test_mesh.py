@@ -276,6 +276,30 @@ def test_triangulate_polygon_with_hole():
     assert np.isclose(M.face_areas(np.c_[L, np.zeros(6)], T).sum(), 3.0)
 
 
+def _twice_areas(P, T):
+    a, b = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
+    return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+
+def test_best_ear_never_clips_a_flat_ear():
+    """A unit square with three extra vertices on one side, turned through every whole degree:
+    the plain clipper makes a triangle of area ~1e-17 on some turns (7 degrees is one), the
+    best-ear clipper always gives 5 triangles of area 1/8 or more that cover the square."""
+    base = np.array([(0.5, 0), (0.75, 0), (1, 0), (1, 1), (0, 1), (0, 0), (0.25, 0)], float)
+
+    def turned(deg):
+        t = np.radians(deg)
+        return base @ np.array([[np.cos(t), np.sin(t)], [-np.sin(t), np.cos(t)]]) + [0.3, 0.7]
+
+    assert np.abs(_twice_areas(turned(7), M.triangulate_polygons(turned(7), [np.arange(7)]))).min() < 1e-15
+    for deg in range(360):
+        P = turned(deg)
+        T = M.triangulate_polygons(P, [np.arange(7)], best_ear=True)
+        area2 = _twice_areas(P, T)
+        assert len(T) == 5 and area2.min() > 0.25 - 1e-9, (deg, area2)
+        assert np.isclose(area2.sum(), 2.0)
+
+
 def test_clip_with_caps_is_closed(cube):
     import trimesh
 

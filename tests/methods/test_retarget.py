@@ -40,6 +40,7 @@ from synthkit.methods.retarget.synthesis import (
     mesh_quality,
     repair_t_junctions,
     seam_planes,
+    unique_faces,
 )
 from synthkit.runner import run_config
 from synthkit.samples import retarget as samples
@@ -133,6 +134,16 @@ def test_mesh_quality_tiny_fixtures():
     assert mesh_quality(V2, np.array([[0, 2, 1], [0, 1, 4], [0, 3, 2], [1, 2, 3]]))["boundary_edges"] == 0
     sliver = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-4, 0]])
     assert mesh_quality(sliver, np.array([[0, 1, 2]]))["sliver_faces"] == 1
+
+
+def test_unique_faces_drops_a_surface_stored_twice():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1e-7, 0], [0, 1, 0]], dtype=np.float64)
+    F = np.array([[0, 1, 2], [2, 0, 3], [4, 1, 0], [1, 2, 0], [0, 1, 3]])
+    # face 1 is face 0 again over copies of its vertices (within 1e-6), rotated; face 2 is face 0
+    # reversed (a double-sided wall: kept); face 3 is face 0 rotated; face 4 collapses onto an edge
+    assert unique_faces(V, F).tolist() == [True, False, True, False, True]
+    assert unique_faces(V, F, tol=1e-8).tolist() == [True, True, True, False, True]
+    assert unique_faces(V, np.zeros((0, 3), np.int64)).shape == (0,)
 
 
 def test_merge_coplanar_faces_keeps_area_boundary_and_labels():

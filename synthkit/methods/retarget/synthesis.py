@@ -73,6 +73,11 @@ class VoxelGrid:
         return int(np.prod(self.shape))
 
 
+POSITION_TOL = 1e-6
+"""Normalised distance within which two vertices are one position when a mesh's cleanliness is
+judged (:func:`mesh_quality`, :func:`unique_faces`): the OBJ and glTF assets store 6-7 digits."""
+
+
 def grid_phase(C, plane_distance, *, parallel=None, n_phases: int = 32) -> np.ndarray:
     """Per canonical axis, the phase in [0, 1) of the voxel faces that cuts the least surface.
 
@@ -463,7 +468,28 @@ def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.nda
     return V, F, src
 
 
-def mesh_quality(V, F, *, tol: float = 1e-6) -> dict:
+def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
+    """``keep (m,) bool``: False for each face of ``F (m, 3)`` over the same three vertices of
+    ``V (n, 3)`` (welded by position within ``tol``) in the same cyclic orientation as an earlier
+    face, i.e. a surface stored twice (issue 15). Finding: house1_baked stores 56 of its 284
+    polygons twice with the same UVs (106 of its 528 triangles); every copy of the model then
+    carried them into the retargeted mesh. Faces in the opposite orientation (double-sided walls)
+    are kept."""
+    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    if len(F) == 0:
+        return np.ones(0, bool)
+    _, _, old_to_new = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    Fw = old_to_new[F]
+    first = np.argmin(Fw, axis=1)
+    rot = np.take_along_axis(Fw, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)
+    _, index = np.unique(rot, axis=0, return_index=True)
+    keep = np.zeros(len(F), bool)
+    keep[index] = True
+    return keep
+
+
+def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
     """Cleanliness figures of a triangle mesh ``V (n, 3)``, ``F (m, 3)`` (issue 15), after
     welding by position within ``tol`` (so that the UV and normal seams of an asset, whose copies
     of a vertex share a position, do not count as open):
@@ -635,7 +661,7 @@ def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2)
     P2 = np.zeros((len(V), 2))
     verts = np.unique(F[faces])
     P2[verts] = np.stack([V[verts] @ u, V[verts] @ w], axis=1)
-    tris = triangulate_polygons(P2, loops)
+    tris = triangulate_polygons(P2, loops, best_ear=True)
     if not 0 < len(tris) <= len(faces):
         return None
     t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])

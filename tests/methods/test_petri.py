@@ -1021,6 +1021,8 @@ def test_kenney_building_along_a_longer_curve_names_the_conflict(tmp_path):
 example: {glb}
 lattice:
   unit: [0.25, 0.475, 0.25]
+labels:
+  join_ends: never
 construction:
   plane: xz
   points: [[0, 0], [3, 0], [5, 2]]

@@ -321,6 +321,46 @@ def adjacency_constraints(label_grid: np.ndarray, n_labels: int, *, boundary: bo
     return Constraints(allowed=allowed, n_labels=n_labels, boundary=boundary)
 
 
+def join_ends(cons: Constraints, axis: int) -> Constraints:
+    """``cons`` with the example's ends along ``axis`` joined: a label that may end the model at
+    +axis may be followed there by any label that may begin it at -axis (``allowed[axis, a, OUT]``
+    and ``allowed[axis, OUT, b]`` give ``allowed[axis, a, b]``), as if a copy of the example stood
+    against it. Pairs of the other axes and the outside's own pairs are kept. Needs ``cons.boundary``."""
+    if not cons.boundary:
+        raise ValueError("joining the example's ends needs the outside as a label (labels.boundary: true)")
+    A = cons.allowed.copy()
+    L = cons.n_labels
+    A[axis, :L, :L] |= np.outer(A[axis, :L, L], A[axis, L, :L])
+    return Constraints(allowed=A, n_labels=L, boundary=True)
+
+
+FACADE_SLOPE = 0.1
+"""A face is a facade face when its unit normal's component along the up axis is at most this
+(within about 5.7 degrees of vertical): walls, window frames and door reveals, not floors or roofs."""
+
+
+def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)``: faces whose unit normal ``n`` has
+    ``|n[up_axis]| <= slope`` (normal orthogonal to the up axis, :data:`FACADE_SLOPE`)."""
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0:
+        return 0.0
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    double_area = np.linalg.norm(n, axis=1)
+    up = np.abs(n[:, up_axis]) <= slope * double_area
+    return float(0.5 * double_area[up & (double_area > 0)].sum())
+
+
+def facade_cells(neighbours: np.ndarray, directions) -> int:
+    """Facade cells of a space: cell sides in ``directions`` (of the six, 2 axis + 0 for +axis, + 1
+    for -axis; the horizontal ones) without a neighbour, from ``neighbours (N, 6)`` (-1: none). A
+    corner cell counts twice, so the facade area per facade cell is comparable between the example
+    and a result of another shape."""
+    nbr = np.asarray(neighbours)
+    return int((nbr[:, list(directions)] < 0).sum())
+
+
 def repeatable_labels(allowed_axis: np.ndarray, n_labels: int) -> np.ndarray:
     """``(L,) bool``: labels that may occur any number of times in a row along one axis, i.e. lie on
     a cycle of ``allowed_axis (L + 1, L + 1)`` (the outside, index L, excluded)."""

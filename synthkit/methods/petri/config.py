@@ -91,6 +91,21 @@ class Labels(StrictModel):
         description="Treat the outside of the lattice as a label, so pieces that end the example (walls, "
         "corners) end the result too (Merrell-style; the paper does not say).",
     )
+    join_ends: Literal["auto", "always", "never"] = Field(
+        "auto",
+        description="With 'boundary', let a piece that ends the example along the curve be followed by one "
+        "that begins it, so copies of the example stand side by side along the curve. 'auto' (default) "
+        "joins only when some row of the example along the curve holds no piece that may repeat: such an "
+        "example (a one-bay house: every piece along the curve is a corner) cannot grow past its own "
+        "length otherwise, and the paper's users draw curves longer than the example (Fig. 6, 9).",
+    )
+
+
+    @model_validator(mode="after")
+    def _join_needs_boundary(self):
+        if self.join_ends == "always" and not self.boundary:
+            raise ValueError("join_ends: always needs boundary: true (the example ends where it meets the outside)")
+        return self
 
 
 class Curve(StrictModel):

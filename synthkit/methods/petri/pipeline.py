@@ -59,6 +59,38 @@ def analyse_example(V, F, cfg: PetriConfig):
     return spec, pieces, features, grid, reps, cons
 
 
+def curve_constraints(cfg: PetriConfig, grid: np.ndarray, cons, axis: int):
+    """The constraints the target net uses along the curve's world ``axis``, the growth hint for its
+    contradiction message (:func:`analysis.growth_hint`) and whether the example's ends were joined
+    (``labels.join_ends``; 'auto' joins when the hint says some row cannot grow)."""
+    key = unit_key(cfg, axis)
+    hint = analysis.growth_hint(grid, cons, axis, key)
+    mode = cfg.labels.join_ends
+    if cons.boundary and (mode == "always" or (mode == "auto" and hint is not None)):
+        joined = analysis.join_ends(cons, axis)
+        return joined, analysis.growth_hint(grid, joined, axis, key), True
+    return cons, hint, False
+
+
+def facade_metrics(V, F, RV, RF, grid: np.ndarray, net: ColouredPetriNet, axes) -> dict:
+    """Facade figures of the result ``RV, RF`` against the example ``V, F`` (both in world axes;
+    ``axes`` the construction's world axes a, b, c with c up): facade area
+    (:func:`analysis.facade_area`), facade cells (cell sides facing the outside across a or b,
+    :func:`analysis.facade_cells`; the example's ``grid (nx, ny, nz)`` sides along axes a and b) and
+    the expected area, the example's facade area per facade cell times the result's facade cells."""
+    up = int(axes[2])
+    ex_cells = sum(2 * grid.size // grid.shape[h] for h in axes[:2])
+    res_cells = analysis.facade_cells(net.neighbours, range(4))
+    ex_area = analysis.facade_area(V, F, up)
+    return {
+        "facade_area": analysis.facade_area(RV, RF, up),
+        "facade_area_expected": ex_area / max(ex_cells, 1) * res_cells,
+        "facade_cells": res_cells,
+        "example_facade_area": ex_area,
+        "example_facade_cells": int(ex_cells),
+    }
+
+
 def origin_preference(grid: np.ndarray) -> list[int]:
     """Labels of the example's pieces ordered by lattice distance from e_000 (e_000's first), unique."""
     idx = np.stack(np.unravel_index(np.arange(grid.size), grid.shape), axis=1)
@@ -268,12 +300,13 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
     preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
 
-def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out, *, restarts,
+def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, restarts,
                     violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
     net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` and ``unmatched``
     boundary vertices."""
+    plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
     h_res = analysis.normal_histogram(RV, RF, plane_axes)
     return h_ex, {
@@ -293,6 +326,7 @@ def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, la
         "normal_histogram_result": h_res,
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
+        **facade_metrics(V, F, RV, RF, grid, net, space.axes),
     }
 
 
@@ -333,6 +367,8 @@ def run(cfg: PetriConfig, ctx) -> None:
         spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
 
     check_construction_budget(ctx.budget, cfg, spec, V, F, len(pieces.index))
+    cons, hint, joined = curve_constraints(cfg, grid, cons, construction.PLANE_AXES[cfg.construction.plane][0])
+    ctx.metrics["joined_ends"] = joined
     if cfg.construction.curves is not None:
         return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
 
@@ -343,7 +379,6 @@ def run(cfg: PetriConfig, ctx) -> None:
     axes = space.axes
     library = PieceLibrary(pieces, reps, axes)
     with ctx.stage("inference"):
-        hint = analysis.growth_hint(grid, cons, axes[0], unit_key(cfg, axes[0]))
         net, assembler, restarts = synthesize(
             space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts, hint=hint
         )
@@ -363,7 +398,7 @@ def run(cfg: PetriConfig, ctx) -> None:
             labels_out, net.allowed, cons.n_labels, boundary=cons.boundary, periodic=net.periodic
         )
         plane_axes = space.point_axes
-        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+        h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
                                        deviation=deviation)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
@@ -513,7 +548,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         nbr, back, _, _ = space.graph()
         violations = graph_violations(labels_out, nbr, back, net.allowed, cons.n_labels, boundary=cons.boundary)
         plane_axes = space.point_axes
-        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+        h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        restarts=restarts, violations=violations, gap=jm["gap"],
                                        unmatched=jm["unmatched"], deviation=deviation)
         metrics = {

@@ -334,6 +334,57 @@ def join_ends(cons: Constraints, axis: int) -> Constraints:
     return Constraints(allowed=A, n_labels=L, boundary=True)
 
 
+def row_lengths(allowed_axis: np.ndarray, n_labels: int, row: np.ndarray, most: int, *, closed: bool) -> np.ndarray:
+    """``(most + 1,) bool``: the lengths ``k <= most`` a row of cells along one axis can take with the
+    labels of the example row ``row (n,)`` alone under ``allowed_axis (L + 1, L + 1)``: a path of ``k``
+    labels from one that may follow the outside to one the outside may follow, or (``closed``) a
+    cycle of ``k`` labels."""
+    A = np.asarray(allowed_axis, bool)
+    R = np.unique(row)
+    step = A[np.ix_(R, R)].astype(np.int64)
+    ok = np.zeros(most + 1, bool)
+    if closed:
+        walk = np.eye(len(R), dtype=np.int64)
+        for k in range(1, most + 1):
+            walk = np.minimum(walk @ step, 1)
+            ok[k] = bool(np.trace(walk) > 0)
+        return ok
+    reach = A[n_labels, R].astype(np.int64)
+    for k in range(1, most + 1):
+        ok[k] = bool((reach.astype(bool) & A[R, n_labels]).any())
+        reach = np.minimum(reach @ step, 1)
+    return ok
+
+
+def length_hint(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool, unit: float):
+    """Why ``cells`` cells along world ``axis`` (the curve's, ``unit`` long each) cannot be filled when
+    every row of ``label_grid (nx, ny, nz)`` can repeat: the rows whose labels fit no row of that
+    length (:func:`row_lengths`), and the nearest length every row fits. None when each row fits."""
+    most = 2 * cells + 8
+    rows = np.moveaxis(label_grid, axis, -1)
+    fits = np.ones(most + 1, bool)
+    stuck = []
+    for idx in np.ndindex(rows.shape[:-1]):
+        ok = row_lengths(cons.allowed[axis], cons.n_labels, rows[idx], most, closed=closed)
+        fits &= ok
+        if not ok[cells]:
+            stuck.append(idx)
+    if not stuck:
+        return None
+    name = "XYZ"[axis]
+    near = [k for k in np.flatnonzero(fits).tolist() if k > 0]
+    best = min(near, key=lambda k: (abs(k - cells), k)) if near else None
+    fix = (
+        f"make the curve {best * unit:.4g} long, {best} cells of {unit:.4g} (it is cut into {cells})"
+        if best is not None
+        else f"choose the lattice along {name} so that pieces repeat within every row"
+    )
+    return (
+        f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {name} admit no row of "
+        f"{cells} cells with their own pieces ({'closed' if closed else 'open'} curve): {fix}"
+    )
+
+
 FACADE_SLOPE = 0.1
 """A face is a facade face when its unit normal's component along the up axis is at most this
 (within about 5.7 degrees of vertical): walls, window frames and door reveals, not floors or roofs."""

@@ -379,6 +379,9 @@ def run(cfg: PetriConfig, ctx) -> None:
     axes = space.axes
     library = PieceLibrary(pieces, reps, axes)
     with ctx.stage("inference"):
+        if hint is None:
+            hint = analysis.length_hint(grid, cons, axes[0], space.shape[0], closed=space.closed,
+                                        unit=float(space.units[0]))
         net, assembler, restarts = synthesize(
             space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts, hint=hint
         )

@@ -1065,9 +1065,9 @@ def test_join_ends_always_needs_the_boundary(tmp_path):
 KENNEY_RUNS = {
     # building, Y unit (the floor height that fits the example's height), closed, curve
     "a-bent": ("a", 0.475, False, [[0, 0], [3, 0], [5, 2]]),
-    "a-ring": ("a", 0.475, True, [[0, 0], [4, 0], [4, 3], [0, 3]]),
+    "a-ring": ("a", 0.475, True, [[0, 0], [0, 3], [4, 3], [4, 0]]),  # clockwise: fronts face out
     "b-bent": ("b", 0.406625, False, [[0, 0], [3, 0], [5, 2]]),
-    "b-ring": ("b", 0.406625, True, [[0, 0], [4, 0], [4, 3], [0, 3]]),
+    "b-ring": ("b", 0.406625, True, [[0, 0], [0, 3], [4, 3], [4, 0]]),
 }
 
 

@@ -1105,6 +1105,9 @@ def test_row_lengths_and_length_hint_exact():
     row = grid[:, 0, 0]
     assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 9, closed=False)).tolist() == [3, 6, 9]
     assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 7, closed=True)).tolist() == [3, 6]
+    fits = analysis.row_fits(grid, cons, 0, 9, closed=False)
+    assert fits.shape == (1, 10) and analysis.nearest_fit(fits, 7) == 6 and analysis.nearest_fit(fits, 8) == 9
+    assert analysis.nearest_fit(np.zeros((2, 5), bool), 3) is None
     assert analysis.length_hint(grid, cons, 0, 6, closed=False, unit=0.5) is None
     assert analysis.length_hint(grid, cons, 0, 7, closed=True, unit=0.5) == (
         "1 of the example's 1 rows along X admit no row of 7 cells with their own pieces (closed curve): "
@@ -1113,7 +1116,8 @@ def test_row_lengths_and_length_hint_exact():
 
 def test_kenney_joined_rows_of_the_wrong_length_name_the_fix(tmp_path):
     """building-small-a at unit 0.25: joined end to end its top-floor rows repeat every 4 cells, so a
-    curve cut into 23 cells is refused naming the conflict and the curve length that fits (24 cells)."""
+    curve cut into 23 cells is refused, with construction.fit_cells: false, naming the conflict and the
+    curve length that fits (24 cells); by default the curve is cut into those 24 cells."""
     glb = KENNEY / "building-small-a.glb"
     if not glb.is_file():
         pytest.skip(f"real data absent: {glb}")
@@ -1123,9 +1127,9 @@ lattice:
   unit: [0.25, 0.475, 0.25]
 construction:
   plane: xz
-  points: {{points}}
+  points: [[0, 0], [3, 0], [5, 2]]
 """
-    cfg = write_config(tmp_path, "kenney_23", body.format(points="[[0, 0], [3, 0], [5, 2]]"))
+    cfg = write_config(tmp_path, "kenney_23", body + "  fit_cells: false\n")
     result = CliRunner().invoke(cli, ["petri-synth", str(cfg), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 3
     line = result.stderr.strip()
@@ -1134,6 +1138,6 @@ construction:
            "at -a (along the curve)" in line
     assert "3 of the example's 8 rows along X admit no row of 23 cells with their own pieces (open curve): " \
            "make the curve 6 long, 24 cells of 0.25 (it is cut into 23)" in line
-    cfg = write_config(tmp_path, "kenney_24", body.format(points="[[0, 0], [3.172, 0], [5.172, 2]]"))
-    m = run_config(cfg, out_dir=tmp_path / "out")["metrics"]
-    assert m["construction_shape"] == [24, 4, 2] and m["adjacency_violations"] == 0 and m["crack_max"] < 1e-6
+    m = run_config(write_config(tmp_path, "kenney_24", body), out_dir=tmp_path / "out")["metrics"]
+    assert m["fitted_cells"] == {"from_length": 23, "to": 24} and m["construction_shape"] == [24, 4, 2]
+    assert m["adjacency_violations"] == 0 and m["crack_max"] < 1e-6

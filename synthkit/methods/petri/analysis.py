@@ -356,32 +356,40 @@ def row_lengths(allowed_axis: np.ndarray, n_labels: int, row: np.ndarray, most: 
     return ok
 
 
+def row_fits(label_grid: np.ndarray, cons: Constraints, axis: int, most: int, *, closed: bool) -> np.ndarray:
+    """``(R, most + 1) bool``: per row of ``label_grid (nx, ny, nz)`` along ``axis`` (C order of the
+    other two axes), the lengths a row of cells can take with that row's labels (:func:`row_lengths`)."""
+    rows = np.moveaxis(label_grid, axis, -1)
+    A, L = cons.allowed[axis], cons.n_labels
+    return np.array([row_lengths(A, L, rows[idx], most, closed=closed) for idx in np.ndindex(rows.shape[:-1])])
+
+
+def nearest_fit(fits: np.ndarray, cells: int) -> int | None:
+    """The length nearest to ``cells`` (ties: the shorter) that every row of ``fits (R, most + 1)``
+    takes (:func:`row_fits`), or None when there is none."""
+    every = np.flatnonzero(fits.all(axis=0)).tolist()
+    near = [k for k in every if k > 0]
+    return min(near, key=lambda k: (abs(k - cells), k)) if near else None
+
+
 def length_hint(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool, unit: float):
     """Why ``cells`` cells along world ``axis`` (the curve's, ``unit`` long each) cannot be filled when
     every row of ``label_grid (nx, ny, nz)`` can repeat: the rows whose labels fit no row of that
-    length (:func:`row_lengths`), and the nearest length every row fits. None when each row fits."""
-    most = 2 * cells + 8
-    rows = np.moveaxis(label_grid, axis, -1)
-    fits = np.ones(most + 1, bool)
-    stuck = []
-    for idx in np.ndindex(rows.shape[:-1]):
-        ok = row_lengths(cons.allowed[axis], cons.n_labels, rows[idx], most, closed=closed)
-        fits &= ok
-        if not ok[cells]:
-            stuck.append(idx)
+    length (:func:`row_fits`), and the nearest length every row fits. None when each row fits."""
+    fits = row_fits(label_grid, cons, axis, 2 * cells + 8, closed=closed)
+    stuck = int((~fits[:, cells]).sum())
     if not stuck:
         return None
     name = "XYZ"[axis]
-    near = [k for k in np.flatnonzero(fits).tolist() if k > 0]
-    best = min(near, key=lambda k: (abs(k - cells), k)) if near else None
+    best = nearest_fit(fits, cells)
     fix = (
         f"make the curve {best * unit:.4g} long, {best} cells of {unit:.4g} (it is cut into {cells})"
         if best is not None
         else f"choose the lattice along {name} so that pieces repeat within every row"
     )
     return (
-        f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {name} admit no row of "
-        f"{cells} cells with their own pieces ({'closed' if closed else 'open'} curve): {fix}"
+        f"{stuck} of the example's {len(fits)} rows along {name} admit no row of {cells} cells with their "
+        f"own pieces ({'closed' if closed else 'open'} curve): {fix}"
     )
 
 

@@ -165,6 +165,14 @@ class Construction(StrictModel):
         "left",
         description="Where the offset lines go: left of the curve (as drawn), right of it, or centred on it.",
     )
+    fit_cells: bool = Field(
+        True,
+        description="When every row of the example along the curve can repeat but some row cannot take S_X "
+        "cells with its own pieces (an example joined end to end repeats every n cells, labels.join_ends), "
+        "cut the curve into the nearest S_X every row takes instead (pieces stretch or shrink by length / "
+        "(S_X unit); reported as metrics.fitted_cells): a curve drawn by hand has no exact length, and users "
+        "expect a result rather than a refusal over one cell. false: refuse, naming that S_X. Single curves only.",
+    )
     size_y: int | None = Field(
         None, ge=1, le=10000, description="S_Y: cells across the curve; null = the example's count."
     )

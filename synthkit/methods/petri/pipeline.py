@@ -103,8 +103,9 @@ def origin_preference(grid: np.ndarray) -> list[int]:
     return out
 
 
-def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
-    """Algorithm 1 on the config's curve (or on ``points``) with the lattice's units."""
+def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None, cells: int | None = None):
+    """Algorithm 1 on the config's curve (or on ``points``) with the lattice's units (and S_X =
+    ``cells`` when given)."""
     con = cfg.construction
     axes = construction.PLANE_AXES[con.plane]
     units = spec.unit[list(axes)]
@@ -118,7 +119,22 @@ def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
         size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
         sweep_origin=float(spec.origin[axes[2]]),
         unit_key=unit_key(cfg, axes[0]),
+        cells=cells,
     )
+
+
+def fit_space(cfg: PetriConfig, spec, grid: np.ndarray, cons, space):
+    """``space`` with S_X changed to the nearest count every row of the example's ``grid`` along the
+    curve takes (``construction.fit_cells``; only when each row can repeat, so the count stays within
+    a period of the curve's). Returns ``(space, fitted)``, ``fitted = {"from_length", "to"}`` or None."""
+    n0 = space.shape[0]
+    if not cfg.construction.fit_cells:
+        return space, None
+    fits = analysis.row_fits(grid, cons, space.axes[0], 2 * n0 + 8, closed=space.closed)
+    k = None if fits[:, n0].all() else analysis.nearest_fit(fits, n0)
+    if k is None:
+        return space, None
+    return build_space(cfg, spec, cells=k), {"from_length": int(n0), "to": int(k)}
 
 
 def unit_key(cfg: PetriConfig, axis: int) -> str:
@@ -374,6 +390,10 @@ def run(cfg: PetriConfig, ctx) -> None:
 
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
+        fitted = None
+        if hint is None:
+            space, fitted = fit_space(cfg, spec, grid, cons, space)
+        ctx.metrics["fitted_cells"] = fitted
         deviation = space.center_deviation()
 
     axes = space.axes

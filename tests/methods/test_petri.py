@@ -1035,6 +1035,7 @@ construction:
             "at -a (along the curve)") in line
     assert "3 of the example's 8 rows along X ((Y=1, Z=0), (Y=1, Z=1), (Y=1, Z=2)) hold no piece" in line
     assert "choose lattice.unit[0] (along X) so that pieces repeat within every row" in line
+    assert line.endswith("labels.tolerance, or set labels.join_ends: auto (copies of the example side by side))")
 
 
 def test_join_ends_and_facade_measures_exact():

@@ -441,8 +441,9 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
     (label 1 follows itself along X) but the roof row is four different pieces. With the outside
     as a label (``labels.boundary: true``, eq. 4 with Merrell's boundary), no construction longer
     than the example along X has a solution, before any random choice: a property of the example
-    and the lattice, not of Algorithm 2. The error names the cell, the conflicting labels and side,
-    and these rows."""
+    and the lattice, not of Algorithm 2. ``labels.join_ends: auto`` then joins the example end to
+    end (:func:`join_ends`); with ``never`` the error names the cell, the conflicting labels and
+    side, and these rows."""
     repeat = repeatable_labels(cons.allowed[axis], cons.n_labels)
     rows = np.moveaxis(label_grid, axis, -1)
     stuck = [idx for idx in np.ndindex(rows.shape[:-1]) if not repeat[rows[idx]].any()]
@@ -458,7 +459,8 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
         f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {'XYZ'[axis]} ({names}{more}) hold "
         f"no piece that may repeat along {'XYZ'[axis]}, so the example cannot grow past its "
         f"{rows.shape[-1]} units there: choose {unit} so that pieces repeat within every row (a window "
-        f"or bay width), or raise labels.tolerance" + (", or set labels.boundary: false" if cons.boundary else "")
+        f"or bay width), or raise labels.tolerance"
+        + (", or set labels.join_ends: auto (copies of the example side by side)" if cons.boundary else "")
     )
 
 

@@ -1054,6 +1054,8 @@ def test_join_ends_and_facade_measures_exact():
     assert analysis.facade_cells(net.neighbours, range(4)) == 2 * 3 + 2 * 2
     closed = ColouredPetriNet((4, 1, 1), np.ones((3, 2, 2), bool), 1, periodic=(True, False, False))
     assert analysis.facade_cells(closed.neighbours, range(4)) == 8
+    across = np.tile([0.0, 0.0, 1.0], (len(box.faces), 1))  # the two 1 x 2 faces facing Z
+    assert np.isclose(analysis.facade_area_across(box.vertices, box.faces, across, 1), 2 * 1 * 2)
 
 
 def test_join_ends_always_needs_the_boundary(tmp_path):
@@ -1095,6 +1097,7 @@ construction:
     assert m["joined_ends"] and m["adjacency_violations"] == 0 and m["unfilled_cells"] == m["empty_cells"] == 0
     assert m["crack_max"] < 1e-6
     assert m["facade_area"] >= 0.8 * m["facade_area_expected"] > 0
+    assert m["facade_area_across"] >= 0.8 * m["facade_area_across_expected"] > 0  # fronts, not party walls
     assert m["normal_histogram_D"] > m["baseline_normal_histogram_D"]
     assert (tmp_path / "out" / "result.png").is_file() and (tmp_path / "out" / "montage.png").is_file()
 

@@ -411,6 +411,27 @@ def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
     return float(0.5 * double_area[up & (double_area > 0)].sum())
 
 
+ACROSS_COS = np.sqrt(0.5)
+"""A facade face faces across the curve when its unit normal is within 45 degrees of the cell's
+across direction (construction axis b), either way."""
+
+
+def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces (:func:`facade_area`) of ``V (#V, 3)``, ``F (#F, 3)`` that face across
+    the curve: ``|n . across| >= cos 45`` for the unit normal ``n`` and ``across (#F, 3)``, the unit
+    across direction of each face's cell. Street fronts and backs count; walls facing along the curve
+    (end walls, walls between copies) do not."""
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0:
+        return 0.0
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    double_area = np.linalg.norm(n, axis=1)
+    facing = np.abs(np.einsum("ij,ij->i", n, across)) >= ACROSS_COS * double_area
+    up = np.abs(n[:, up_axis]) <= slope * double_area
+    return float(0.5 * double_area[facing & up & (double_area > 0)].sum())
+
+
 def facade_cells(neighbours: np.ndarray, directions) -> int:
     """Facade cells of a space: cell sides in ``directions`` (of the six, 2 axis + 0 for +axis, + 1
     for -axis; the horizontal ones) without a neighbour, from ``neighbours (N, 6)`` (-1: none). A

@@ -72,22 +72,37 @@ def curve_constraints(cfg: PetriConfig, grid: np.ndarray, cons, axis: int):
     return cons, hint, False
 
 
-def facade_metrics(V, F, RV, RF, grid: np.ndarray, net: ColouredPetriNet, axes) -> dict:
-    """Facade figures of the result ``RV, RF`` against the example ``V, F`` (both in world axes;
-    ``axes`` the construction's world axes a, b, c with c up): facade area
-    (:func:`analysis.facade_area`), facade cells (cell sides facing the outside across a or b,
-    :func:`analysis.facade_cells`; the example's ``grid (nx, ny, nz)`` sides along axes a and b) and
-    the expected area, the example's facade area per facade cell times the result's facade cells."""
-    up = int(axes[2])
+def facade_metrics(V, F, assembler: Assembler, grid: np.ndarray, net: ColouredPetriNet, axes) -> dict:
+    """Facade figures of the assembled result against the example ``V, F`` (world axes; ``axes`` the
+    construction's world axes a, b, c with c up). Facade faces have a normal orthogonal to the up
+    axis (:func:`analysis.facade_area`); facade cells are cell sides facing the outside across a or b
+    (:func:`analysis.facade_cells`; the example's ``grid (nx, ny, nz)`` counted the same way); the
+    expected area is the example's facade area per facade cell times the result's facade cells. The
+    ``_across`` figures take only faces facing across the curve and the sides across b
+    (:func:`analysis.facade_area_across`): fronts along the curve, not walls between copies."""
+    up, b = int(axes[2]), int(axes[1])
+    RV, RF, _, face_cell = assembler.mesh()
     ex_cells = sum(2 * grid.size // grid.shape[h] for h in axes[:2])
-    res_cells = analysis.facade_cells(net.neighbours, range(4))
+    ex_across_cells = 2 * grid.size // grid.shape[b]
     ex_area = analysis.facade_area(V, F, up)
+    e_b = np.zeros((len(F), 3))
+    e_b[:, b] = 1.0
+    ex_across = analysis.facade_area_across(V, F, e_b, up)
+    C = net.corners
+    across = C[:, [2, 3, 6, 7]].mean(axis=1) - C[:, [0, 1, 4, 5]].mean(axis=1)
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-300)
+    res_cells = analysis.facade_cells(net.neighbours, range(4))
+    res_across_cells = analysis.facade_cells(net.neighbours, (2, 3))
     return {
         "facade_area": analysis.facade_area(RV, RF, up),
         "facade_area_expected": ex_area / max(ex_cells, 1) * res_cells,
         "facade_cells": res_cells,
+        "facade_area_across": analysis.facade_area_across(RV, RF, across[face_cell], up),
+        "facade_area_across_expected": ex_across / max(ex_across_cells, 1) * res_across_cells,
+        "facade_cells_across": res_across_cells,
         "example_facade_area": ex_area,
         "example_facade_cells": int(ex_cells),
+        "example_facade_area_across": ex_across,
     }
 
 
@@ -316,7 +331,7 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
     preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
 
-def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, restarts,
+def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
                     violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
@@ -342,7 +357,7 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
         "normal_histogram_result": h_res,
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
-        **facade_metrics(V, F, RV, RF, grid, net, space.axes),
+        **facade_metrics(V, F, assembler, grid, net, space.axes),
     }
 
 
@@ -422,6 +437,7 @@ def run(cfg: PetriConfig, ctx) -> None:
         )
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
+                                       assembler=assembler,
                                        restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
                                        deviation=deviation)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
@@ -572,6 +588,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         violations = graph_violations(labels_out, nbr, back, net.allowed, cons.n_labels, boundary=cons.boundary)
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
+                                       assembler=assembler,
                                        restarts=restarts, violations=violations, gap=jm["gap"],
                                        unmatched=jm["unmatched"], deviation=deviation)
         metrics = {

@@ -1107,11 +1107,11 @@ def test_row_lengths_and_length_hint_exact():
     grid = np.array([0, 1, 2]).reshape(3, 1, 1)
     cons = analysis.join_ends(analysis.adjacency_constraints(grid, 3), 0)
     row = grid[:, 0, 0]
-    assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 9, closed=False)).tolist() == [3, 6, 9]
-    assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 7, closed=True)).tolist() == [3, 6]
-    fits = analysis.row_fits(grid, cons, 0, 9, closed=False)
-    assert fits.shape == (1, 10) and analysis.nearest_fit(fits, 7) == 6 and analysis.nearest_fit(fits, 8) == 9
-    assert analysis.nearest_fit(np.zeros((2, 5), bool), 3) is None
+    assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 1, 9, closed=False)).tolist() == [2, 5, 8]
+    assert np.flatnonzero(analysis.row_lengths(cons.allowed[0], 3, row, 5, 12, closed=True)).tolist() == [1, 4, 7]
+    lo, fits = analysis.row_fits(grid, cons, 0, 7, closed=False)
+    assert lo == 4 and fits.shape == (1, 7) and analysis.nearest_fit(lo, fits, 7) == 6
+    assert analysis.nearest_fit(lo, fits, 8) == 9 and analysis.nearest_fit(1, np.zeros((2, 5), bool), 3) is None
     assert analysis.length_hint(grid, cons, 0, 6, closed=False, unit=0.5) is None
     assert analysis.length_hint(grid, cons, 0, 7, closed=True, unit=0.5) == (
         "1 of the example's 1 rows along X admit no row of 7 cells with their own pieces (closed curve): "

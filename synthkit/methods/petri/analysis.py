@@ -334,54 +334,70 @@ def join_ends(cons: Constraints, axis: int) -> Constraints:
     return Constraints(allowed=A, n_labels=L, boundary=True)
 
 
-def row_lengths(allowed_axis: np.ndarray, n_labels: int, row: np.ndarray, most: int, *, closed: bool) -> np.ndarray:
-    """``(most + 1,) bool``: the lengths ``k <= most`` a row of cells along one axis can take with the
-    labels of the example row ``row (n,)`` alone under ``allowed_axis (L + 1, L + 1)``: a path of ``k``
-    labels from one that may follow the outside to one the outside may follow, or (``closed``) a
-    cycle of ``k`` labels."""
+def _bool_power(M: np.ndarray, k: int) -> np.ndarray:
+    """``M (n, n)`` (0/1 int64) to the power ``k >= 0`` as a 0/1 matrix: which walks of ``k`` steps exist."""
+    out = np.eye(len(M), dtype=np.int64)
+    while k:
+        if k & 1:
+            out = np.minimum(out @ M, 1)
+        M = np.minimum(M @ M, 1)
+        k >>= 1
+    return out
+
+
+def row_lengths(allowed_axis: np.ndarray, n_labels: int, row: np.ndarray, lo: int, hi: int, *, closed: bool):
+    """``(hi - lo + 1,) bool``: which lengths ``k = lo .. hi`` (``lo >= 1``) a row of cells along one axis
+    can take with the labels of the example row ``row (n,)`` alone under ``allowed_axis (L + 1, L + 1)``:
+    a path of ``k`` labels from one that may follow the outside to one the outside may follow, or
+    (``closed``) a cycle of ``k`` labels."""
     A = np.asarray(allowed_axis, bool)
     R = np.unique(row)
     step = A[np.ix_(R, R)].astype(np.int64)
-    ok = np.zeros(most + 1, bool)
+    ok = np.zeros(hi - lo + 1, bool)
     if closed:
-        walk = np.eye(len(R), dtype=np.int64)
-        for k in range(1, most + 1):
+        walk = _bool_power(step, lo)
+        for i in range(len(ok)):
+            ok[i] = bool(np.trace(walk) > 0)
             walk = np.minimum(walk @ step, 1)
-            ok[k] = bool(np.trace(walk) > 0)
         return ok
-    reach = A[n_labels, R].astype(np.int64)
-    for k in range(1, most + 1):
-        ok[k] = bool((reach.astype(bool) & A[R, n_labels]).any())
+    reach = np.minimum(A[n_labels, R].astype(np.int64) @ _bool_power(step, lo - 1), 1)
+    for i in range(len(ok)):
+        ok[i] = bool((reach.astype(bool) & A[R, n_labels]).any())
         reach = np.minimum(reach @ step, 1)
     return ok
 
 
-def row_fits(label_grid: np.ndarray, cons: Constraints, axis: int, most: int, *, closed: bool) -> np.ndarray:
-    """``(R, most + 1) bool``: per row of ``label_grid (nx, ny, nz)`` along ``axis`` (C order of the
-    other two axes), the lengths a row of cells can take with that row's labels (:func:`row_lengths`)."""
+def row_fits(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool):
+    """``(lo, fits)``: per row of ``label_grid (nx, ny, nz)`` along ``axis`` (C order of the other two
+    axes), which lengths ``lo .. cells + n`` a row of cells can take with that row's labels
+    (:func:`row_lengths`), ``fits (R, cells + n - lo + 1) bool``, ``n`` the example's count along
+    ``axis`` and ``lo = max(1, cells - n)``. A joined example (:func:`join_ends`) takes every multiple
+    of ``n`` in every row, so this window holds the nearest length that every row takes."""
     rows = np.moveaxis(label_grid, axis, -1)
+    n = rows.shape[-1]
+    lo, hi = max(1, cells - n), cells + n
     A, L = cons.allowed[axis], cons.n_labels
-    return np.array([row_lengths(A, L, rows[idx], most, closed=closed) for idx in np.ndindex(rows.shape[:-1])])
+    fits = [row_lengths(A, L, rows[idx], lo, hi, closed=closed) for idx in np.ndindex(rows.shape[:-1])]
+    return lo, np.array(fits)
 
 
-def nearest_fit(fits: np.ndarray, cells: int) -> int | None:
-    """The length nearest to ``cells`` (ties: the shorter) that every row of ``fits (R, most + 1)``
-    takes (:func:`row_fits`), or None when there is none."""
-    every = np.flatnonzero(fits.all(axis=0)).tolist()
-    near = [k for k in every if k > 0]
-    return min(near, key=lambda k: (abs(k - cells), k)) if near else None
+def nearest_fit(lo: int, fits: np.ndarray, cells: int) -> int | None:
+    """The length nearest to ``cells`` (ties: the shorter) that every row of ``fits (R, m)`` takes,
+    lengths starting at ``lo`` (:func:`row_fits`), or None when there is none."""
+    every = (lo + np.flatnonzero(fits.all(axis=0))).tolist()
+    return min(every, key=lambda k: (abs(k - cells), k)) if every else None
 
 
 def length_hint(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool, unit: float):
     """Why ``cells`` cells along world ``axis`` (the curve's, ``unit`` long each) cannot be filled when
     every row of ``label_grid (nx, ny, nz)`` can repeat: the rows whose labels fit no row of that
     length (:func:`row_fits`), and the nearest length every row fits. None when each row fits."""
-    fits = row_fits(label_grid, cons, axis, 2 * cells + 8, closed=closed)
-    stuck = int((~fits[:, cells]).sum())
+    lo, fits = row_fits(label_grid, cons, axis, cells, closed=closed)
+    stuck = int((~fits[:, cells - lo]).sum())
     if not stuck:
         return None
     name = "XYZ"[axis]
-    best = nearest_fit(fits, cells)
+    best = nearest_fit(lo, fits, cells)
     fix = (
         f"make the curve {best * unit:.4g} long, {best} cells of {unit:.4g} (it is cut into {cells})"
         if best is not None

@@ -145,8 +145,8 @@ def fit_space(cfg: PetriConfig, spec, grid: np.ndarray, cons, space):
     n0 = space.shape[0]
     if not cfg.construction.fit_cells:
         return space, None
-    fits = analysis.row_fits(grid, cons, space.axes[0], 2 * n0 + 8, closed=space.closed)
-    k = None if fits[:, n0].all() else analysis.nearest_fit(fits, n0)
+    lo, fits = analysis.row_fits(grid, cons, space.axes[0], n0, closed=space.closed)
+    k = None if fits[:, n0 - lo].all() else analysis.nearest_fit(lo, fits, n0)
     if k is None:
         return space, None
     return build_space(cfg, spec, cells=k), {"from_length": int(n0), "to": int(k)}

@@ -321,6 +321,142 @@ def adjacency_constraints(label_grid: np.ndarray, n_labels: int, *, boundary: bo
     return Constraints(allowed=allowed, n_labels=n_labels, boundary=boundary)
 
 
+def join_ends(cons: Constraints, axis: int) -> Constraints:
+    """``cons`` with the example's ends along ``axis`` joined: a label that may end the model at
+    +axis may be followed there by any label that may begin it at -axis (``allowed[axis, a, OUT]``
+    and ``allowed[axis, OUT, b]`` give ``allowed[axis, a, b]``), as if a copy of the example stood
+    against it. Pairs of the other axes and the outside's own pairs are kept. Needs ``cons.boundary``."""
+    if not cons.boundary:
+        raise ValueError("joining the example's ends needs the outside as a label (labels.boundary: true)")
+    A = cons.allowed.copy()
+    L = cons.n_labels
+    A[axis, :L, :L] |= np.outer(A[axis, :L, L], A[axis, L, :L])
+    return Constraints(allowed=A, n_labels=L, boundary=True)
+
+
+def _bool_power(M: np.ndarray, k: int) -> np.ndarray:
+    """``M (n, n)`` (0/1 int64) to the power ``k >= 0`` as a 0/1 matrix: which walks of ``k`` steps exist."""
+    out = np.eye(len(M), dtype=np.int64)
+    while k:
+        if k & 1:
+            out = np.minimum(out @ M, 1)
+        M = np.minimum(M @ M, 1)
+        k >>= 1
+    return out
+
+
+def row_lengths(allowed_axis: np.ndarray, n_labels: int, row: np.ndarray, lo: int, hi: int, *, closed: bool):
+    """``(hi - lo + 1,) bool``: which lengths ``k = lo .. hi`` (``lo >= 1``) a row of cells along one axis
+    can take with the labels of the example row ``row (n,)`` alone under ``allowed_axis (L + 1, L + 1)``:
+    a path of ``k`` labels from one that may follow the outside to one the outside may follow, or
+    (``closed``) a cycle of ``k`` labels."""
+    A = np.asarray(allowed_axis, bool)
+    R = np.unique(row)
+    step = A[np.ix_(R, R)].astype(np.int64)
+    ok = np.zeros(hi - lo + 1, bool)
+    if closed:
+        walk = _bool_power(step, lo)
+        for i in range(len(ok)):
+            ok[i] = bool(np.trace(walk) > 0)
+            walk = np.minimum(walk @ step, 1)
+        return ok
+    reach = np.minimum(A[n_labels, R].astype(np.int64) @ _bool_power(step, lo - 1), 1)
+    for i in range(len(ok)):
+        ok[i] = bool((reach.astype(bool) & A[R, n_labels]).any())
+        reach = np.minimum(reach @ step, 1)
+    return ok
+
+
+def row_fits(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool):
+    """``(lo, fits)``: per row of ``label_grid (nx, ny, nz)`` along ``axis`` (C order of the other two
+    axes), which lengths ``lo .. cells + n`` a row of cells can take with that row's labels
+    (:func:`row_lengths`), ``fits (R, cells + n - lo + 1) bool``, ``n`` the example's count along
+    ``axis`` and ``lo = max(1, cells - n)``. A joined example (:func:`join_ends`) takes every multiple
+    of ``n`` in every row, so this window holds the nearest length that every row takes."""
+    rows = np.moveaxis(label_grid, axis, -1)
+    n = rows.shape[-1]
+    lo, hi = max(1, cells - n), cells + n
+    A, L = cons.allowed[axis], cons.n_labels
+    fits = [row_lengths(A, L, rows[idx], lo, hi, closed=closed) for idx in np.ndindex(rows.shape[:-1])]
+    return lo, np.array(fits)
+
+
+def nearest_fit(lo: int, fits: np.ndarray, cells: int) -> int | None:
+    """The length nearest to ``cells`` (ties: the shorter) that every row of ``fits (R, m)`` takes,
+    lengths starting at ``lo`` (:func:`row_fits`), or None when there is none."""
+    every = (lo + np.flatnonzero(fits.all(axis=0))).tolist()
+    return min(every, key=lambda k: (abs(k - cells), k)) if every else None
+
+
+def length_hint(label_grid: np.ndarray, cons: Constraints, axis: int, cells: int, *, closed: bool, unit: float):
+    """Why ``cells`` cells along world ``axis`` (the curve's, ``unit`` long each) cannot be filled when
+    every row of ``label_grid (nx, ny, nz)`` can repeat: the rows whose labels fit no row of that
+    length (:func:`row_fits`), and the nearest length every row fits. None when each row fits."""
+    lo, fits = row_fits(label_grid, cons, axis, cells, closed=closed)
+    stuck = int((~fits[:, cells - lo]).sum())
+    if not stuck:
+        return None
+    name = "XYZ"[axis]
+    best = nearest_fit(lo, fits, cells)
+    fix = (
+        f"make the curve {best * unit:.4g} long, {best} cells of {unit:.4g} (it is cut into {cells})"
+        if best is not None
+        else f"choose the lattice along {name} so that pieces repeat within every row"
+    )
+    return (
+        f"{stuck} of the example's {len(fits)} rows along {name} admit no row of {cells} cells with their "
+        f"own pieces ({'closed' if closed else 'open'} curve): {fix}"
+    )
+
+
+FACADE_SLOPE = 0.1
+"""A face is a facade face when its unit normal's component along the up axis is at most this
+(within about 5.7 degrees of vertical): walls, window frames and door reveals, not floors or roofs."""
+
+
+def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)``: faces whose unit normal ``n`` has
+    ``|n[up_axis]| <= slope`` (normal orthogonal to the up axis, :data:`FACADE_SLOPE`)."""
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0:
+        return 0.0
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    double_area = np.linalg.norm(n, axis=1)
+    up = np.abs(n[:, up_axis]) <= slope * double_area
+    return float(0.5 * double_area[up & (double_area > 0)].sum())
+
+
+ACROSS_COS = np.sqrt(0.5)
+"""A facade face faces across the curve when its unit normal is within 45 degrees of the cell's
+across direction (construction axis b), either way."""
+
+
+def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces (:func:`facade_area`) of ``V (#V, 3)``, ``F (#F, 3)`` that face across
+    the curve: ``|n . across| >= cos 45`` for the unit normal ``n`` and ``across (#F, 3)``, the unit
+    across direction of each face's cell. Street fronts and backs count; walls facing along the curve
+    (end walls, walls between copies) do not."""
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0:
+        return 0.0
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    double_area = np.linalg.norm(n, axis=1)
+    facing = np.abs(np.einsum("ij,ij->i", n, across)) >= ACROSS_COS * double_area
+    up = np.abs(n[:, up_axis]) <= slope * double_area
+    return float(0.5 * double_area[facing & up & (double_area > 0)].sum())
+
+
+def facade_cells(neighbours: np.ndarray, directions) -> int:
+    """Facade cells of a space: cell sides in ``directions`` (of the six, 2 axis + 0 for +axis, + 1
+    for -axis; the horizontal ones) without a neighbour, from ``neighbours (N, 6)`` (-1: none). A
+    corner cell counts twice, so the facade area per facade cell is comparable between the example
+    and a result of another shape."""
+    nbr = np.asarray(neighbours)
+    return int((nbr[:, list(directions)] < 0).sum())
+
+
 def repeatable_labels(allowed_axis: np.ndarray, n_labels: int) -> np.ndarray:
     """``(L,) bool``: labels that may occur any number of times in a row along one axis, i.e. lie on
     a cycle of ``allowed_axis (L + 1, L + 1)`` (the outside, index L, excluded)."""
@@ -342,8 +478,9 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
     (label 1 follows itself along X) but the roof row is four different pieces. With the outside
     as a label (``labels.boundary: true``, eq. 4 with Merrell's boundary), no construction longer
     than the example along X has a solution, before any random choice: a property of the example
-    and the lattice, not of Algorithm 2. The error names the cell, the conflicting labels and side,
-    and these rows."""
+    and the lattice, not of Algorithm 2. ``labels.join_ends: auto`` then joins the example end to
+    end (:func:`join_ends`); with ``never`` the error names the cell, the conflicting labels and
+    side, and these rows."""
     repeat = repeatable_labels(cons.allowed[axis], cons.n_labels)
     rows = np.moveaxis(label_grid, axis, -1)
     stuck = [idx for idx in np.ndindex(rows.shape[:-1]) if not repeat[rows[idx]].any()]
@@ -359,7 +496,8 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
         f"{len(stuck)} of the example's {int(np.prod(rows.shape[:-1]))} rows along {'XYZ'[axis]} ({names}{more}) hold "
         f"no piece that may repeat along {'XYZ'[axis]}, so the example cannot grow past its "
         f"{rows.shape[-1]} units there: choose {unit} so that pieces repeat within every row (a window "
-        f"or bay width), or raise labels.tolerance" + (", or set labels.boundary: false" if cons.boundary else "")
+        f"or bay width), or raise labels.tolerance"
+        + (", or set labels.join_ends: auto (copies of the example side by side)" if cons.boundary else "")
     )
 
 

@@ -91,6 +91,21 @@ class Labels(StrictModel):
         description="Treat the outside of the lattice as a label, so pieces that end the example (walls, "
         "corners) end the result too (Merrell-style; the paper does not say).",
     )
+    join_ends: Literal["auto", "always", "never"] = Field(
+        "auto",
+        description="With 'boundary', let a piece that ends the example along the curve be followed by one "
+        "that begins it, so copies of the example stand side by side along the curve. 'auto' (default) "
+        "joins only when some row of the example along the curve holds no piece that may repeat: such an "
+        "example (a one-bay house: every piece along the curve is a corner) cannot grow past its own "
+        "length otherwise, and the paper's users draw curves longer than the example (Fig. 6, 9).",
+    )
+
+
+    @model_validator(mode="after")
+    def _join_needs_boundary(self):
+        if self.join_ends == "always" and not self.boundary:
+            raise ValueError("join_ends: always needs boundary: true (the example ends where it meets the outside)")
+        return self
 
 
 class Curve(StrictModel):
@@ -149,6 +164,14 @@ class Construction(StrictModel):
     side: Literal["left", "right", "center"] = Field(
         "left",
         description="Where the offset lines go: left of the curve (as drawn), right of it, or centred on it.",
+    )
+    fit_cells: bool = Field(
+        True,
+        description="When every row of the example along the curve can repeat but some row cannot take S_X "
+        "cells with its own pieces (an example joined end to end repeats every n cells, labels.join_ends), "
+        "cut the curve into the nearest S_X every row takes instead (pieces stretch or shrink by length / "
+        "(S_X unit); reported as metrics.fitted_cells): a curve drawn by hand has no exact length, and users "
+        "expect a result rather than a refusal over one cell. false: refuse, naming that S_X. Single curves only.",
     )
     size_y: int | None = Field(
         None, ge=1, le=10000, description="S_Y: cells across the curve; null = the example's count."

@@ -216,13 +216,14 @@ def build_construction_space(
     size_z: int,
     sweep_origin: float,
     unit_key: str = "the lattice unit along the curve",
+    cells: int | None = None,
 ) -> ConstructionSpace:
     """Algorithm 1 plus eq. (2): the hexahedral cells along the polyline ``points (m, 2)``.
 
     ``units (3,)`` are the lattice unit sizes along (a, b, c); ``unit_key`` names where ``units[0]``
-    comes from in the config (for messages). Raises ConfigError for the polylines
-    :func:`polyline_problem` refuses, a curve shorter than one unit (``S_X`` is
-    :func:`units_along`), a curve folding back on itself, and self-intersecting cells.
+    comes from in the config (for messages). ``cells`` is S_X (None: :func:`units_along`). Raises
+    ConfigError for the polylines :func:`polyline_problem` refuses, a curve shorter than one unit, a
+    curve folding back on itself, and self-intersecting cells.
     """
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != 2:
@@ -234,6 +235,8 @@ def build_construction_space(
     units = np.asarray(units, dtype=np.float64)
     length = float(np.linalg.norm(np.diff(np.vstack([P, P[:1]]) if closed else P, axis=0), axis=1).sum())
     SX = units_along(length, float(units[0]))
+    if SX >= 1 and cells is not None:
+        SX = int(cells)
     if SX < 1:
         raise ConfigError(
             f"construction.points: the curve is {length:.6g} long, shorter than one unit along it "

@@ -59,6 +59,53 @@ def analyse_example(V, F, cfg: PetriConfig):
     return spec, pieces, features, grid, reps, cons
 
 
+def curve_constraints(cfg: PetriConfig, grid: np.ndarray, cons, axis: int):
+    """The constraints the target net uses along the curve's world ``axis``, the growth hint for its
+    contradiction message (:func:`analysis.growth_hint`) and whether the example's ends were joined
+    (``labels.join_ends``; 'auto' joins when the hint says some row cannot grow)."""
+    key = unit_key(cfg, axis)
+    hint = analysis.growth_hint(grid, cons, axis, key)
+    mode = cfg.labels.join_ends
+    if cons.boundary and (mode == "always" or (mode == "auto" and hint is not None)):
+        joined = analysis.join_ends(cons, axis)
+        return joined, analysis.growth_hint(grid, joined, axis, key), True
+    return cons, hint, False
+
+
+def facade_metrics(V, F, assembler: Assembler, grid: np.ndarray, net: ColouredPetriNet, axes) -> dict:
+    """Facade figures of the assembled result against the example ``V, F`` (world axes; ``axes`` the
+    construction's world axes a, b, c with c up). Facade faces have a normal orthogonal to the up
+    axis (:func:`analysis.facade_area`); facade cells are cell sides facing the outside across a or b
+    (:func:`analysis.facade_cells`; the example's ``grid (nx, ny, nz)`` counted the same way); the
+    expected area is the example's facade area per facade cell times the result's facade cells. The
+    ``_across`` figures take only faces facing across the curve and the sides across b
+    (:func:`analysis.facade_area_across`): fronts along the curve, not walls between copies."""
+    up, b = int(axes[2]), int(axes[1])
+    RV, RF, _, face_cell = assembler.mesh()
+    ex_cells = sum(2 * grid.size // grid.shape[h] for h in axes[:2])
+    ex_across_cells = 2 * grid.size // grid.shape[b]
+    ex_area = analysis.facade_area(V, F, up)
+    e_b = np.zeros((len(F), 3))
+    e_b[:, b] = 1.0
+    ex_across = analysis.facade_area_across(V, F, e_b, up)
+    C = net.corners
+    across = C[:, [2, 3, 6, 7]].mean(axis=1) - C[:, [0, 1, 4, 5]].mean(axis=1)
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-300)
+    res_cells = analysis.facade_cells(net.neighbours, range(4))
+    res_across_cells = analysis.facade_cells(net.neighbours, (2, 3))
+    return {
+        "facade_area": analysis.facade_area(RV, RF, up),
+        "facade_area_expected": ex_area / max(ex_cells, 1) * res_cells,
+        "facade_cells": res_cells,
+        "facade_area_across": analysis.facade_area_across(RV, RF, across[face_cell], up),
+        "facade_area_across_expected": ex_across / max(ex_across_cells, 1) * res_across_cells,
+        "facade_cells_across": res_across_cells,
+        "example_facade_area": ex_area,
+        "example_facade_cells": int(ex_cells),
+        "example_facade_area_across": ex_across,
+    }
+
+
 def origin_preference(grid: np.ndarray) -> list[int]:
     """Labels of the example's pieces ordered by lattice distance from e_000 (e_000's first), unique."""
     idx = np.stack(np.unravel_index(np.arange(grid.size), grid.shape), axis=1)
@@ -71,8 +118,9 @@ def origin_preference(grid: np.ndarray) -> list[int]:
     return out
 
 
-def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
-    """Algorithm 1 on the config's curve (or on ``points``) with the lattice's units."""
+def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None, cells: int | None = None):
+    """Algorithm 1 on the config's curve (or on ``points``) with the lattice's units (and S_X =
+    ``cells`` when given)."""
     con = cfg.construction
     axes = construction.PLANE_AXES[con.plane]
     units = spec.unit[list(axes)]
@@ -86,7 +134,22 @@ def build_space(cfg: PetriConfig, spec: analysis.LatticeSpec, points=None):
         size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
         sweep_origin=float(spec.origin[axes[2]]),
         unit_key=unit_key(cfg, axes[0]),
+        cells=cells,
     )
+
+
+def fit_space(cfg: PetriConfig, spec, grid: np.ndarray, cons, space):
+    """``space`` with S_X changed to the nearest count every row of the example's ``grid`` along the
+    curve takes (``construction.fit_cells``; only when each row can repeat, so the count stays within
+    a period of the curve's). Returns ``(space, fitted)``, ``fitted = {"from_length", "to"}`` or None."""
+    n0 = space.shape[0]
+    if not cfg.construction.fit_cells:
+        return space, None
+    lo, fits = analysis.row_fits(grid, cons, space.axes[0], n0, closed=space.closed)
+    k = None if fits[:, n0 - lo].all() else analysis.nearest_fit(lo, fits, n0)
+    if k is None:
+        return space, None
+    return build_space(cfg, spec, cells=k), {"from_length": int(n0), "to": int(k)}
 
 
 def unit_key(cfg: PetriConfig, axis: int) -> str:
@@ -268,12 +331,13 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
     preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
 
 
-def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out, *, restarts,
+def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
                     violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
     net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` and ``unmatched``
     boundary vertices."""
+    plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
     h_res = analysis.normal_histogram(RV, RF, plane_axes)
     return h_ex, {
@@ -293,6 +357,7 @@ def _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, la
         "normal_histogram_result": h_res,
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
+        **facade_metrics(V, F, assembler, grid, net, space.axes),
     }
 
 
@@ -333,17 +398,25 @@ def run(cfg: PetriConfig, ctx) -> None:
         spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
 
     check_construction_budget(ctx.budget, cfg, spec, V, F, len(pieces.index))
+    cons, hint, joined = curve_constraints(cfg, grid, cons, construction.PLANE_AXES[cfg.construction.plane][0])
+    ctx.metrics["joined_ends"] = joined
     if cfg.construction.curves is not None:
         return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
 
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
+        fitted = None
+        if hint is None:
+            space, fitted = fit_space(cfg, spec, grid, cons, space)
+        ctx.metrics["fitted_cells"] = fitted
         deviation = space.center_deviation()
 
     axes = space.axes
     library = PieceLibrary(pieces, reps, axes)
     with ctx.stage("inference"):
-        hint = analysis.growth_hint(grid, cons, axes[0], unit_key(cfg, axes[0]))
+        if hint is None:
+            hint = analysis.length_hint(grid, cons, axes[0], space.shape[0], closed=space.closed,
+                                        unit=float(space.units[0]))
         net, assembler, restarts = synthesize(
             space, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts, hint=hint
         )
@@ -363,7 +436,8 @@ def run(cfg: PetriConfig, ctx) -> None:
             labels_out, net.allowed, cons.n_labels, boundary=cons.boundary, periodic=net.periodic
         )
         plane_axes = space.point_axes
-        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+        h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
+                                       assembler=assembler,
                                        restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
                                        deviation=deviation)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
@@ -513,7 +587,8 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         nbr, back, _, _ = space.graph()
         violations = graph_violations(labels_out, nbr, back, net.allowed, cons.n_labels, boundary=cons.boundary)
         plane_axes = space.point_axes
-        h_ex, shared = _result_metrics(V, F, RV, RF, plane_axes, net, spec, cons, grid, library, labels_out,
+        h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
+                                       assembler=assembler,
                                        restarts=restarts, violations=violations, gap=jm["gap"],
                                        unmatched=jm["unmatched"], deviation=deviation)
         metrics = {

@@ -572,7 +572,18 @@ def analyze(
     lets every feature vote; its remark that 3-D models give few false matches is about tau, not
     a threshold). "The top 7% of bins" is read over the occupied bins: over all bins of the
     histogram's box every mesh puts 100% of its offsets in the top 7%, since a 0.05 lattice over
-    offsets up to 4 long has far more bins than there are features.
+    offsets up to 4 long has far more bins than there are features. Measured later (same nine
+    meshes, seed 0; means of man-made against organic, 0.403 against 0.238 today): matching each
+    feature against the 0.02 dense cloud instead of the other features lifts both (0.459 against
+    0.305); matching the features against features and vertices, 0.434 against 0.280; adding the
+    vertices thinned to 0.06 spacing (so corners of low-poly models count and scans do not flood),
+    0.446 against 0.334; leaving out features whose 0.2 support is flat (every normal within 5-20
+    degrees) changes no figure by more than 0.04. The separation needs the features' density: a
+    feature of a repeated part votes for the repetition only when its twin was sampled at nearly
+    the same place, so 300 features drawn from each mesh's set give 0.156 against 0.165 (no
+    separation) and 900 give 0.27-0.37 against 0.19-0.22. Building-small-a's 4,220 features (its
+    storeys are hollow shells with inner walls) thus score higher than the 344 of the thin PSB
+    human, whatever the shapes.
     """
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))

@@ -100,7 +100,6 @@ class Labels(StrictModel):
         "length otherwise, and the paper's users draw curves longer than the example (Fig. 6, 9).",
     )
 
-
     @model_validator(mode="after")
     def _join_needs_boundary(self):
         if self.join_ends == "always" and not self.boundary:

@@ -468,6 +468,13 @@ def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.nda
     return V, F, src
 
 
+def _smallest_first(F: np.ndarray) -> np.ndarray:
+    """``F (m, 3)`` with each face's vertex cycle rotated to start at its smallest index, so that
+    two faces over the same vertices in the same orientation are equal rows."""
+    first = np.argmin(F, axis=1)
+    return np.take_along_axis(F, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)
+
+
 def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
     """``keep (m,) bool``: False for each face of ``F (m, 3)`` over the same three vertices of
     ``V (n, 3)`` (welded by position within ``tol``) in the same cyclic orientation as an earlier
@@ -480,10 +487,7 @@ def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
     if len(F) == 0:
         return np.ones(0, bool)
     _, _, old_to_new = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-    Fw = old_to_new[F]
-    first = np.argmin(Fw, axis=1)
-    rot = np.take_along_axis(Fw, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)
-    _, index = np.unique(rot, axis=0, return_index=True)
+    _, index = np.unique(_smallest_first(old_to_new[F]), axis=0, return_index=True)
     keep = np.zeros(len(F), bool)
     keep[index] = True
     return keep
@@ -513,9 +517,7 @@ def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
                 "back_to_back_faces": 0, "min_angle_deg": None, "sliver_faces": 0}
     E = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
     _, counts = np.unique(E, axis=0, return_counts=True)
-    first = np.argmin(Fw, axis=1)
-    rot = np.take_along_axis(Fw, (first[:, None] + np.arange(3)[None, :]) % 3, axis=1)  # same cycle, min first
-    _, fcounts = np.unique(rot, axis=0, return_counts=True)
+    _, fcounts = np.unique(_smallest_first(Fw), axis=0, return_counts=True)
     _, scounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
     tri = Vw[Fw]
     angles = []

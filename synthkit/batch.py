@@ -303,9 +303,12 @@ def local_cluster(n_workers: int, *, retries_handled_by_client: bool = True):
     }
     if retries_handled_by_client:
         settings["distributed.scheduler.allowed-failures"] = 0
+    # The scheduler's HTTP server starts even without a dashboard, on port 8787 unless told
+    # otherwise; a second batch on the same machine then warned "Port 8787 is already in use" (an
+    # error under the tests' warning filter). ":0" lets the system pick a free port.
     with dask.config.set(settings):
         return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, memory_limit=0,
-                            dashboard_address=None, silence_logs=logging.CRITICAL)
+                            dashboard_address=":0", silence_logs=logging.CRITICAL)
 
 
 def read_scheduler_file(path: str) -> str:

@@ -428,6 +428,24 @@ def test_local_workers_thread_limits_and_main_thread_imports():
 
 @needs_dask
 @pytest.mark.slow
+def test_two_local_clusters_on_one_machine_start_without_a_port_warning():
+    """The scheduler's HTTP server took port 8787 even without a dashboard, so a second batch on
+    the machine warned "Port 8787 is already in use" (an error under this suite's filter: a CI
+    run beside another batch failed). Each now binds a port of its own."""
+    first = batch.local_cluster(1)
+    try:
+        second = batch.local_cluster(1)
+        try:
+            ports = {first.scheduler.http_server.port, second.scheduler.http_server.port}
+        finally:
+            second.close()
+    finally:
+        first.close()
+    assert len(ports) == 2 and 8787 not in ports
+
+
+@needs_dask
+@pytest.mark.slow
 def test_sigterm_during_a_local_cluster_batch_leaves_no_half_folder(tmp_path):
     root = tmp_path / "o"
     root.mkdir()

@@ -149,6 +149,7 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     below the input's and it keeps 90 % of the input's high-frequency energy; the warp stays
     within tile.max_stretch; result.png is the candidate report.json names. The 3x3 tilings
     (tiled_3x3.png of the result, tiled_optimized_3x3.png, tiled_baseline_3x3.png) stay in tmp_path."""
+    from synthkit.core.tiling import cut_tile, seam_masks
     from synthkit.methods.symtex.deform import E_SYMM_TOL, SHARPNESS_MIN, high_frequency_energy, seam_ratio
 
     crop = native_crop(name, 160)
@@ -160,15 +161,18 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     assert m["seam_ratio"] <= m["seam_ratio_input"]
     assert m["max_stretch"] <= m["max_stretch_bound"] == 1.1
     assert c["optimized"]["max_stretch"] == m["max_stretch"]
-    if m["tile_choice"] == "optimized":
+    if m["tile_choice"] in ("optimized", "cut"):
         assert m["objective_end"] >= m["input_objective"] * (1 - E_SYMM_TOL)
         assert m["sharpness"] >= SHARPNESS_MIN
+    if m["tile_choice"] == "optimized":
         assert m["tile_size"] == [96, 96]  # native crop: 160 less 2 x 32 px of margin, no upsampling
     out = load_image(tmp_path / "out" / "result.png")
-    file = {"optimized": "optimized.png", "baseline": "baseline.png", "input": "../c.png"}[m["tile_choice"]]
-    np.testing.assert_array_equal(out, load_image(tmp_path / "out" / file))
-    # the figures are those of the returned image (8-bit rounding aside)
-    assert seam_ratio(out) == pytest.approx(m["seam_ratio"], rel=0.1, abs=1e-3)
+    file = {"optimized": "optimized.png", "baseline": "baseline.png", "cut": "cut.png", "input": "../c.png"}
+    np.testing.assert_array_equal(out, load_image(tmp_path / "out" / file[m["tile_choice"]]))
+    # the figures are those of the returned image (8-bit rounding aside); the cut tile's seams are
+    # where its copies meet (the cuts), found from its source map
+    seams = seam_masks(cut_tile(load_image(tmp_path / "c.png"), 16)[1]) if m["tile_choice"] == "cut" else None
+    assert seam_ratio(out, seams=seams) == pytest.approx(m["seam_ratio"], rel=0.1, abs=1e-3)
     assert high_frequency_energy(out) / high_frequency_energy(crop) == pytest.approx(m["sharpness"], rel=0.05)
     tiled = load_image(tmp_path / "out" / report["outputs"]["tiled"])
     assert tiled.shape[:2] == (3 * out.shape[0], 3 * out.shape[1])

@@ -174,6 +174,17 @@ class TileSection(StrictModel):
             "out in waves and a brick wall lost 30 % of its high frequencies."
         ),
     )
+    cut_overlap: int = Field(
+        16,
+        ge=0,
+        le=512,
+        description=(
+            "Overlap in pixels of the cut tile, a candidate besides the optimized tile and the "
+            "blended input: the input's opposite borders overlapped by this much, joined by "
+            "minimum-error boundary cuts (Efros-Freeman) and made interior-like across the cuts; "
+            "its tile is smaller by this much. 0: no cut tile."
+        ),
+    )
     mvc_spacing: int = Field(
         1,
         ge=1,

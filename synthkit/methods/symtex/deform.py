@@ -47,7 +47,10 @@ Where real photographs contradict the paper (issue 14, README tables):
   its size is irregular across the wrap, so symmetrization by the toroidal E_symm warps even an
   unwarped photograph of stripes (E_symm x2.9 for 2.2 px of mean displacement). The ``overlap``
   S_T (:func:`synthkit.core.symmetry.translational`) has no wrap; on these photographs it
-  halves the needless displacement but does not remove half of a known warp either.
+  halves the needless displacement but does not remove half of a known warp either. Neither
+  do a Hann-apodized signal, a crop to a whole number of periods, ``min_gain`` 0.01 or E_L2 to
+  the input's sharpened S_T (the paper's Fig. 5a): on the cars and the brick walls each is
+  higher somewhere other than at the unwarped photograph (README symmetrize tables).
 """
 
 from __future__ import annotations

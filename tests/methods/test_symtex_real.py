@@ -178,6 +178,32 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     assert tiled.shape[:2] == (3 * out.shape[0], 3 * out.shape[1])
 
 
+TILE_E_SYMM_MISSED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed: no candidate meets every goal and the blended baseline, returned, "
+        "lowers E_symm (160 px: cars 3.4%, grass 0.9% below the input's; the cut tile tiles "
+        "better but lowers it more; at 256 px these meet it and aerial_rocks misses, README)"
+    ),
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=TILE_E_SYMM_MISSED) if n in ("lattice-p2-2.jpg", "grass") else n for n in TILE_PHOTOS],
+)
+def test_real_photo_tile_keeps_the_inputs_e_symm(tmp_path, write_config, name):
+    """Issue 14's remaining tile goal on the 160 px native crop: E_symm of the returned tile is not
+    below the input's (within E_SYMM_TOL), whichever candidate is returned."""
+    from synthkit.methods.symtex.deform import E_SYMM_TOL
+
+    save_image(tmp_path / "c.png", native_crop(name, 160))
+    report = run_config(write_config(tmp_path, "t", **TILE_REAL), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    assert m["objective_end"] >= m["input_objective"] * (1 - E_SYMM_TOL), m["tile_choice"]
+
+
 def test_tile_of_rgba_photo_with_transparent_hole_composites_over_white(tmp_path, write_config, caplog):
     """A photo with a transparent hole (an inpainting mask) is read composited over white, with
     one warning (synthkit.io.images): the hole is white, not black, and the tile is the tile of

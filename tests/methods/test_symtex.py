@@ -405,7 +405,7 @@ def test_choose_tile_rule():
     """Of the candidates meeting every goal (seam ratio at most the baseline's and the input's,
     E_symm >= the input's with 0.1% slack, sharpness >= 0.9) the lowest seam ratio; when none
     does, the lowest of the baseline, the input and the made tiles that keep E_symm and
-    sharpness; ties to optimized, cut, baseline, input."""
+    sharpness; ties to optimized, the cut tiles by overlap, baseline, input."""
     from synthkit.methods.symtex.deform import choose_tile
 
     def cand(seam, obj=1.0, sharp=1.0):
@@ -421,11 +421,13 @@ def test_choose_tile_rule():
     assert choose_tile({"optimized": cand(0.2), "baseline": cand(0.1), "input": cand(0.1)}, 1.0) == "baseline"
     # the cut tile: a baseline that lowers E_symm gives way to a cut tile that meets every goal,
     # even one whose seam ratio is above the baseline's among the rest
-    assert choose_tile({"optimized": cand(0.5), "cut": cand(0.3), **base}, 1.0) == "cut"
-    assert choose_tile({"optimized": cand(0.2), "cut": cand(0.2), **base}, 1.0) == "optimized"
-    assert choose_tile({"optimized": cand(0.5), "cut": cand(0.45), **base}, 1.0) == "baseline"
-    assert choose_tile({"optimized": cand(0.5), "cut": cand(0.3, obj=0.9), **base}, 1.0) == "baseline"
-    assert choose_tile({"optimized": cand(0.1, obj=0.9), "cut": cand(0.3), **base}, 1.0) == "cut"
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.3), **base}, 1.0) == "cut16"
+    assert choose_tile({"optimized": cand(0.2), "cut16": cand(0.2), **base}, 1.0) == "optimized"
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.45), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.3, obj=0.9), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.1, obj=0.9), "cut16": cand(0.3), **base}, 1.0) == "cut16"
+    cuts = {"cut8": cand(0.3), "cut16": cand(0.2, obj=0.9), "cut24": cand(0.3)}
+    assert choose_tile({"optimized": cand(0.5), **cuts, **base}, 1.0) == "cut8"  # tie: the smaller overlap
 
 
 def test_tile_crop_and_high_frequency_energy():

@@ -10,7 +10,7 @@ Every row of the paper's Fig. 14 is one such combination.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -174,15 +174,16 @@ class TileSection(StrictModel):
             "out in waves and a brick wall lost 30 % of its high frequencies."
         ),
     )
-    cut_overlap: int = Field(
-        16,
-        ge=0,
-        le=512,
+    cut_overlaps: list[Annotated[int, Field(ge=1, le=512)]] = Field(
+        [8, 16, 24],
+        max_length=16,
         description=(
-            "Overlap in pixels of the cut tile, a candidate besides the optimized tile and the "
+            "Overlaps in pixels of the cut tiles, candidates besides the optimized tile and the "
             "blended input: the input's opposite borders overlapped by this much, joined by "
             "minimum-error boundary cuts (Efros-Freeman) and made interior-like across the cuts; "
-            "its tile is smaller by this much. 0: no cut tile."
+            "a tile is smaller than the input by its overlap, and the toroidal E_symm depends on "
+            "how the pattern wraps at that size (the default spans the paper's 12 px quilting "
+            "overlap). Overlaps of half the input or more are skipped with a warning; []: none."
         ),
     )
     mvc_spacing: int = Field(

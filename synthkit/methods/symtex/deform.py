@@ -20,10 +20,10 @@ margin in. After optimizing E_symm of the toroidal S_T, :func:`toroidal_blend` m
 periodic with period ``(H, W)``: the wrap-around step between opposite borders is targeted to an
 interior-like step and the border corrections are spread into the interior by mean value
 coordinates. The baseline (paper Fig. 7, top rows) is the same blend of the untouched input,
-without symmetry optimization. A third made candidate, the cut tile, is not optimized either: the
-input's opposite borders overlapped by ``tile.cut_overlap`` px and joined by minimum-error boundary
-cuts, each step across the cuts then made interior-like (:mod:`synthkit.core.tiling`); its seams
-are measured where its copies meet. :func:`choose_tile` returns one of them or the input (see
+without symmetry optimization. The cut tiles are not optimized either: the input's opposite
+borders overlapped by each of ``tile.cut_overlaps`` px and joined by minimum-error boundary cuts,
+each step across the cuts then made interior-like (:mod:`synthkit.core.tiling`); their seams are
+measured where their copies meet. :func:`choose_tile` returns one of them or the input (see
 :func:`run_deform`).
 
 Where real photographs contradict the paper (issue 14, README tables):
@@ -37,9 +37,10 @@ Where real photographs contradict the paper (issue 14, README tables):
 - The blend lowers E_symm where the input's borders disagree in brightness: its correction is a
   smooth field over the whole tile (0.035 rms on texture_bricks, a quarter of the photo's
   contrast) and the blended input's E_symm is 16 % below the photo's (aerial rocks 27 %). A cut
-  through an overlap of the borders leaves less to correct: on texture_bricks the cut tile keeps
-  E_symm (+21 %) at a seam ratio of 0.27 (the blend's 0.41); on the aerial rocks it keeps E_symm
-  (+19 %) but its seam ratio, 0.29, stays above the blend's 0.24, which is then returned.
+  through an overlap of the borders leaves less to correct: on texture_bricks the 16 px cut tile
+  keeps E_symm (+21 %) at a seam ratio of 0.27 (the blend's 0.41), on the aerial rocks the 8 px
+  one (+8 %) at 0.235 (the blend's 0.240). The toroidal E_symm of a cut tile depends on how the
+  pattern wraps at its size, hence several overlaps (``tile.cut_overlaps``).
 - The seam ratio rewards smoothness: on diagonal stripes (lattice-p3-21) the baseline's 0.12
   comes from the blend smearing mismatched stripes into a grey band, while the optimized tile,
   whose stripes continue across the seams, scores 0.33 (a seam like the interior scores 1).
@@ -64,7 +65,6 @@ import scipy.linalg
 from synthkit.core import symmetry as sy
 from synthkit.core.tiling import cut_tile, fix_seams, seam_masks
 from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates, triangle_stretch
-from synthkit.errors import ConfigError
 from synthkit.io.images import save_image
 from synthkit.methods.symtex.common import build_objective, build_targets, write_common
 from synthkit.preview import montage_png
@@ -446,20 +446,24 @@ def _tile_candidate(image, objective, hf_reference, stretch, seams=None) -> dict
     }
 
 
-TILE_ORDER = ("optimized", "cut", "baseline", "input")
-"""The candidates of mode ``tile``; a tie in seam ratio goes to the earlier one."""
+def tile_order(name: str) -> tuple[int, int]:
+    """Sort key of a candidate of mode ``tile``: ``optimized``, the cut tiles ``cut<overlap>`` by
+    overlap, ``baseline``, ``input``; a tie in seam ratio goes to the earlier one."""
+    if name.startswith("cut"):
+        return 1, int(name[3:])
+    return {"optimized": 0, "baseline": 2, "input": 3}[name], 0
 
 
 def choose_tile(candidates: dict, input_objective: float) -> str:
-    """Name of the candidate returned by mode ``tile`` (of :data:`TILE_ORDER`; ``"cut"`` may be absent).
+    """Name of the candidate returned by mode ``tile`` (see :func:`tile_order`).
 
     Issue 14's goals for the returned tile: a seam ratio at most the baseline's (the input
     blended) and the input's, E_symm not below the input's (``input_objective``, less
     ``E_SYMM_TOL``) and ``SHARPNESS_MIN`` of its high-frequency energy. Of the candidates that
     meet all of them, the one with the lowest seam ratio; when none does, the lowest seam ratio
-    of the baseline, the input and those made candidates (``optimized``, ``cut``) that keep
+    of the baseline, the input and those made candidates (``optimized``, the cut tiles) that keep
     E_symm and sharpness (the baseline is then returned when it tiles better than the input: the
-    E_symm goal is missed and ``metrics.tile_choice`` says so). Ties go by :data:`TILE_ORDER`.
+    E_symm goal is missed and ``metrics.tile_choice`` says so). Ties go by :func:`tile_order`.
     """
     floor = input_objective * (1.0 - E_SYMM_TOL)
     bound = min(candidates["baseline"]["seam_ratio"], candidates["input"]["seam_ratio"])
@@ -470,7 +474,7 @@ def choose_tile(candidates: dict, input_objective: float) -> str:
     pool = [k for k, c in candidates.items() if keeps(c) and c["seam_ratio"] <= bound]
     if not pool:
         pool = [k for k, c in candidates.items() if k in ("baseline", "input") or keeps(c)]
-    return min(pool, key=lambda k: (candidates[k]["seam_ratio"], TILE_ORDER.index(k)))
+    return min(pool, key=lambda k: (candidates[k]["seam_ratio"], tile_order(k)))
 
 
 E_SYMM_TOL = 1e-3
@@ -486,16 +490,14 @@ def run_deform(cfg, ctx, src, tgt) -> None:
 
     ``tile``: the optimized tile (``tile.zoom: crop``, the default, a native-resolution crop of
     the centre that the warp may pull the margin into; ``upsample``, the paper's zoom to the
-    input's size) is blended toroidally, and so is the untouched input (the baseline); the cut
-    tile (``tile.cut_overlap``) is cut from the input. The returned ``result.png`` is, of these
-    and the input itself, the one :func:`choose_tile` picks: the lowest seam ratio among those
-    meeting every goal of issue 14 (``metrics.tile_choice`` names it, ``metrics.tile_candidates``
-    holds the figures of all). ``optimized.png`` is always the optimized tile, ``cut.png`` the
-    cut tile.
+    input's size) is blended toroidally, and so is the untouched input (the baseline); a cut tile
+    per ``tile.cut_overlaps`` entry is cut from the input (``cut<overlap>``). The returned
+    ``result.png`` is, of these and the input itself, the one :func:`choose_tile` picks: the
+    lowest seam ratio among those meeting every goal of issue 14 (``metrics.tile_choice`` names
+    it, ``metrics.tile_candidates`` holds the figures of all). ``optimized.png`` is always the
+    optimized tile, ``cut<overlap>.png`` the cut tiles.
     """
     dc = cfg.deform
-    if cfg.mode == "tile" and (why := _cut_overlap_error(cfg, src.shape)):
-        raise ConfigError(why)
     H, W = src.shape[:2]
     out_shape = (H, W)
     offset = np.zeros(2)
@@ -583,7 +585,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
 
 
 def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict):
-    """Blend the warped tile and the input toroidally, cut the input's cut tile, and return
+    """Blend the warped tile and the input toroidally, cut the input's cut tiles, and return
     ``(result, tiles)``: the result chosen by :func:`choose_tile` and every candidate image by
     name; the figures of every candidate go to ``metrics``."""
     tc = cfg.tile
@@ -599,11 +601,11 @@ def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict)
         "baseline": _tile_candidate(baseline, objective, hf_input, 1.0),
         "input": _tile_candidate(src, objective, hf_input, 1.0),
     }
-    if tc.cut_overlap > 0:
+    for ov in _cut_overlaps(tc.cut_overlaps, src.shape):
         with ctx.stage("cut"):
-            cut, source = cut_tile(src, tc.cut_overlap)
-            tiles["cut"] = fix_seams(cut, source, radius=tc.cut_overlap // 2)
-        candidates["cut"] = _tile_candidate(tiles["cut"], objective, hf_input, 1.0, seams=seam_masks(source))
+            cut, source = cut_tile(src, ov)
+            tiles[f"cut{ov}"] = fix_seams(cut, source, radius=ov // 2)
+        candidates[f"cut{ov}"] = _tile_candidate(tiles[f"cut{ov}"], objective, hf_input, 1.0, seams=seam_masks(source))
     choice = choose_tile(candidates, input_objective)
     result = tiles[choice]
     chosen = candidates[choice]
@@ -626,12 +628,16 @@ def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict)
     return result, tiles
 
 
-def _cut_overlap_error(cfg, shape) -> str | None:
-    """Why ``tile.cut_overlap`` does not fit an input of ``shape``, or None."""
-    ov = cfg.tile.cut_overlap
-    if ov and 2 * ov >= min(shape[:2]):
-        return f"tile.cut_overlap {ov} must be below half of the {shape[0]}x{shape[1]} input (0: no cut tile)"
-    return None
+def _cut_overlaps(overlaps, shape) -> list[int]:
+    """The distinct ``overlaps`` below half of an input of ``shape``, ascending; a warning names the others."""
+    fit = sorted({int(ov) for ov in overlaps if 2 * int(ov) < min(shape[:2])})
+    if len(fit) < len(set(overlaps)):
+        log.warning(
+            "tile.cut_overlaps: %s px do not fit the %dx%d input (at most half its size); no cut tile for them",
+            sorted(set(overlaps) - set(fit)),
+            *shape[:2],
+        )
+    return fit
 
 
 def _write_deform_images(ctx, src, image, tiles) -> None:
@@ -639,22 +645,22 @@ def _write_deform_images(ctx, src, image, tiles) -> None:
     if tiles is not None:
         save_image(ctx.path("optimized", "optimized.png"), tiles["optimized"])
         save_image(ctx.path("baseline", "baseline.png"), tiles["baseline"])
-        if "cut" in tiles:
-            save_image(ctx.path("cut", "cut.png"), tiles["cut"])
+        cuts = sorted((k for k in tiles if k.startswith("cut")), key=tile_order)
+        for name in cuts:
+            save_image(ctx.path(name, f"{name}.png"), tiles[name])
         if ctx.wants_preview("all"):
             save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
-            for name in ("optimized", "input", "baseline", "cut"):
-                if name in tiles:
-                    save_image(ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), np.tile(tiles[name], (3, 3, 1)))
+            for name in ["optimized", "input", "baseline", *cuts]:
+                save_image(ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), np.tile(tiles[name], (3, 3, 1)))
     if not ctx.wants_preview("summary"):
         return
     if tiles is None:
         montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
     else:
-        names = [k for k in ("baseline", "cut", "optimized") if k in tiles]
-        titles = {"baseline": "blended, not optimized", "cut": "cut, not optimized", "optimized": "optimized"}
+        names = sorted((k for k in tiles if k != "input"), key=lambda k: (k != "baseline", tile_order(k)))
+        titles = {"baseline": "blended, not optimized", "optimized": "optimized"}
         montage_png(
             ctx.path("comparison", "comparison.png"),
             [src] + [tiles[k] for k in names],
-            titles=["input"] + [titles[k] for k in names],
+            titles=["input"] + [titles.get(k, f"cut {k[3:]} px, not optimized") for k in names],
         )

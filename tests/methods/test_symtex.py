@@ -478,3 +478,21 @@ def test_tile_upsample_zoom_keeps_input_size(tmp_path, write_config):
     m2 = run_config(write_config(tmp_path, "c", **crop), out_dir=tmp_path / "out2", show_progress=False)["metrics"]
     assert m2["tile_candidates"]["optimized"]["size"] == [38, 38]
     assert m2["max_stretch"] <= 1.1 and m2["max_stretch_bound"] == 1.1
+
+
+def test_symmetry_crop_auto_is_periods_for_symmetrize_by_deform_only():
+    from synthkit.methods.symtex.config import SymtexConfig
+
+    def crop(**kw):
+        return SymtexConfig(source=__file__, **kw).period_crop()
+
+    assert crop(mode="symmetrize")
+    assert not crop(mode="symmetrize", perturbation="lens")
+    assert not crop(mode="symmetrize", symmetry={"mode": "overlap"})
+    assert not crop(mode="tile") and not crop(mode="filter")
+    assert crop(mode="filter", perturbation="deform", symmetry={"crop": "periods"})
+    assert not crop(mode="symmetrize", symmetry={"crop": "none"})
+    with pytest.raises(ValueError, match="symmetry.crop"):
+        SymtexConfig(source=__file__, mode="tile", symmetry={"crop": "periods"})
+    with pytest.raises(ValueError, match="symmetry.crop"):
+        SymtexConfig(source=__file__, mode="symmetrize", symmetry={"crop": "periods", "kind": "rotational"})

@@ -43,6 +43,16 @@ class SymmetrySection(StrictModel):
             "correlation per overlapping pixel, for photographs that are not tori (deform/lens only)."
         ),
     )
+    crop: Literal["auto", "none", "periods"] = Field(
+        "auto",
+        description=(
+            "periods: S_T of the centred crop to a whole number of periods of the input along each "
+            "axis (the strongest autocorrelation displacement from 4 px to half the size), so the "
+            "torus of eq. 2 wraps the pattern onto itself; none: of the whole image. auto: periods "
+            "for symmetrize by deform (a photograph whose period does not divide its size is "
+            "irregular across the wrap, and E_symm then warps even an unwarped one), none otherwise."
+        ),
+    )
     window: float = Field(
         0.5,
         gt=0.0,
@@ -245,6 +255,11 @@ class SymtexConfig(RunConfig):
             raise ValueError("perturbation 'synth' supports the signals 'lum' and '1-lum' (symmetry.signals)")
         if pert == "synth" and self.synth.overlap >= self.synth.patch:
             raise ValueError(f"synth.overlap {self.synth.overlap} must be smaller than synth.patch {self.synth.patch}")
+        toroidal_st = (self.symmetry.kind, self.symmetry.mode) == ("translational", "toroidal")
+        if self.symmetry.crop == "periods" and not toroidal_st:
+            raise ValueError("symmetry.crop 'periods' applies to the toroidal translational representation")
+        if self.symmetry.crop == "periods" and (self.mode == "tile" or pert == "synth"):
+            raise ValueError("symmetry.crop 'periods' applies to symmetrize, transfer and filter by deform or lens")
         if self.deform.min_step > self.deform.step:
             raise ValueError("deform.min_step must not exceed deform.step")
         if self.lens.k1_min >= self.lens.k1_max:
@@ -258,6 +273,17 @@ class SymtexConfig(RunConfig):
         if self.perturbation is not None:
             return self.perturbation
         return "deform" if self.mode in ("tile", "symmetrize") else "synth"
+
+    def period_crop(self) -> bool:
+        """Whether S_T is of the input's whole-period crop (``symmetry.crop``, see its description)."""
+        if self.symmetry.crop == "auto":
+            return (
+                self.mode == "symmetrize"
+                and self.resolved_perturbation() == "deform"
+                and self.symmetry.kind == "translational"
+                and self.symmetry.mode == "toroidal"
+            )
+        return self.symmetry.crop == "periods"
 
     def objective_kind(self) -> str:
         """``"l2"`` (minimized, against a target) or ``"symm"`` (maximized)."""

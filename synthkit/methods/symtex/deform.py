@@ -508,7 +508,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
     h, w = out_shape
     with ctx.stage("target"):
         targets = build_targets(cfg, src, tgt, out_shape)
-        objective = build_objective(cfg, out_shape, targets)
+        objective = build_objective(cfg, out_shape, targets, source=src)
     with ctx.stage("mesh"):
         view = src[int(offset[1]) : int(offset[1]) + h, int(offset[0]) : int(offset[0]) + w]
         ctrl = control_points(view, dc.points, ctx.rng)
@@ -573,6 +573,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "max_stretch_bound": opt.max_stretch,
         "moves_rejected_by_stretch": opt.rejected_stretch,
         "moves_rejected_by_sharpness": opt.rejected_accept,
+        "symmetry_crop": None if objective.crop is None else list(objective.crop),
     }
     tiles = None
     if cfg.mode == "tile":

@@ -45,13 +45,14 @@ Where real photographs contradict the paper (issue 14, README tables):
   comes from the blend smearing mismatched stripes into a grey band, while the optimized tile,
   whose stripes continue across the seams, scores 0.33 (a seam like the interior scores 1).
 - The paper's S_T is that of a toroidal ``f`` (eq. 2). A photograph whose period does not divide
-  its size is irregular across the wrap, so symmetrization by the toroidal E_symm warps even an
-  unwarped photograph of stripes (E_symm x2.9 for 2.2 px of mean displacement). The ``overlap``
-  S_T (:func:`synthkit.core.symmetry.translational`) has no wrap; on these photographs it
-  halves the needless displacement but does not remove half of a known warp either. Neither
-  do a Hann-apodized signal, a crop to a whole number of periods, ``min_gain`` 0.01 or E_L2 to
-  the input's sharpened S_T (the paper's Fig. 5a): on the cars and the brick walls each is
-  higher somewhere other than at the unwarped photograph (README symmetrize tables).
+  its size is irregular across the wrap, so symmetrization by the toroidal E_symm of the whole
+  image warps even an unwarped photograph of stripes (E_symm x2.9 for 2.2 px of mean
+  displacement). Symmetrize therefore evaluates S_T of the input's centred crop to a whole number
+  of periods (``symmetry.crop: auto``): the stripes then move 0.86 px. The ``overlap`` S_T
+  (:func:`synthkit.core.symmetry.translational`) has no wrap but moves them 1.29 px. Neither
+  removes half of a known warp on the cars or the brick walls, nor do a Hann-apodized signal,
+  ``min_gain`` 0.01, Lanczos probes or E_L2 to the input's sharpened S_T (the paper's Fig. 5a):
+  each objective is higher somewhere other than at the unwarped photograph (README tables).
 """
 
 from __future__ import annotations

@@ -276,19 +276,38 @@ MISSED_OBJECTIVE = pytest.mark.xfail(
     strict=True,
     reason=(
         "issue 14 goal missed by the objective, not the search: E_symm (of the whole-period crop) "
-        "of the result exceeds the unwarped photograph's (brick 1.08e-4 vs 6.4e-5, cars 0.0167 vs "
-        "0.0154); error removed brick -55%, cars 23%; Hann apodization, min_gain 0.01, Lanczos "
-        "probes and E_L2 to the sharpened S_T (paper Fig. 5a) remove at most 32% (README)"
+        "of the result reaches or exceeds the unwarped photograph's (brick 1.02e-4 vs 6.4e-5, cars "
+        "0.0154 vs 0.0154); error removed brick -55%, cars 25%; Hann apodization, Lanczos probes "
+        "and E_L2 to the sharpened S_T (paper Fig. 5a) remove at most 32% (README)"
+    ),
+)
+
+
+UNCHANGED_MISSED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed: the unwarped texture_bricks moves 2.54 px (whole-period crop 128 x "
+        "128, min_gain 0.01; 2.93 px at min_gain 0): E_symm rises by warping it (README)"
     ),
 )
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["lattice-p4.jpg", "lattice-p3-21.jpg"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "lattice-p4.jpg",
+        "lattice-p3-21.jpg",
+        "lattice-p2-2.jpg",
+        "brick",
+        pytest.param("texture_bricks.jpg", marks=UNCHANGED_MISSED),
+    ],
+)
 def test_real_regular_photo_comes_back_nearly_unchanged(tmp_path, write_config, name):
     """An already regular photograph (128 px native crop): mean displacement at most 1 px. The
     stripes (lattice-p3-21), whose period does not divide 128 px, need symmetry.crop's
-    whole-period crop (auto for symmetrize): 2.21 px on the whole crop."""
+    whole-period crop (auto for symmetrize): 2.21 px on the whole crop; the cars and skimage's
+    brick need min_gain's default for symmetrize, 0.01 (1.81 and 1.19 px at 0)."""
     m, _, _ = symmetrize_real(tmp_path, write_config, native_crop(name, 128), 0.0)
     assert m["mean_displacement"] <= 1.0
 

@@ -48,10 +48,12 @@ Where real photographs contradict the paper (issue 14, README tables):
   its size is irregular across the wrap, so symmetrization by the toroidal E_symm of the whole
   image warps even an unwarped photograph of stripes (E_symm x2.9 for 2.2 px of mean
   displacement). Symmetrize therefore evaluates S_T of the input's centred crop to a whole number
-  of periods (``symmetry.crop: auto``): the stripes then move 0.86 px. The ``overlap`` S_T
+  of periods (``symmetry.crop: auto``): the stripes then move 0.86 px, and 0.34 px when every
+  move must buy 1 % of E_symm (``deform.min_gain``'s default for symmetrize, which also keeps
+  the unwarped cars and skimage's brick within 0.65 and 0.68 px). The ``overlap`` S_T
   (:func:`synthkit.core.symmetry.translational`) has no wrap but moves them 1.29 px. Neither
   removes half of a known warp on the cars or the brick walls, nor do a Hann-apodized signal,
-  ``min_gain`` 0.01, Lanczos probes or E_L2 to the input's sharpened S_T (the paper's Fig. 5a):
+  Lanczos probes or E_L2 to the input's sharpened S_T (the paper's Fig. 5a):
   each objective is higher somewhere other than at the unwarped photograph (README tables).
 """
 
@@ -537,7 +539,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         progress=ctx.progress,
         out_shape=out_shape,
         max_stretch=cfg.tile.max_stretch if cfg.mode == "tile" else dc.max_stretch,
-        min_gain=dc.min_gain,
+        min_gain=cfg.resolved_min_gain(),
     )
     interp = dc.interpolation
     # sharpness reference of the optimized tile: the part of the input it is cut from (the whole
@@ -575,6 +577,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "moves_rejected_by_stretch": opt.rejected_stretch,
         "moves_rejected_by_sharpness": opt.rejected_accept,
         "symmetry_crop": None if objective.crop is None else list(objective.crop),
+        "min_gain": opt.min_gain,
     }
     tiles = None
     if cfg.mode == "tile":

@@ -48,7 +48,7 @@ def cut_tile(img: np.ndarray, overlap: int) -> tuple[np.ndarray, np.ndarray]:
     """
     arr = np.asarray(img)
     H, W = arr.shape[:2]
-    if not 1 <= overlap < min(H, W) // 2:
+    if not (overlap >= 1 and 2 * overlap < min(H, W)):
         raise ValueError(f"cut overlap {overlap} must be at least 1 and below half of the {H}x{W} image")
     flat = arr.reshape(H, W, -1)
     src = np.stack(np.mgrid[0:H, 0:W], axis=2)
@@ -102,9 +102,10 @@ def fix_seams(tile: np.ndarray, source: np.ndarray, *, radius: int = 8, weight: 
 
     Unknowns are the corrections of the pixels within ``radius`` of a seam step (Chebyshev
     distance); the others are fixed. Least squares over every step touching an unknown: a seam
-    step's condition (weight ``weight``, so it holds to about ``1 / weight^2``) and every other
-    step's own value (weight 1: the correction is as smooth as it can be). Returns float32,
-    clipped to [0, 1].
+    step's condition (weight ``weight``: it holds to a few percent of the step) and every other
+    step's own value (weight 1: the correction is as smooth as it can be), plus ``1e-9 |c|^2``,
+    which picks the smallest correction when no fixed pixel anchors it (a tile within
+    ``radius`` of seams everywhere). Returns float32, clipped to [0, 1].
     """
     arr = np.asarray(tile, dtype=np.float64)
     h, w = arr.shape[:2]
@@ -124,7 +125,8 @@ def fix_seams(tile: np.ndarray, source: np.ndarray, *, radius: int = 8, weight: 
     rows = np.repeat(np.arange(len(cols)), 4).reshape(-1, 4)
     known = cols >= 0
     A = sparse.csr_matrix((coefs[known], (rows[known], cols[known])), shape=(len(cols), int(near.sum())))
-    c = sparse_linalg.splu((A.T @ A).tocsc()).solve(np.asarray(A.T @ rhs))
+    normal = (A.T @ A + 1e-9 * sparse.identity(A.shape[1])).tocsc()
+    c = sparse_linalg.splu(normal).solve(np.asarray(A.T @ rhs))
     out = flat.copy()
     out[near] += c
     return np.clip(out.reshape(arr.shape), 0.0, 1.0).astype(np.float32)

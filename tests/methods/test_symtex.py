@@ -496,3 +496,16 @@ def test_symmetry_crop_auto_is_periods_for_symmetrize_by_deform_only():
         SymtexConfig(source=__file__, mode="tile", symmetry={"crop": "periods"})
     with pytest.raises(ValueError, match="symmetry.crop"):
         SymtexConfig(source=__file__, mode="symmetrize", symmetry={"crop": "periods", "kind": "rotational"})
+
+
+def test_cut_overlaps_that_do_not_fit_are_skipped_with_a_warning(caplog):
+    import logging
+
+    from synthkit.methods.symtex.deform import _cut_overlaps
+
+    with caplog.at_level(logging.WARNING, logger="synthkit"):
+        assert _cut_overlaps([24, 8, 16, 8], (40, 64)) == [8, 16]
+    assert any("tile.cut_overlaps: [24]" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    assert _cut_overlaps([], (40, 64)) == []
+    assert not caplog.records

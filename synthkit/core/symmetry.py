@@ -239,7 +239,10 @@ def whole_period_crop(f: np.ndarray, *, min_period: int = 4) -> tuple[int, int]:
     Per axis, the period ``P`` is the displacement in ``[min_period, n // 2)`` with the largest
     circular autocorrelation of the mean-free ``f`` along that axis (averaged over the other
     axis), and the size is ``(n // P) P``: a crop of that size wraps the pattern onto itself,
-    which the toroidal S_T (eq. 2) assumes. An axis shorter than ``2 min_period + 1`` keeps its size.
+    which the toroidal S_T (eq. 2) assumes. Along an axis without a repeat the autocorrelation
+    falls from 0 on and ``P`` is ``min_period``: less than ``min_period`` px are cut (the stone
+    wall texture_bricks, 128 px: no peak on either axis, the whole crop). An axis shorter than
+    ``2 min_period + 1`` keeps its size.
     """
     g = _check_signal(f).astype(np.float64)
     g = g - g.mean()

@@ -307,7 +307,9 @@ def test_real_regular_photo_comes_back_nearly_unchanged(tmp_path, write_config, 
     """An already regular photograph (128 px native crop): mean displacement at most 1 px. The
     stripes (lattice-p3-21), whose period does not divide 128 px, need symmetry.crop's
     whole-period crop (auto for symmetrize): 2.21 px on the whole crop; the cars and skimage's
-    brick need min_gain's default for symmetrize, 0.01 (1.81 and 1.19 px at 0)."""
+    brick need min_gain's default for symmetrize, 0.01 (1.81 and 1.19 px at 0), and they meet
+    the goal on this seed only: seeds 1-3 move the cars 1.16, 1.16, 0.85 px and the brick 1.27,
+    1.30, 1.92 px (README)."""
     m, _, _ = symmetrize_real(tmp_path, write_config, native_crop(name, 128), 0.0)
     assert m["mean_displacement"] <= 1.0
 

@@ -50,7 +50,8 @@ Where real photographs contradict the paper (issue 14, README tables):
   displacement). Symmetrize therefore evaluates S_T of the input's centred crop to a whole number
   of periods (``symmetry.crop: auto``): the stripes then move 0.86 px, and 0.34 px when every
   move must buy 1 % of E_symm (``deform.min_gain``'s default for symmetrize, which also keeps
-  the unwarped cars and skimage's brick within 0.65 and 0.68 px). The ``overlap`` S_T
+  the unwarped cars and skimage's brick within 0.65 and 0.68 px on seed 0, not on every
+  seed). The ``overlap`` S_T
   (:func:`synthkit.core.symmetry.translational`) has no wrap but moves them 1.29 px. Neither
   removes half of a known warp on the cars or the brick walls, nor do a Hann-apodized signal,
   Lanczos probes or E_L2 to the input's sharpened S_T (the paper's Fig. 5a):

@@ -233,6 +233,32 @@ def translational(
     return S.astype(dtype, copy=False)
 
 
+def whole_period_crop(f: np.ndarray, *, min_period: int = 4) -> tuple[int, int]:
+    """Size ``(h, w)`` of a whole number of periods of ``f (H, W)`` along each axis.
+
+    Per axis, the period ``P`` is the displacement in ``[min_period, n // 2)`` with the largest
+    circular autocorrelation of the mean-free ``f`` along that axis (averaged over the other
+    axis), and the size is ``(n // P) P``: a crop of that size wraps the pattern onto itself,
+    which the toroidal S_T (eq. 2) assumes. Along an axis without a repeat the autocorrelation
+    falls from 0 on and ``P`` is ``min_period``: less than ``min_period`` px are cut (the stone
+    wall texture_bricks, 128 px: no peak on either axis, the whole crop). An axis shorter than
+    ``2 min_period + 1`` keeps its size.
+    """
+    g = _check_signal(f).astype(np.float64)
+    g = g - g.mean()
+    out = []
+    for axis in (0, 1):
+        n = g.shape[axis]
+        if n < 2 * min_period + 1:
+            out.append(n)
+            continue
+        spec = np.abs(np.fft.rfft(g, axis=axis)) ** 2
+        ac = np.fft.irfft(spec, n=n, axis=axis).mean(axis=1 - axis)
+        period = min_period + int(np.argmax(ac[min_period : n // 2]))
+        out.append((n // period) * period)
+    return out[0], out[1]
+
+
 def _overlap_translational(f, window, standardize, workers):
     """S_T of a photograph, not a torus: the mean-free signal's linear autocorrelation over the
     overlap of ``f`` and its shift, per overlapping pixel, over its zero-displacement value.

@@ -372,3 +372,17 @@ def test_translational_overlap_is_a_correlation_coefficient(rng):
     assert St[3, 10 + 7] > 0.99
     Storus = sy.translational(stripes, mode="toroidal", window=(3, 10), standardize=False)
     assert Storus[3, 10 + 7] < St[3, 10 + 7] - 0.03  # the wrap-around columns are out of phase
+
+
+def test_whole_period_crop_of_stripes_and_a_lattice():
+    """Stripes of period 10 along x on a 57 x 64 image: 60 columns (6 periods); down the rows
+    nothing varies, the autocorrelation is flat and its first displacement (4 px) wins: 56 rows.
+    A dot lattice of period (12, 9) on 50 x 50: 48 rows, 45 columns. Short axes keep their size."""
+    x = np.arange(64)
+    stripes = np.tile(np.sin(2 * np.pi * x / 10.0), (57, 1))
+    h, w = sy.whole_period_crop(stripes)
+    assert (h, w) == (56, 60)
+    yy, xx = np.mgrid[0:50, 0:50]
+    dots = ((yy % 12 < 3) & (xx % 9 < 3)).astype(np.float64)
+    assert sy.whole_period_crop(dots) == (48, 45)
+    assert sy.whole_period_crop(dots[:8, :]) == (8, 45)

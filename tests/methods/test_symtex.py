@@ -402,8 +402,10 @@ def test_zero_padded_st_rejected_for_synth(tmp_path, inputs, write_config):
 
 
 def test_choose_tile_rule():
-    """Lowest seam ratio; the optimized tile only with E_symm >= the input's (0.1% slack) and
-    sharpness >= 0.9; ties to optimized, then baseline."""
+    """Of the candidates meeting every goal (seam ratio at most the baseline's and the input's,
+    E_symm >= the input's with 0.1% slack, sharpness >= 0.9) the lowest seam ratio; when none
+    does, the lowest of the baseline, the input and the made tiles that keep E_symm and
+    sharpness; ties to optimized, the cut tiles by overlap, baseline, input."""
     from synthkit.methods.symtex.deform import choose_tile
 
     def cand(seam, obj=1.0, sharp=1.0):
@@ -417,6 +419,15 @@ def test_choose_tile_rule():
     assert choose_tile({"optimized": cand(0.4), **base}, 1.0) == "optimized"
     assert choose_tile({"optimized": cand(0.2), "baseline": cand(0.4), "input": cand(0.1)}, 1.0) == "input"
     assert choose_tile({"optimized": cand(0.2), "baseline": cand(0.1), "input": cand(0.1)}, 1.0) == "baseline"
+    # the cut tile: a baseline that lowers E_symm gives way to a cut tile that meets every goal,
+    # even one whose seam ratio is above the baseline's among the rest
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.3), **base}, 1.0) == "cut16"
+    assert choose_tile({"optimized": cand(0.2), "cut16": cand(0.2), **base}, 1.0) == "optimized"
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.45), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.5), "cut16": cand(0.3, obj=0.9), **base}, 1.0) == "baseline"
+    assert choose_tile({"optimized": cand(0.1, obj=0.9), "cut16": cand(0.3), **base}, 1.0) == "cut16"
+    cuts = {"cut8": cand(0.3), "cut16": cand(0.2, obj=0.9), "cut24": cand(0.3)}
+    assert choose_tile({"optimized": cand(0.5), **cuts, **base}, 1.0) == "cut8"  # tie: the smaller overlap
 
 
 def test_tile_crop_and_high_frequency_energy():
@@ -467,3 +478,34 @@ def test_tile_upsample_zoom_keeps_input_size(tmp_path, write_config):
     m2 = run_config(write_config(tmp_path, "c", **crop), out_dir=tmp_path / "out2", show_progress=False)["metrics"]
     assert m2["tile_candidates"]["optimized"]["size"] == [38, 38]
     assert m2["max_stretch"] <= 1.1 and m2["max_stretch_bound"] == 1.1
+
+
+def test_symmetry_crop_auto_is_periods_for_symmetrize_by_deform_only():
+    from synthkit.methods.symtex.config import SymtexConfig
+
+    def crop(**kw):
+        return SymtexConfig(source=__file__, **kw).period_crop()
+
+    assert crop(mode="symmetrize")
+    assert not crop(mode="symmetrize", perturbation="lens")
+    assert not crop(mode="symmetrize", symmetry={"mode": "overlap"})
+    assert not crop(mode="tile") and not crop(mode="filter")
+    assert crop(mode="filter", perturbation="deform", symmetry={"crop": "periods"})
+    assert not crop(mode="symmetrize", symmetry={"crop": "none"})
+    with pytest.raises(ValueError, match="symmetry.crop"):
+        SymtexConfig(source=__file__, mode="tile", symmetry={"crop": "periods"})
+    with pytest.raises(ValueError, match="symmetry.crop"):
+        SymtexConfig(source=__file__, mode="symmetrize", symmetry={"crop": "periods", "kind": "rotational"})
+
+
+def test_cut_overlaps_that_do_not_fit_are_skipped_with_a_warning(caplog):
+    import logging
+
+    from synthkit.methods.symtex.deform import _cut_overlaps
+
+    with caplog.at_level(logging.WARNING, logger="synthkit"):
+        assert _cut_overlaps([24, 8, 16, 8], (40, 64)) == [8, 16]
+    assert any("tile.cut_overlaps: [24]" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    assert _cut_overlaps([], (40, 64)) == []
+    assert not caplog.records

@@ -149,6 +149,7 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     below the input's and it keeps 90 % of the input's high-frequency energy; the warp stays
     within tile.max_stretch; result.png is the candidate report.json names. The 3x3 tilings
     (tiled_3x3.png of the result, tiled_optimized_3x3.png, tiled_baseline_3x3.png) stay in tmp_path."""
+    from synthkit.core.tiling import cut_tile, seam_masks
     from synthkit.methods.symtex.deform import E_SYMM_TOL, SHARPNESS_MIN, high_frequency_energy, seam_ratio
 
     crop = native_crop(name, 160)
@@ -160,18 +161,49 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     assert m["seam_ratio"] <= m["seam_ratio_input"]
     assert m["max_stretch"] <= m["max_stretch_bound"] == 1.1
     assert c["optimized"]["max_stretch"] == m["max_stretch"]
-    if m["tile_choice"] == "optimized":
+    if m["tile_choice"] != "baseline" and m["tile_choice"] != "input":
         assert m["objective_end"] >= m["input_objective"] * (1 - E_SYMM_TOL)
         assert m["sharpness"] >= SHARPNESS_MIN
+    if m["tile_choice"] == "optimized":
         assert m["tile_size"] == [96, 96]  # native crop: 160 less 2 x 32 px of margin, no upsampling
     out = load_image(tmp_path / "out" / "result.png")
-    file = {"optimized": "optimized.png", "baseline": "baseline.png", "input": "../c.png"}[m["tile_choice"]]
+    choice = m["tile_choice"]
+    file = "../c.png" if choice == "input" else f"{choice}.png"
     np.testing.assert_array_equal(out, load_image(tmp_path / "out" / file))
-    # the figures are those of the returned image (8-bit rounding aside)
-    assert seam_ratio(out) == pytest.approx(m["seam_ratio"], rel=0.1, abs=1e-3)
+    # the figures are those of the returned image (8-bit rounding aside); a cut tile's seams are
+    # where its copies meet (the cuts), found from its source map
+    cut = choice.startswith("cut")
+    seams = seam_masks(cut_tile(load_image(tmp_path / "c.png"), int(choice[3:]))[1]) if cut else None
+    assert seam_ratio(out, seams=seams) == pytest.approx(m["seam_ratio"], rel=0.1, abs=1e-3)
     assert high_frequency_energy(out) / high_frequency_energy(crop) == pytest.approx(m["sharpness"], rel=0.05)
     tiled = load_image(tmp_path / "out" / report["outputs"]["tiled"])
     assert tiled.shape[:2] == (3 * out.shape[0], 3 * out.shape[1])
+
+
+TILE_E_SYMM_MISSED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed: no candidate meets every goal and the blended baseline, returned, "
+        "lowers E_symm (grass 160 px: 0.9% below the input's, seam ratio 0.208; the 16 px cut "
+        "tile's seam ratio is 0.200 at 5% below, the 24 px one keeps E_symm at 0.225; README)"
+    ),
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=TILE_E_SYMM_MISSED) if n == "grass" else n for n in TILE_PHOTOS],
+)
+def test_real_photo_tile_keeps_the_inputs_e_symm(tmp_path, write_config, name):
+    """Issue 14's remaining tile goal on the 160 px native crop: E_symm of the returned tile is not
+    below the input's (within E_SYMM_TOL), whichever candidate is returned."""
+    from synthkit.methods.symtex.deform import E_SYMM_TOL
+
+    save_image(tmp_path / "c.png", native_crop(name, 160))
+    report = run_config(write_config(tmp_path, "t", **TILE_REAL), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    assert m["objective_end"] >= m["input_objective"] * (1 - E_SYMM_TOL), m["tile_choice"]
 
 
 def test_tile_of_rgba_photo_with_transparent_hole_composites_over_white(tmp_path, write_config, caplog):
@@ -240,26 +272,44 @@ def symmetrize_real(tmp_path, write_config, photo, amplitude, **symmetry):
     return report["metrics"], field_error(identity, amplitude), field_error(smap, amplitude)
 
 
-MISSED = pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "issue 14 goal missed: toroidal S_T of a crop whose period does not divide its size is "
-        "irregular across the wrap, and maximizing E_symm warps it (README symmetrize table)"
-    ),
-)
 MISSED_OBJECTIVE = pytest.mark.xfail(
     strict=True,
     reason=(
-        "issue 14 goal missed by the objective, not the search: E_symm of the result exceeds the "
-        "unwarped photograph's (brick 1.09e-4 vs 5.8e-5, cars 0.0129 vs 0.0116; README)"
+        "issue 14 goal missed by the objective, not the search: E_symm (of the whole-period crop) "
+        "of the result reaches or exceeds the unwarped photograph's (brick 1.02e-4 vs 6.4e-5, cars "
+        "0.0154 vs 0.0154); error removed brick -55%, cars 25%; Hann apodization, Lanczos probes "
+        "and E_L2 to the sharpened S_T (paper Fig. 5a) remove at most 32% (README)"
+    ),
+)
+
+
+UNCHANGED_MISSED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 14 goal missed: the unwarped texture_bricks moves 2.54 px (whole-period crop 128 x "
+        "128, min_gain 0.01; 2.93 px at min_gain 0): E_symm rises by warping it (README)"
     ),
 )
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["lattice-p4.jpg", pytest.param("lattice-p3-21.jpg", marks=MISSED)])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "lattice-p4.jpg",
+        "lattice-p3-21.jpg",
+        "lattice-p2-2.jpg",
+        "brick",
+        pytest.param("texture_bricks.jpg", marks=UNCHANGED_MISSED),
+    ],
+)
 def test_real_regular_photo_comes_back_nearly_unchanged(tmp_path, write_config, name):
-    """An already regular photograph (128 px native crop): mean displacement at most 1 px."""
+    """An already regular photograph (128 px native crop): mean displacement at most 1 px. The
+    stripes (lattice-p3-21), whose period does not divide 128 px, need symmetry.crop's
+    whole-period crop (auto for symmetrize): 2.21 px on the whole crop; the cars and skimage's
+    brick need min_gain's default for symmetrize, 0.01 (1.81 and 1.19 px at 0), and they meet
+    the goal on this seed only: seeds 1-3 move the cars 1.16, 1.16, 0.85 px and the brick 1.27,
+    1.30, 1.92 px (README)."""
     m, _, _ = symmetrize_real(tmp_path, write_config, native_crop(name, 128), 0.0)
     assert m["mean_displacement"] <= 1.0
 

@@ -39,17 +39,24 @@ def apply_filter(S: np.ndarray, cfg: SymtexConfig) -> np.ndarray:
     return sy.rotate(S, flt.angle)
 
 
-def build_objective(cfg: SymtexConfig, shape, targets=None, center=None) -> Objective:
+def build_objective(cfg: SymtexConfig, shape, targets=None, center=None, source=None) -> Objective:
+    """The config's objective for images of ``shape``; with ``symmetry.crop`` resolving to
+    ``periods`` (:meth:`SymtexConfig.period_crop`), S_T is of the centred whole-period crop found
+    on ``source`` (the input image)."""
     sym = cfg.symmetry
+    crop = None
+    if source is not None and cfg.period_crop():
+        crop = sy.whole_period_crop(sy.signal(np.asarray(source, dtype=np.float64), sym.signals[0]))
     return Objective(
         representation=sym.kind,
         signals=sym.signals,
         kind=cfg.objective_kind(),
         targets=targets,
-        window=st_window(shape, sym.window) if sym.kind == "translational" else None,
+        window=st_window(crop or shape, sym.window) if sym.kind == "translational" else None,
         mode=sym.mode,
         center=center if center is not None else sym.center,
         n_angles=sym.n_angles,
+        crop=crop,
     )
 
 

@@ -31,6 +31,8 @@ class Objective:
     targets : one standardized target per signal (kind "l2").
     window : S_T window ``(wy, wx)``; mode : S_T "toroidal" or "zero".
     center, n_angles : S_R / S_Ref parameters (centre (row, col) in pixels of the evaluated image).
+    crop : ``(h, w)``: S_T of the centred ``h x w`` crop of each signal (a whole number of periods,
+        :func:`synthkit.core.symmetry.whole_period_crop`); None: of the whole signal.
     """
 
     def __init__(
@@ -44,6 +46,7 @@ class Objective:
         mode: str = "toroidal",
         center: tuple[float, float] | None = None,
         n_angles: int = 360,
+        crop: tuple[int, int] | None = None,
     ):
         if kind not in ("l2", "symm"):
             raise ValueError(f"objective kind must be 'l2' or 'symm', got {kind!r}")
@@ -57,10 +60,14 @@ class Objective:
         self.mode = mode
         self.center = center
         self.n_angles = n_angles
+        self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
 
     def represent(self, f: np.ndarray, *, standardize: bool) -> np.ndarray:
         """Representation of one signal ``f (H, W)``."""
         if self.representation == "translational":
+            if self.crop is not None:
+                (h, w), (H, W) = self.crop, f.shape
+                f = f[(H - h) // 2 : (H - h) // 2 + h, (W - w) // 2 : (W - w) // 2 + w]
             return sy.translational(f, mode=self.mode, window=self.window, standardize=standardize)
         fn = sy.rotational if self.representation == "rotational" else sy.reflective
         return fn(f, center=self.center, n_angles=self.n_angles, standardize=standardize)

@@ -182,7 +182,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
 
 def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
     lc = cfg.lens
-    objective = build_objective(cfg, src.shape[:2])
+    objective = build_objective(cfg, src.shape[:2], source=src)
     with ctx.stage("optimize"):
 
         def score(k1: float) -> float:

@@ -414,17 +414,21 @@ FACADE_SLOPE = 0.1
 (within about 5.7 degrees of vertical): walls, window frames and door reveals, not floors or roofs."""
 
 
+def _facade_faces(V, F, up_axis: int, slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(n (#F, 3) twice-area normals, double_area (#F,), facade (#F,) bool)`` of ``V (#V, 3)``,
+    ``F (#F, 3)``: a facade face has non-zero area and ``|n[up_axis]| <= slope`` for its unit normal."""
+    V = np.asarray(V, np.float64)
+    F = np.asarray(F, np.int64).reshape(-1, 3)
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    double_area = np.linalg.norm(n, axis=1)
+    return n, double_area, (np.abs(n[:, up_axis]) <= slope * double_area) & (double_area > 0)
+
+
 def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
     """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)``: faces whose unit normal ``n`` has
     ``|n[up_axis]| <= slope`` (normal orthogonal to the up axis, :data:`FACADE_SLOPE`)."""
-    V = np.asarray(V, np.float64)
-    F = np.asarray(F, np.int64)
-    if len(F) == 0:
-        return 0.0
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    double_area = np.linalg.norm(n, axis=1)
-    up = np.abs(n[:, up_axis]) <= slope * double_area
-    return float(0.5 * double_area[up & (double_area > 0)].sum())
+    _, double_area, facade = _facade_faces(V, F, up_axis, slope)
+    return float(0.5 * double_area[facade].sum())
 
 
 ACROSS_COS = np.sqrt(0.5)
@@ -437,15 +441,9 @@ def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float =
     the curve: ``|n . across| >= cos 45`` for the unit normal ``n`` and ``across (#F, 3)``, the unit
     across direction of each face's cell. Street fronts and backs count; walls facing along the curve
     (end walls, walls between copies) do not."""
-    V = np.asarray(V, np.float64)
-    F = np.asarray(F, np.int64)
-    if len(F) == 0:
-        return 0.0
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    double_area = np.linalg.norm(n, axis=1)
-    facing = np.abs(np.einsum("ij,ij->i", n, across)) >= ACROSS_COS * double_area
-    up = np.abs(n[:, up_axis]) <= slope * double_area
-    return float(0.5 * double_area[facing & up & (double_area > 0)].sum())
+    n, double_area, facade = _facade_faces(V, F, up_axis, slope)
+    facing = np.abs(np.einsum("ij,ij->i", n, np.asarray(across, np.float64).reshape(-1, 3))) >= ACROSS_COS * double_area
+    return float(0.5 * double_area[facing & facade].sum())
 
 
 def facade_cells(neighbours: np.ndarray, directions) -> int:

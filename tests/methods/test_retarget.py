@@ -34,6 +34,7 @@ from synthkit.methods.retarget.analysis import (
 from synthkit.methods.retarget.pipeline import label_colours
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
+    collapse_short_seam_edges,
     grid_phase,
     label_set,
     merge_coplanar_faces,
@@ -134,6 +135,22 @@ def test_mesh_quality_tiny_fixtures():
     assert mesh_quality(V2, np.array([[0, 2, 1], [0, 1, 4], [0, 3, 2], [1, 2, 3]]))["boundary_edges"] == 0
     sliver = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-4, 0]])
     assert mesh_quality(sliver, np.array([[0, 1, 2]]))["sliver_faces"] == 1
+
+
+def test_collapse_short_seam_edges_removes_the_slivers_of_a_near_cut():
+    # a 1 x 2 rectangle cut along y = 1 at x = 0.5 and 0.505: faces (0, 6, 5) and (5, 6, 3) are slivers
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 2, 0], [0, 2, 0], [0, 1, 0], [0.5, 1, 0], [0.505, 1, 0], [1, 1, 0]],
+                 dtype=np.float64)
+    F = np.array([[0, 1, 7], [0, 7, 6], [0, 6, 5], [0, 5, 4], [4, 5, 3], [5, 6, 3], [6, 7, 2], [6, 2, 3]])
+    on_seam = np.isclose(V[:, 1], 1.0)
+    F2, src = collapse_short_seam_edges(V, F, on_seam, 0.01)
+    assert F2.tolist() == [[0, 1, 7], [0, 7, 5], [0, 5, 4], [4, 5, 3], [5, 7, 2], [5, 2, 3]]
+    assert src.tolist() == [0, 1, 3, 4, 6, 7]
+    assert mesh_quality(V, F)["sliver_faces"] == 2 and mesh_quality(V, F2)["sliver_faces"] == 0
+    assert mesh_quality(V, F2)["boundary_edges"] == mesh_quality(V, F)["boundary_edges"] == 6
+    # not on a seam, or longer than the bound: kept as they are
+    assert collapse_short_seam_edges(V, F, np.zeros(8, bool), 0.01)[0].tolist() == F.tolist()
+    assert collapse_short_seam_edges(V, F, on_seam, 0.004)[0].tolist() == F.tolist()
 
 
 def test_unique_faces_drops_a_surface_stored_twice():

@@ -42,6 +42,7 @@ from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     VoxelGrid,
     assemble,
+    collapse_short_seam_edges,
     make_grid,
     merge_coplanar_faces,
     mesh_quality,
@@ -152,6 +153,9 @@ def synthesize(
         Fw, fl = Fw[keep], fl[keep]
         Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
         fl = fl[src]
+        on_seam = _on_voxel_planes(Vw, grid, cfg.weld_tolerance)
+        Fw, src = collapse_short_seam_edges(Vw, Fw, on_seam, SEAM_COLLAPSE * a.dense_radius)
+        fl = fl[src]
         Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=cfg.weld_tolerance)
         fl = fl[src]
         Fw, _ = merge_coplanar_faces(Vw, Fl, None, tol=cfg.weld_tolerance)
@@ -161,6 +165,18 @@ def synthesize(
     return Retargeted(
         Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles, labelled_F=remap[Fl]
     )
+
+
+SEAM_COLLAPSE = 0.5
+"""Seam edges shorter than this many dense spacings are collapsed where that improves the faces'
+shape (:func:`collapse_short_seam_edges`): finer than the descriptors see, and fanned across a
+face they make slivers."""
+
+
+def _on_voxel_planes(V, grid: VoxelGrid, tol: float) -> np.ndarray:
+    """``(n,) bool``: the normalised vertices ``V (n, 3)`` within ``tol`` of a voxel face plane."""
+    frac = grid.to_canonical(V) - grid.origin
+    return ((np.abs(frac - np.rint(frac)) / np.linalg.norm(grid.inverse, axis=1)) <= tol).any(axis=1)
 
 
 def weld_seams(Vc, F, face_label, grid: VoxelGrid, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -456,18 +456,22 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
     return F[keep], np.flatnonzero(keep)
 
 
-def _smallest_angle(V, F) -> float:
-    """Smallest interior angle (radians) over the faces ``F (k, 3)`` of ``V``; pi when empty."""
-    if len(F) == 0:
-        return float(np.pi)
+def _face_min_angles(V, F) -> np.ndarray:
+    """``(k,)`` smallest interior angle (radians) of each face ``F (k, 3)`` of ``V (n, 3)`` (0 for
+    a face with a zero-length edge)."""
     tri = V[F]
-    out = np.pi
+    out = np.full(len(F), np.pi)
     for k in range(3):
         e1, e2 = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
         den = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
         cos = np.divide(np.einsum("ij,ij->i", e1, e2), den, out=np.ones(len(F)), where=den > 0)
-        out = min(out, float(np.arccos(np.clip(cos, -1.0, 1.0)).min()))
+        out = np.minimum(out, np.arccos(np.clip(cos, -1.0, 1.0)))
     return out
+
+
+def _smallest_angle(V, F) -> float:
+    """Smallest interior angle (radians) over the faces ``F (k, 3)`` of ``V``; pi when empty."""
+    return float(_face_min_angles(V, F).min()) if len(F) else float(np.pi)
 
 
 def _turns_less_than(V, before, after, min_cos: float) -> bool:
@@ -588,14 +592,7 @@ def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
     _, counts = np.unique(E, axis=0, return_counts=True)
     _, fcounts = np.unique(_smallest_first(Fw), axis=0, return_counts=True)
     _, scounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
-    tri = Vw[Fw]
-    angles = []
-    for k in range(3):
-        e1, e2 = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
-        den = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
-        cos = np.divide(np.einsum("ij,ij->i", e1, e2), den, out=np.ones(len(Fw)), where=den > 0)
-        angles.append(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-    smallest = np.min(angles, axis=0)
+    smallest = np.degrees(_face_min_angles(Vw, Fw))
     return {
         "faces": int(len(Fw)),
         "boundary_edges": int((counts == 1).sum()),

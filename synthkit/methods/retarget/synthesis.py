@@ -426,8 +426,9 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
     Finding (issue 15): a seam plane passing 0.003 from a row of house1's window vertices crosses
     the edges leaving each vertex a few thousandths apart; each such seam edge, 0.004-0.01 long,
     fanned to a corner 0.3-0.4 away, made a face with an angle below 1 degree (13 of them). Both
-    ends lie on the plane, so a collapse moves a cut point along the seam only (by at most
-    ``max_length``); the input's own vertices stay."""
+    ends lie on the plane, so a collapse moves a vertex along the seam only (by at most
+    ``max_length``); cut points are numbered after the input's vertices, so where one end is an
+    input vertex it is the one that stays."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     Ek = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)

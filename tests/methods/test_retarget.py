@@ -35,6 +35,7 @@ from synthkit.methods.retarget.pipeline import label_colours
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     collapse_short_seam_edges,
+    flip_sliver_edges,
     grid_phase,
     label_set,
     merge_coplanar_faces,
@@ -151,6 +152,16 @@ def test_collapse_short_seam_edges_removes_the_slivers_of_a_near_cut():
     # not on a seam, or longer than the bound: kept as they are
     assert collapse_short_seam_edges(V, F, np.zeros(8, bool), 0.01)[0].tolist() == F.tolist()
     assert collapse_short_seam_edges(V, F, on_seam, 0.004)[0].tolist() == F.tolist()
+
+
+def test_flip_sliver_edges_flips_a_cap_across_a_flat_pair_only():
+    # face 0 is a cap (179 degrees at c) over the long edge a-b; face 1 lies across it in the plane
+    V = np.array([[0, 0, 0], [2, 0, 0], [1, 0.01, 0], [1, -1, 0], [1, -1, 1]], dtype=np.float64)
+    F = np.array([[0, 1, 2], [1, 0, 3]])
+    assert flip_sliver_edges(V, F).tolist() == [[0, 3, 2], [3, 1, 2]]
+    assert mesh_quality(V, flip_sliver_edges(V, F))["sliver_faces"] == 0
+    assert flip_sliver_edges(V, F, np.array([0, 1])).tolist() == F.tolist()  # two labels: kept
+    assert flip_sliver_edges(V, np.array([[0, 1, 2], [1, 0, 4]])).tolist() == [[0, 1, 2], [1, 0, 4]]  # a fold
 
 
 def test_unique_faces_drops_a_surface_stored_twice():

@@ -43,6 +43,7 @@ from synthkit.methods.retarget.synthesis import (
     VoxelGrid,
     assemble,
     collapse_short_seam_edges,
+    flip_sliver_edges,
     make_grid,
     merge_coplanar_faces,
     mesh_quality,
@@ -158,7 +159,9 @@ def synthesize(
         fl = fl[src]
         Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=cfg.weld_tolerance)
         fl = fl[src]
+        Fl = flip_sliver_edges(Vw, Fl, fl)
         Fw, _ = merge_coplanar_faces(Vw, Fl, None, tol=cfg.weld_tolerance)
+        Fw = flip_sliver_edges(Vw, Fw)
         used = np.unique(Fl)
         remap = np.full(len(Vw), -1)
         remap[used] = np.arange(len(used))

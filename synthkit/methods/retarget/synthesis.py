@@ -484,6 +484,58 @@ def _turns_less_than(V, before, after, min_cos: float) -> bool:
     return bool(np.all(dots >= min_cos * np.linalg.norm(n0, axis=1) * np.linalg.norm(n1, axis=1)))
 
 
+def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarray:
+    """``F2 (m, 3)``: ``F (m, 3)`` with the longest edge of each sliver (an angle below
+    :data:`SLIVER_DEG`) flipped where the face across it is coplanar (normals within 1e-9), has the
+    same ``face_label`` (when given), the two form a convex quad and the flip raises the pair's
+    smallest angle. The surface is unchanged (a coplanar pair covers the same quad either way) and
+    faces keep their rows, so labels stay valid. Rounds repeat until nothing flips.
+
+    Finding (issue 15): after the seam collapse, house1 shrunk by a floor kept 8 faces below one
+    degree, caps of 176-178 degrees whose long edge splits a flat wall; ear clipping keeps every
+    boundary vertex of a region, so only a flip across the edge removes them."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
+    lab = None if face_label is None else np.asarray(face_label).reshape(-1)
+    for _ in range(max_rounds):
+        flipped = False
+        for f in np.flatnonzero(_face_min_angles(V, F) < np.radians(SLIVER_DEG)):
+            flipped |= _flip_longest_edge(V, F, int(f), lab)
+        if not flipped:
+            break
+    return F
+
+
+def _flip_longest_edge(V, F, f: int, lab) -> bool:
+    """Flip the longest edge of face ``f`` in place (see :func:`flip_sliver_edges`); whether it did."""
+    tri = F[f]
+    lengths = np.linalg.norm(V[np.roll(tri, -1)] - V[tri], axis=1)
+    k = int(np.argmax(lengths))
+    a, b, c = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]  # edge a-b, c opposite
+    across = np.flatnonzero((F == a).any(axis=1) & (F == b).any(axis=1))
+    if len(across) != 2:
+        return False
+    g = int(across[across != f][0])
+    if lab is not None and lab[g] != lab[f]:
+        return False
+    d = int(F[g][~np.isin(F[g], [a, b])][0])
+    if ((F == c).any(axis=1) & (F == d).any(axis=1)).any():
+        return False  # c-d is an edge already: the flip would double it
+    new = np.array([[a, d, c], [d, b, c]])  # f's orientation: a -> b -> c
+    n_old = np.cross(V[b] - V[a], V[c] - V[a])
+    n_new = np.cross(V[new[:, 1]] - V[new[:, 0]], V[new[:, 2]] - V[new[:, 0]])
+    n_g = np.cross(V[F[g][1]] - V[F[g][0]], V[F[g][2]] - V[F[g][0]])
+    unit = np.linalg.norm(n_old) * np.linalg.norm(n_g)
+    if unit == 0 or np.dot(n_old, n_g) < (1 - 1e-9) * unit:
+        return False  # not coplanar (or degenerate)
+    if np.any(n_new @ n_old <= 0):
+        return False  # the quad is not convex across the edge
+    if _smallest_angle(V, new) <= _smallest_angle(V, F[[f, g]]):
+        return False
+    F[f], F[g] = new
+    return True
+
+
 def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Split boundary edges at boundary vertices lying on them (within ``tol``), so that two
     copies cut by the same seam plane but tessellated differently share their seam vertices.

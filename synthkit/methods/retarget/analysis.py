@@ -513,6 +513,35 @@ def _canonical_sign(v: np.ndarray) -> np.ndarray:
     return v if v[int(np.argmax(np.abs(v)))] >= 0 else -v
 
 
+def _statistics_offsets(feats: FeatureSet, offsets, statistics_features: str, tau: float):
+    """``(n_stat, stat_offsets (s, 3))``: the features the sparsity statistics count and their
+    offsets; ``"samples"``: the Poisson-disk features matched among themselves (section IV),
+    ``"all"``: every feature's ``offsets`` (vertices included)."""
+    if statistics_features == "samples":
+        n_stat = len(feats.P) - feats.n_vertex_features
+        smatch, soffsets, _ = match_offsets(feats.P[:n_stat], feats.D[:n_stat], tau=tau)
+        return n_stat, soffsets[smatch >= 0]
+    if statistics_features == "all":
+        return len(feats.P), offsets
+    raise ValueError(f"statistics_features must be 'samples' or 'all', got {statistics_features!r}")
+
+
+def _refine_dominant(feats: FeatureSet, dom, gen, *, icp_sources: int, dense_radius: float):
+    """ICP refinement of each dominant offset ``dom (d, 3)`` on the dense cloud, from at most
+    ``icp_sources`` source points drawn by ``gen``: ``(refined (d, 3), overlap (d,), grip (d,))``."""
+    tree = cKDTree(feats.dense_P)
+    n_src = min(icp_sources, len(feats.dense_P))
+    src = np.sort(gen.choice(len(feats.dense_P), size=n_src, replace=False)) if n_src else None
+    refined = np.zeros_like(dom)
+    overlap = np.zeros(len(dom))
+    grip = np.zeros(len(dom))
+    for i, t0 in enumerate(dom):
+        refined[i], overlap[i], grip[i] = refine_offset(
+            feats.dense_P, feats.dense_N, t0, tree=tree, sources=src, inlier_radius=dense_radius
+        )
+    return refined, overlap, grip
+
+
 def analyze(
     Vn,
     F,
@@ -593,30 +622,14 @@ def analyze(
     feats.D = describe(feats.P, feats.N, feats.dense_P, feats.dense_N, descriptor=descriptor, radius=descriptor_radius)
     match, offsets, _ = match_offsets(feats.P, feats.D, tau=tau)
     offsets = offsets[match >= 0]
-    if statistics_features == "samples":
-        n_stat = len(feats.P) - feats.n_vertex_features
-        smatch, soffsets, _ = match_offsets(feats.P[:n_stat], feats.D[:n_stat], tau=tau)
-        stat_offsets = soffsets[smatch >= 0]
-    elif statistics_features == "all":
-        n_stat, stat_offsets = len(feats.P), offsets
-    else:
-        raise ValueError(f"statistics_features must be 'samples' or 'all', got {statistics_features!r}")
+    n_stat, stat_offsets = _statistics_offsets(feats, offsets, statistics_features, tau)
     keys, counts = offset_histogram(stat_offsets, bin_size=bin_size)
     cx, cy = sparsity_curve(counts)
     min_count = max(5, int(np.ceil(min_peak_share * len(offsets))))
     dom, mags = dominant_offsets(
         offsets, bin_size=bin_size, window=nms_window, min_count=min_count, max_peaks=max_dominant
     )
-    tree = cKDTree(feats.dense_P)
-    n_src = min(icp_sources, len(feats.dense_P))
-    src = np.sort(gen.choice(len(feats.dense_P), size=n_src, replace=False)) if n_src else None
-    refined = np.zeros_like(dom)
-    overlap = np.zeros(len(dom))
-    grip = np.zeros(len(dom))
-    for i, t0 in enumerate(dom):
-        refined[i], overlap[i], grip[i] = refine_offset(
-            feats.dense_P, feats.dense_N, t0, tree=tree, sources=src, inlier_radius=dense_radius
-        )
+    refined, overlap, grip = _refine_dominant(feats, dom, gen, icp_sources=icp_sources, dense_radius=dense_radius)
     stayed = (np.linalg.norm(refined, axis=1) > tau) & (np.linalg.norm(refined - dom, axis=1) <= nms_window)
     eligible = (overlap >= min_overlap) & (grip >= min_grip) & stayed
     if use_vertices:

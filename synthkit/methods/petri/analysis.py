@@ -424,26 +424,32 @@ def _facade_faces(V, F, up_axis: int, slope: float) -> tuple[np.ndarray, np.ndar
     return n, double_area, (np.abs(n[:, up_axis]) <= slope * double_area) & (double_area > 0)
 
 
-def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)``: faces whose unit normal ``n`` has
-    ``|n[up_axis]| <= slope`` (normal orthogonal to the up axis, :data:`FACADE_SLOPE`)."""
-    _, double_area, facade = _facade_faces(V, F, up_axis, slope)
-    return float(0.5 * double_area[facade].sum())
-
-
 ACROSS_COS = np.sqrt(0.5)
 """A facade face faces across the curve when its unit normal is within 45 degrees of the cell's
 across direction (construction axis b), either way."""
 
 
-def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces (:func:`facade_area`) of ``V (#V, 3)``, ``F (#F, 3)`` that face across
-    the curve: ``|n . across| >= cos 45`` for the unit normal ``n`` and ``across (#F, 3)``, the unit
-    across direction of each face's cell. Street fronts and backs count; walls facing along the curve
-    (end walls, walls between copies) do not."""
+def facade_areas(V, F, across, up_axis: int, *, slope: float = FACADE_SLOPE) -> tuple[float, float]:
+    """``(facade, facing across)`` areas of ``V (#V, 3)``, ``F (#F, 3)`` from one pass: facade faces
+    have a unit normal ``n`` with ``|n[up_axis]| <= slope`` (:data:`FACADE_SLOPE`); of those, the
+    ones facing across the curve have ``|n . across| >= cos 45`` (:data:`ACROSS_COS`) for
+    ``across (#F, 3)``, the unit across direction of each face's cell. Street fronts and backs face
+    across; walls facing along the curve (end walls, walls between copies) do not."""
     n, double_area, facade = _facade_faces(V, F, up_axis, slope)
-    facing = np.abs(np.einsum("ij,ij->i", n, np.asarray(across, np.float64).reshape(-1, 3))) >= ACROSS_COS * double_area
-    return float(0.5 * double_area[facing & facade].sum())
+    across = np.asarray(across, np.float64).reshape(-1, 3)
+    facing = np.abs(np.einsum("ij,ij->i", n, across)) >= ACROSS_COS * double_area
+    return float(0.5 * double_area[facade].sum()), float(0.5 * double_area[facing & facade].sum())
+
+
+def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)`` (see :func:`facade_areas`)."""
+    _, double_area, facade = _facade_faces(V, F, up_axis, slope)
+    return float(0.5 * double_area[facade].sum())
+
+
+def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
+    """Area of the facade faces facing across the curve (see :func:`facade_areas`)."""
+    return facade_areas(V, F, across, up_axis, slope=slope)[1]
 
 
 def facade_cells(neighbours: np.ndarray, directions) -> int:

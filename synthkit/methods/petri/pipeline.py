@@ -75,29 +75,29 @@ def curve_constraints(cfg: PetriConfig, grid: np.ndarray, cons, axis: int):
 def facade_metrics(V, F, assembler: Assembler, grid: np.ndarray, net: ColouredPetriNet, axes) -> dict:
     """Facade figures of the assembled result against the example ``V, F`` (world axes; ``axes`` the
     construction's world axes a, b, c with c up). Facade faces have a normal orthogonal to the up
-    axis (:func:`analysis.facade_area`); facade cells are cell sides facing the outside across a or b
+    axis (:func:`analysis.facade_areas`); facade cells are cell sides facing the outside across a or b
     (:func:`analysis.facade_cells`; the example's ``grid (nx, ny, nz)`` counted the same way); the
     expected area is the example's facade area per facade cell times the result's facade cells. The
     ``_across`` figures take only faces facing across the curve and the sides across b
-    (:func:`analysis.facade_area_across`): fronts along the curve, not walls between copies."""
+    (:func:`analysis.facade_areas`): fronts along the curve, not walls between copies."""
     up, b = int(axes[2]), int(axes[1])
     RV, RF, _, face_cell = assembler.mesh()
     ex_cells = sum(2 * grid.size // grid.shape[h] for h in axes[:2])
     ex_across_cells = 2 * grid.size // grid.shape[b]
-    ex_area = analysis.facade_area(V, F, up)
     e_b = np.zeros((len(F), 3))
     e_b[:, b] = 1.0
-    ex_across = analysis.facade_area_across(V, F, e_b, up)
+    ex_area, ex_across = analysis.facade_areas(V, F, e_b, up)
     C = net.corners
     across = C[:, [2, 3, 6, 7]].mean(axis=1) - C[:, [0, 1, 4, 5]].mean(axis=1)
     across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-300)
     res_cells = analysis.facade_cells(net.neighbours, range(4))
     res_across_cells = analysis.facade_cells(net.neighbours, (2, 3))
+    res_area, res_across = analysis.facade_areas(RV, RF, across[face_cell], up)
     return {
-        "facade_area": analysis.facade_area(RV, RF, up),
+        "facade_area": res_area,
         "facade_area_expected": ex_area / max(ex_cells, 1) * res_cells,
         "facade_cells": res_cells,
-        "facade_area_across": analysis.facade_area_across(RV, RF, across[face_cell], up),
+        "facade_area_across": res_across,
         "facade_area_across_expected": ex_across / max(ex_across_cells, 1) * res_across_cells,
         "facade_cells_across": res_across_cells,
         "example_facade_area": ex_area,

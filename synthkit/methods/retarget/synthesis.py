@@ -438,11 +438,12 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
     length = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
     cand = np.flatnonzero((length < max_length) & (counts == 2) & on_seam[E[:, 0]] & on_seam[E[:, 1]])
     touched = np.zeros(len(V), bool)
+    incident = _incidence(F, len(V))
     for e in cand[np.argsort(length[cand], kind="stable")]:
         a, b = E[e]
         if touched[a] or touched[b] or on_open[b]:
             continue
-        around = np.flatnonzero((F == a).any(axis=1) | (F == b).any(axis=1))
+        around = np.array(sorted(incident[a] | incident[b]), np.int64)
         moved = np.where(F[around] == b, a, F[around])
         alive = (moved[:, 0] != moved[:, 1]) & (moved[:, 1] != moved[:, 2]) & (moved[:, 2] != moved[:, 0])
         if _smallest_angle(V, F[around][~alive]) >= np.radians(SLIVER_DEG):
@@ -452,9 +453,18 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
         if _smallest_angle(V, moved[alive]) <= _smallest_angle(V, F[around]):
             continue
         F[around] = moved
-        touched[[a, b]] = True
+        touched[[a, b]] = True  # neither is visited again, so their incidence is not updated
     keep = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
     return F[keep], np.flatnonzero(keep)
+
+
+def _incidence(F: np.ndarray, n: int) -> list[set[int]]:
+    """The faces of ``F (m, 3)`` around each of the ``n`` vertices."""
+    incident: list[set[int]] = [set() for _ in range(n)]
+    for f, tri in enumerate(F.tolist()):
+        for v in tri:
+            incident[v].add(f)
+    return incident
 
 
 def _face_min_angles(V, F) -> np.ndarray:
@@ -497,43 +507,54 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarr
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     lab = None if face_label is None else np.asarray(face_label).reshape(-1)
+    incident = _incidence(F, len(V))
+    todo = np.arange(len(F))  # faces whose neighbourhood changed: all at first
     for _ in range(max_rounds):
-        flipped = False
-        for f in np.flatnonzero(_face_min_angles(V, F) < np.radians(SLIVER_DEG)):
-            flipped |= _flip_longest_edge(V, F, int(f), lab)
-        if not flipped:
+        changed: set[int] = set()
+        for f in todo[_face_min_angles(V, F[todo]) < np.radians(SLIVER_DEG)]:
+            g = _flip_longest_edge(V, F, int(f), lab, incident)
+            if g is not None:
+                for v in np.concatenate([F[f], F[g]]).tolist():
+                    changed |= incident[v]
+        if not changed:
             break
+        todo = np.array(sorted(changed), np.int64)
     return F
 
 
-def _flip_longest_edge(V, F, f: int, lab) -> bool:
-    """Flip the longest edge of face ``f`` in place (see :func:`flip_sliver_edges`); whether it did."""
+def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | None:
+    """Flip the longest edge of face ``f`` in place (see :func:`flip_sliver_edges`), keeping
+    ``incident`` (:func:`_incidence`) up to date; the face across it when it did, else None."""
     tri = F[f]
     lengths = np.linalg.norm(V[np.roll(tri, -1)] - V[tri], axis=1)
     k = int(np.argmax(lengths))
-    a, b, c = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]  # edge a-b, c opposite
-    across = np.flatnonzero((F == a).any(axis=1) & (F == b).any(axis=1))
+    a, b, c = (int(x) for x in (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]))  # edge a-b, c opposite
+    across = incident[a] & incident[b]
     if len(across) != 2:
-        return False
-    g = int(across[across != f][0])
+        return None
+    g = next(x for x in across if x != f)
     if lab is not None and lab[g] != lab[f]:
-        return False
+        return None
     d = int(F[g][~np.isin(F[g], [a, b])][0])
-    if ((F == c).any(axis=1) & (F == d).any(axis=1)).any():
-        return False  # c-d is an edge already: the flip would double it
+    if incident[c] & incident[d]:
+        return None  # c-d is an edge already: the flip would double it
     new = np.array([[a, d, c], [d, b, c]])  # f's orientation: a -> b -> c
     n_old = np.cross(V[b] - V[a], V[c] - V[a])
     n_new = np.cross(V[new[:, 1]] - V[new[:, 0]], V[new[:, 2]] - V[new[:, 0]])
     n_g = np.cross(V[F[g][1]] - V[F[g][0]], V[F[g][2]] - V[F[g][0]])
     unit = np.linalg.norm(n_old) * np.linalg.norm(n_g)
     if unit == 0 or np.dot(n_old, n_g) < (1 - 1e-9) * unit:
-        return False  # not coplanar (or degenerate)
+        return None  # not coplanar (or degenerate)
     if np.any(n_new @ n_old <= 0):
-        return False  # the quad is not convex across the edge
+        return None  # the quad is not convex across the edge
     if _smallest_angle(V, new) <= _smallest_angle(V, F[[f, g]]):
-        return False
-    F[f], F[g] = new
-    return True
+        return None
+    F[f], F[g] = new  # f: a, d, c (leaves b, joins d); g: d, b, c (leaves a, joins c)
+    incident[b].discard(f)
+    incident[d].add(f)
+    incident[a].discard(g)
+    incident[c].add(g)
+    return g
 
 
 def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.ndarray, np.ndarray]:

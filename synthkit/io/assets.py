@@ -30,6 +30,7 @@ Formats (:func:`load_asset`, :func:`save_asset`):
 from __future__ import annotations
 
 import logging
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +45,8 @@ from synthkit.io.meshes import _report_trimesh_records, _trimesh_records, check_
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Asset", "Material", "load_asset", "save_asset", "CREASE_DEG", "ASSET_SUFFIXES"]
+__all__ = ["Asset", "Material", "load_asset", "save_asset", "resolve_named_file", "map_file_name", "corner_normals",
+           "CREASE_DEG", "ASSET_SUFFIXES"]
 
 ASSET_SUFFIXES = (".obj", ".glb", ".gltf", ".ply", ".off", ".stl")
 WRITE_SUFFIXES = (".obj", ".glb", ".ply", ".off", ".stl")
@@ -126,11 +128,27 @@ def load_asset(path: Path | str) -> Asset:
 # ---------------------------------------------------------------- OBJ reading
 
 
-def _resolve(name: str, folder: Path) -> Path:
-    """The file a ``mtllib``/``map_Kd`` name means: absolute as written, else relative to ``folder``."""
-    name = name.replace("\\", "/")
-    candidate = Path(name)
-    return candidate if candidate.is_absolute() else folder / candidate
+def resolve_named_file(name: str, folder: Path) -> Path:
+    """The file an OBJ's ``mtllib`` or an MTL's ``map_Kd`` name means: absolute as written, else
+    relative to ``folder`` (``..`` allowed: textures in sibling or parent folders); backslashes
+    are folder separators."""
+    candidate = Path(name.replace("\\", "/"))
+    return Path(os.path.normpath(candidate if candidate.is_absolute() else folder / candidate))
+
+
+_MAP_OPTION_ARGS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
+                    "-mm": 2, "-o": 3, "-s": 3, "-t": 3, "-texres": 1, "-type": 1}
+"""MTL texture-map options and how many values each takes (the file name follows them)."""
+
+
+def map_file_name(line: str) -> str:
+    """The file name of an MTL texture-map line (``map_Kd -s 1 1 1 my bricks.png`` ->
+    ``my bricks.png``): options and their values skipped, the rest (spaces included) is the name."""
+    tokens = line.split()[1:]
+    i = 0
+    while i < len(tokens) and tokens[i].lower() in _MAP_OPTION_ARGS:
+        i += 1 + _MAP_OPTION_ARGS[tokens[i].lower()]
+    return " ".join(tokens[i:])
 
 
 def _obj_index(token: str, count: int) -> int:
@@ -219,7 +237,7 @@ def _obj_materials(obj: Path, mtllibs: list[str], names: list[str]) -> list[Mate
     """The materials ``names`` (in ``usemtl`` order) from the MTL files ``mtllibs`` names."""
     blocks: dict[str, tuple[Path, list[str]]] = {}
     for lib in mtllibs:
-        mtl = _resolve(lib, obj.parent)
+        mtl = resolve_named_file(lib, obj.parent)
         if not mtl.is_file():
             log.warning("%s: material file %s named by the mesh is missing; loading without its materials", obj, lib)
             continue
@@ -247,11 +265,11 @@ def _mtl_material(name: str, mtl: Path, lines: list[str]) -> Material:
         elif key == "d" and len(parts) >= 2:
             mat.color[3] = float(np.clip(float(parts[1]), 0, 1))
         if key.startswith("map_") or key in ("bump", "disp", "decal", "norm", "refl"):
-            if key == "map_kd" and len(parts) > 1:
-                image = _resolve(parts[-1], mtl.parent)
+            if key == "map_kd" and map_file_name(line):
+                image = resolve_named_file(map_file_name(line), mtl.parent)
                 if not image.is_file():
                     log.warning("%s: texture file %s of material %s is missing; loading without texture",
-                                mtl, parts[-1], name)
+                                mtl, map_file_name(line), name)
                     continue
                 img = load_image(image, mode="any")
                 mat.image = _as_uint8_rgb(img)

@@ -201,3 +201,12 @@ def test_kenney_palette_survives_a_round_trip(tmp_path, suffix):
         return rows[np.lexsort(rows.T[::-1])]
 
     assert np.array_equal(table(again), table(asset))
+
+
+@pytest.mark.parametrize("line, name", [("map_Kd a.png", "a.png"), ("map_Kd my bricks.png", "my bricks.png"),
+                                        ("map_Kd -s 1 1 1 -clamp on ../t/b.jpg", "../t/b.jpg"),
+                                        ("map_Kd -mm 0 1 c.png", "c.png")])
+def test_map_file_name(line, name):
+    from synthkit.io.assets import map_file_name
+
+    assert map_file_name(line) == name

@@ -103,6 +103,10 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
                    f"pip install '{batch.DIST_EXTRA}'", err=True)
         ctx.exit(2)
 
+    planned = sum(batch.count_runs([*file_axes, *axes]) for _, _, file_axes in entries)
+    if planned > batch.MAX_BATCH_RUNS:
+        raise click.BadParameter(f"the configs and sweeps make {planned} runs; the limit is {batch.MAX_BATCH_RUNS}",
+                                 param_hint="--sweep")
     jobs = [batch.Job(path, [*base, *overrides, *batch.sweep_overrides(combo)], combo,
                       set_overrides=[*base, *overrides])
             for path, base, file_axes in entries for combo in batch.combinations([*file_axes, *axes])]

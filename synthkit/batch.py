@@ -16,13 +16,14 @@ import difflib
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
 import socket
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -109,10 +110,20 @@ def sweep_axes(specs: Iterable[str]) -> list[tuple[str, list[str]]]:
     return axes
 
 
-def combinations(axes: Sequence[tuple[str, Sequence[str]]]) -> list[dict[str, str]]:
-    """The Cartesian product of the axes, the first axis varying slowest; ``[{}]`` without axes."""
+MAX_BATCH_RUNS = 100_000
+"""Most runs one ``synthkit run`` may plan (configs times sweep combinations); counted before any
+combination is built."""
+
+
+def count_runs(axes: Sequence[tuple[str, Sequence[str]]]) -> int:
+    """How many combinations :func:`combinations` yields (1 without axes)."""
+    return math.prod(len(v) for _, v in axes)
+
+
+def combinations(axes: Sequence[tuple[str, Sequence[str]]]) -> Iterator[dict[str, str]]:
+    """The Cartesian product of the axes, lazily, the first axis varying slowest; one ``{}`` without axes."""
     keys = [k for k, _ in axes]
-    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(v for _, v in axes))]
+    return (dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(v for _, v in axes)))
 
 
 def sanitise(text: str) -> str:
@@ -417,6 +428,17 @@ class _Slots:
         return self.value
 
 
+def _worker_of(client, future) -> str:
+    """The address of the worker that last held ``future`` as the scheduler remembers it, or
+    ``"unknown"`` when the scheduler no longer knows (the task is gone with its worker)."""
+    try:
+        who = client.who_has([future])
+    except Exception:  # the scheduler may be gone too; the row still gets a worker field
+        return "unknown"
+    holders = who.get(future.key) or ()
+    return str(next(iter(holders), "unknown"))
+
+
 def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
                 on_done: Callable[[int, dict[str, Any]], None]) -> dict[str, float]:
     """Run :func:`execute` with each of ``tasks`` (its keyword arguments) on ``client``'s workers.
@@ -452,12 +474,13 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
             overheads.append(max(latency - outcome["seconds"], 0.0))
         else:
             exc = future.exception() if future.status == "error" else None
+            worker = None
             if isinstance(exc, KilledWorker):
                 if attempt < retries:
                     future.release()
                     submit(i, attempt + 1)
                     continue
-                worker = getattr(getattr(exc, "last_worker", None), "address", "?")
+                worker = getattr(getattr(exc, "last_worker", None), "address", None)
                 line = (f"the worker running it died ({worker}); tried {attempt + 1} time"
                         f"{'s' if attempt else ''}" + ("" if retries else " (--retries resubmits it)"))
             elif exc is not None:
@@ -465,7 +488,8 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
             else:
                 line = f"the run was {future.status} by the cluster"
             outcome = {"status": "failed", "exit_code": 1, "error": line, "traceback": None, "report": None,
-                       "seconds": round(latency, 3), "worker": None, "died": isinstance(exc, KilledWorker)}
+                       "seconds": round(latency, 3), "worker": worker or _worker_of(client, future),
+                       "died": isinstance(exc, KilledWorker)}
         future.release()
         outcome |= {"attempts": attempt + 1, "latency": latency}
         on_done(i, outcome)

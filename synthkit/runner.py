@@ -150,6 +150,7 @@ def load_method_config(
     seed: int | None = None,
     check_files: bool = True,
     named_inputs: list[Path] | None = None,
+    input_fields: list[str] | None = None,
 ) -> tuple[str, RunConfig, list[Path]]:
     """Load and validate a config file; return (method name, config, resolved input files).
 
@@ -185,8 +186,39 @@ def load_method_config(
         check_files=check_files,
         inputs=inputs,
         named_inputs=named_inputs,
+        input_fields=input_fields,
     )
     return method, cfg, inputs
+
+
+IMAGE_BYTES_PER_PIXEL = 32
+"""Bytes an input image costs per pixel before any method works on it: the decoded 8-bit file,
+its float32 RGB copy and one working copy."""
+
+MESH_BYTES_PER_FACE = 256
+"""Bytes an input mesh costs per triangle once loaded: float64 positions and int64 faces with the
+adjacency and per-face caches trimesh builds."""
+
+
+def check_input_sizes(inputs: list[Path], fields: list[str], budget: Budget) -> None:
+    """Refuse (ConfigError naming the config key and the file, exit 2) an input image or mesh whose
+    header says it cannot fit the run's budget, before anything is decoded (:mod:`synthkit.io.probe`).
+    ``fields`` names the key of each of ``inputs``."""
+    from synthkit.io.images import IMAGE_SUFFIXES
+    from synthkit.io.meshes import MESH_SUFFIXES
+    from synthkit.io.probe import image_shape, mesh_face_count
+
+    for path, key in zip(inputs, fields, strict=True):
+        suffix = path.suffix.lower()
+        if suffix in IMAGE_SUFFIXES:
+            shape = image_shape(path)
+            if shape is not None:
+                budget.require(key, f"{path} ({shape[1]}x{shape[0]})", float(shape[0]) * shape[1], "pixels",
+                               bytes_each=IMAGE_BYTES_PER_PIXEL)
+        elif suffix in MESH_SUFFIXES:
+            faces = mesh_face_count(path)
+            if faces is not None:
+                budget.require(key, f"{path} ({faces} faces)", faces, "faces", bytes_each=MESH_BYTES_PER_FACE)
 
 
 def default_out_dir(config_path: Path, out_root: Path | str = "out") -> Path:
@@ -227,9 +259,11 @@ def run_config(
     (exit 3) naming its first figure over a limit.
     """
     named: list[Path] = []
+    fields: list[str] = []
     method, cfg, inputs = load_method_config(
-        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named
+        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named, input_fields=fields
     )
+    check_input_sizes(inputs, fields, budget if budget is not None else Budget())
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
     config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
     target = outdir.check_target(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite)

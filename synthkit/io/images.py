@@ -44,10 +44,15 @@ import numpy as np
 
 from synthkit.errors import InputError
 from synthkit.io._capture import captured_stderr, check_readable
+from synthkit.io.probe import image_shape
 
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+
+IMAGE_MAX_PIXELS = 1 << 28
+"""Largest image :func:`load_image` decodes (16384 x 16384): its header is read first, and a larger
+image is refused before any pixel is decoded (a 2.6 MB PNG can declare 30000 x 30000 pixels)."""
 
 
 def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb") -> np.ndarray:
@@ -68,6 +73,10 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
     path = Path(path)
     if check_readable(path, "image") == 0:
         raise InputError(f"{path}: image file is empty (0 bytes)")
+    shape = image_shape(path)
+    if shape is not None and shape[0] * shape[1] > IMAGE_MAX_PIXELS:
+        raise InputError(f"{path}: image is {shape[1]}x{shape[0]} ({shape[0] * shape[1]:.2g} pixels); "
+                         f"images over {IMAGE_MAX_PIXELS:.2g} pixels are refused")
     with _opencv_captured() as lines:
         raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     problem = _decoder_problem(lines, path)

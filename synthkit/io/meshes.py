@@ -139,7 +139,9 @@ def _report_trimesh_records(records: list[logging.LogRecord], path: Path) -> Non
 
 
 def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> None:
-    """Raise InputError unless ``V (#V, 3)`` is finite and ``F (#F, 3)`` indexes it with >= 1 face."""
+    """Raise InputError unless ``V (#V, 3)`` is finite and ``F (#F, 3)`` indexes it with >= 1 face,
+    no face names a vertex twice (a self-loop: malformed topology) and some face has an area
+    (zero-area faces among others are kept: real assets have a few)."""
     V = np.asarray(V)
     F = np.asarray(F)
     if F.ndim != 2 or F.shape[0] == 0:
@@ -153,6 +155,15 @@ def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> 
         raise InputError(f"{source}: {bad} vertices have NaN or infinite coordinates")
     if F.min() < 0 or F.max() >= V.shape[0]:
         raise InputError(f"{source}: face indices out of range [0, {V.shape[0]})")
+    looped = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    if looped.any():
+        k = int(np.flatnonzero(looped)[0])
+        raise InputError(f"{source}: {int(looped.sum())} of {len(F)} faces name one vertex twice "
+                         f"(first: face {k}, vertices {F[k].tolist()})")
+    T = V[F].astype(np.float64)
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    if not (area > 0).any():
+        raise InputError(f"{source}: all {len(F)} faces have zero area")
 
 
 def save_mesh(

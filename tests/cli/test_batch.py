@@ -63,11 +63,11 @@ def test_sweep_axes_refuse_a_key_twice_and_product_order():
     with pytest.raises(ValueError, match="seed is swept twice"):
         batch.sweep_axes(["seed=1,2", "seed=3"])
     axes = batch.sweep_axes(["seed=1..3", "gain=0.5,2"])
-    combos = batch.combinations(axes)
-    assert len(combos) == 6
+    combos = list(batch.combinations(axes))
+    assert len(combos) == 6 == batch.count_runs(axes)
     assert combos[0] == {"seed": "1", "gain": "0.5"} and combos[1] == {"seed": "1", "gain": "2"}
     assert combos[-1] == {"seed": "3", "gain": "2"}
-    assert batch.combinations([]) == [{}]
+    assert list(batch.combinations([])) == [{}] and batch.count_runs([]) == 1
 
 
 def test_folder_names_are_sanitised_and_bounded():
@@ -357,6 +357,7 @@ def test_worker_killed_during_a_run(runner, tmp_path, retries):
     else:
         assert result.exit_code == 1
         assert rows[0]["status"] == "failed" and "worker running it died" in rows[0]["error"]
+        assert rows[0]["worker"].startswith("tcp://") and rows[0]["worker"] in rows[0]["error"]
         assert "--retries resubmits it" in result.stderr
         assert not (root / victim.stem).exists()
     assert _hidden(root) == []

@@ -20,6 +20,7 @@ vertices are its render vertices (geometries concatenated in scene order, in wor
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 from dataclasses import dataclass, field
@@ -37,6 +38,8 @@ __all__ = [
     "TexturedMesh", "Retexture", "load_textured", "save_textured", "companion_files", "material_textures",
     "TEXTURED_SUFFIXES",
 ]
+
+log = logging.getLogger(__name__)
 
 TEXTURED_SUFFIXES = (".obj", ".glb")
 _MAP_KEY = re.compile(r"^\s*(map_\w+|bump|disp|decal|norm)\s+", re.IGNORECASE)
@@ -97,7 +100,22 @@ def load_textured(path: Path | str) -> TexturedMesh:
         raise InputError(f"{path}: unsupported textured mesh format {suffix!r} (use .obj or .glb)")
     mesh = _load_obj(path) if suffix == ".obj" else _load_glb(path)
     check_mesh(mesh.V, mesh.F, source=path)
+    if suffix == ".obj":
+        _warn_missing_companions(path)
     return mesh
+
+
+def _warn_missing_companions(obj: Path) -> None:
+    """One warning line per MTL or texture image the OBJ names that is missing (the mesh is read
+    and written without it)."""
+    for name in _mtl_files(obj):
+        mtl = resolve_named_file(name, obj.parent)
+        if not mtl.is_file():
+            log.warning("%s: material file %s named by the mesh is missing; written without it", obj, name)
+            continue
+        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+            if _MAP_KEY.match(line) and not resolve_named_file(map_file_name(line), mtl.parent).is_file():
+                log.warning("%s: texture file %s is missing; written without it", mtl, map_file_name(line))
 
 
 def _parse_index(token: str, count: int) -> int:

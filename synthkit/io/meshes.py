@@ -163,7 +163,7 @@ def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> 
     T = V[F].astype(np.float64)
     area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
     if not (area > 0).any():
-        raise InputError(f"{source}: all {len(F)} faces have zero area")
+        raise InputError(f"{source}: every triangle has zero area ({len(F)} faces)")
 
 
 def save_mesh(

@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-dev
 BENCH_STAMP := $(VENV)/.installed-bench
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-fast bench samples samples-check lint clean
+.PHONY: help install browser demo test test-fast bench samples samples-check lint clean
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -23,10 +23,16 @@ $(BENCH_STAMP): $(STAMP)
 
 install: $(STAMP) ## Create .venv and install synthkit with its test tools
 
+browser: ## Install Debian's chromium for the review page's browser test (as root; the test skips without it)
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+		{ apt-get install -y -q chromium >/dev/null 2>&1 || { apt-get update -q >/dev/null 2>&1 && \
+		  apt-get install -y -q chromium >/dev/null 2>&1; }; }; } || \
+		echo "note: chromium not installed; the review page's browser test will skip"
+
 demo: $(STAMP) ## Install, then run every bundled config in configs/ into out/
 	$(BIN)/synthkit run configs/*/*.yaml --out-root out --overwrite --no-progress
 
-test: $(STAMP) ## Install, then run the whole test suite (what CI runs)
+test: $(STAMP) browser ## Install, then run the whole test suite (what CI runs)
 	$(BIN)/python -m pytest -q
 
 test-fast: $(STAMP) ## Run the tests not marked slow

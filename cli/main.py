@@ -17,7 +17,7 @@ from synthkit.methods import available_methods, package_module
 
 from .options import DEFAULT_SET_EXAMPLE, configure_logging, method_command
 
-_TOOLS = ("init", "schema", "validate", "run")
+_TOOLS = ("init", "schema", "validate", "run", "report")
 """Subcommands that are not methods, after the methods in ``--help``."""
 
 

@@ -12,6 +12,7 @@ from collections.abc import Callable
 import click
 
 from synthkit.errors import Terminated
+from synthkit.summary import headline
 
 SET_HELP = "Override a config key (repeatable; values are YAML), e.g. --set {example}."
 DEFAULT_SET_EXAMPLE = "seed=7"
@@ -100,35 +101,14 @@ def describe_exception(exc: BaseException) -> tuple[int, str]:
     return 1, f"internal error: {type(exc).__name__}: {text} (run with -v for the traceback)"
 
 
-HEADLINE_METRICS = (
-    "n_principal",
-    "sparsity_top7",
-    "graph_nodes",
-    "graph_labels",
-    "energy",
-    "cells",
-    "labels",
-    "adjacency_violations",
-    "normal_histogram_D",
-    "objective_start",
-    "objective_end",
-    "baseline_objective",
-)
-"""Metrics shown in the one-line run summary, when a method reports them."""
-
-
 def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     """One line per run on stderr (unless -q): method, folder, seconds, headline metrics."""
     if verbosity(ctx) < 0:
         return
-    metrics = report.get("metrics", {})
-    scalars = {k: v for k, v in metrics.items() if isinstance(v, int | float | str) and not isinstance(v, bool)}
-    keys = [k for k in HEADLINE_METRICS if k in scalars] or list(scalars)[:4]
-    headline = ", ".join(
-        f"{k}={scalars[k]:.4g}" if isinstance(scalars[k], float) else f"{k}={scalars[k]}" for k in keys
-    )
+    shown = headline(report.get("metrics", {}))
+    text = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in shown.items())
     status = "" if report.get("status", "ok") == "ok" else f" [{report['status']}]"
-    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline}){status}",
+    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({text}){status}",
                err=True)
 
 

@@ -18,7 +18,6 @@ from pathlib import Path
 import click
 
 from .options import (
-    HEADLINE_METRICS,
     describe_exception,
     json_option,
     overwrite_option,
@@ -138,7 +137,10 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
                 bar.update()
     finally:
         bar.close()
+        _kept_folders(rows, jobs)
         _write_batch(Path(out_root), rows)
+        if any(r["out"] for r in rows):
+            _write_review(ctx, Path(out_root))
     if as_json:
         click.echo(json.dumps([r | {"ok": r["status"] == "ok"} for r in rows], indent=2))
     failed = [r for r in rows if r["status"] not in ("ok", "degraded") or r["exit_code"]]
@@ -152,7 +154,40 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
 
 def _row(job, status: str) -> dict:
     return {"config": job.config, "overrides": list(job.set_overrides), "sweep": dict(job.sweep), "status": status,
-            "exit_code": None, "seconds": None, "out": None, "worker": None, "metrics": {}, "error": None}
+            "exit_code": None, "seconds": None, "out": None, "preview": None, "worker": None, "metrics": {},
+            "error": None}
+
+
+def _kept_folders(rows: list[dict], jobs) -> None:
+    """Give every row whose run left a folder (a refusal keeps its diagnostics) its ``out`` and
+    ``preview`` (the summary image, relative to the folder)."""
+    from synthkit.summary import summary_preview
+
+    for i, job in enumerate(jobs):
+        out = rows[i]["out"] or getattr(job, "out", None)
+        report = Path(out) / "report.json" if out else None
+        if report is None or not report.is_file():
+            continue
+        try:
+            outputs = json.loads(report.read_text()).get("outputs", {})
+        except (OSError, ValueError):
+            continue
+        rows[i] |= {"out": out, "preview": summary_preview(outputs)}
+
+
+def _write_review(ctx, out_root: Path) -> None:
+    """Write OUT_ROOT/index.html (the review page); a problem with it is a warning, not a failure."""
+    from synthkit.review import write_review
+
+    if not out_root.is_dir():
+        return
+    try:
+        index = write_review(out_root)
+    except (OSError, ValueError) as exc:
+        click.echo(f"warning: review page not written: {exc}", err=True)
+        return
+    if verbosity(ctx) >= 0:
+        click.echo(f"review: {index}", err=True)
 
 
 def _out_dir(job, out_root: str) -> Path:
@@ -191,9 +226,10 @@ def _run_one(ctx, row: dict, out_dir: str, seed, overrides, overwrite: bool, no_
 
 def _succeeded(ctx, row: dict, report: dict, out_dir: str, seconds: float) -> dict:
     """The row of a run that wrote its outputs: ``ok``, or ``degraded`` (exit 3 with ``--strict``)."""
-    metrics = {k: v for k, v in report.get("metrics", {}).items() if k in HEADLINE_METRICS}
-    row = row | {"status": "ok", "exit_code": 0, "seconds": seconds, "out": out_dir, "metrics": metrics,
-                 "report": report}
+    from synthkit.summary import headline
+
+    row = row | {"status": "ok", "exit_code": 0, "seconds": seconds, "out": out_dir,
+                 "metrics": headline(report.get("metrics", {})), "report": report}
     if report.get("status") == "degraded":
         strict = strict_mode(ctx)
         row |= {"status": "degraded", "exit_code": 3 if strict else 0,

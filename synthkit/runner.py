@@ -26,6 +26,7 @@ from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_conf
 from synthkit.errors import ConfigError, QualityError, SynthkitError, raise_if_terminated
 from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
+from synthkit.summary import summary_preview
 
 log = logging.getLogger("synthkit")
 
@@ -341,6 +342,7 @@ def _write_report(
         "timings": ctx.timings,
         "metrics": ctx.metrics,
         "outputs": {**ctx.outputs, "report": "report.json"},
+        "preview": summary_preview(ctx.outputs),
     }
     if error is not None:
         report["error"] = error

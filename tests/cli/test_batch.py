@@ -109,7 +109,7 @@ def test_sweep_in_process_3x2_folders_and_rows(runner, echo_config, tmp_path):
                                  "--sweep", "gain=0.5,2", "--set", "mode=copy"])
     assert result.exit_code == 0, result.stderr
     assert "run: 6 succeeded, 0 failed" in result.stderr
-    names = sorted(p.name for p in root.iterdir() if p.is_dir())
+    names = sorted(p.name for p in root.iterdir() if p.is_dir() and p.name != "review")
     assert names == sorted(f"echo__seed-{s}__gain-{g}" for s in (1, 2, 3) for g in ("0.5", "2"))
     rows = json.loads((root / "batch.json").read_text())["runs"]
     assert [r["sweep"] for r in rows] == [{"seed": s, "gain": g} for s in "123" for g in ("0.5", "2")]

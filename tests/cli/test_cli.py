@@ -1,6 +1,7 @@
 """The click layer: help, version, exit codes, messages on stderr, JSON on stdout."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -185,3 +186,18 @@ def test_max_memory_nan_is_a_usage_error(runner, echo_config):
     result = runner.invoke(cli, ["--max-memory", "nan", "run", str(echo_config)])
     assert result.exit_code == 2
     assert "nan is not a number" in result.stderr
+
+
+def test_run_writes_the_review_page_and_rows_name_folders_and_previews(runner, echo_config, tmp_path):
+    root = tmp_path / "o"
+    refused = _config(tmp_path, "refused", "fail: refuse\n")
+    result = runner.invoke(cli, ["run", str(echo_config), refused, "--out-root", str(root)])
+    assert result.exit_code == 3
+    assert f"review: {root / 'index.html'}" in result.stderr
+    rows = json.loads((root / "batch.json").read_text())["runs"]
+    assert [(r["status"], Path(r["out"]).name, r["preview"]) for r in rows] == [
+        ("ok", "echo", "result.png"), ("failed", "refused", "diagnostic.png")]
+    page = (root / "index.html").read_text()
+    assert page.count('class="card"') == 2 and "refused after writing diagnostics" in page
+    again = runner.invoke(cli, ["report", str(root)])
+    assert again.exit_code == 0 and again.stderr.strip() == f"review: {root / 'index.html'}"

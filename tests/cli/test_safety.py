@@ -415,7 +415,7 @@ def test_run_summary_names_each_failure_and_writes_batch_json(runner, tmp_path, 
     assert [rows[n]["exit_code"] for n in ("echo.yaml", "bad.yaml", "crash.yaml")] == [0, 2, 3]
     assert rows["echo.yaml"]["out"] == str(root / "echo") and rows["echo.yaml"]["seconds"] > 0
     assert "gain: Input should be greater than 0" in rows["bad.yaml"]["error"]
-    assert sorted(p.name for p in root.iterdir()) == ["batch.json", "echo"]
+    assert sorted(p.name for p in root.iterdir()) == ["batch.json", "echo", "index.html", "review"]
 
 
 def test_foreign_batch_json_is_not_replaced(runner, tmp_path, echo_config):

@@ -40,6 +40,48 @@ previews_option = click.option(
          "report.json are written either way).")
 
 
+def _set_root(key: str, transform=None):
+    """A click callback storing an option given after the subcommand into the group's ``ctx.obj``
+    (so ``synthkit reshape cfg.yaml -q`` means what ``synthkit -q reshape cfg.yaml`` does)."""
+
+    def callback(ctx: click.Context, param: click.Parameter, value):
+        if value in (None, False, 0):
+            return value
+        root = ctx.find_root()
+        root.obj = root.obj or {}
+        root.obj[key] = transform(value) if transform else value
+        if key == "verbosity":
+            configure_logging(root.obj[key])
+        return value
+
+    return callback
+
+
+def nan_refused(value: float | None) -> float | None:
+    """``value`` unless it is NaN (which passes click's range checks), as a usage error."""
+    if value is not None and value != value:
+        raise click.BadParameter(f"{value} is not a number", param_hint="--max-memory")
+    return value
+
+
+def global_options(command: Callable) -> Callable:
+    """The group's -v/-q/--max-memory/--strict, accepted after a subcommand's name too."""
+    options = [
+        click.option("-v", "--verbose", count=True, expose_value=False, callback=_set_root("verbosity",
+                     lambda n: min(n, 2)), help="More messages; -v also shows tracebacks (also before the command)."),
+        click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_root("verbosity", lambda _: -1),
+                     help="Only errors on stderr (also before the command)."),
+        click.option("--max-memory", type=click.FloatRange(min=0.01, max=1e6), default=None, metavar="GIB",
+                     expose_value=False, callback=_set_root("max_memory", nan_refused),
+                     help="Memory one run may plan to use, in GiB (also before the command)."),
+        click.option("--strict", is_flag=True, expose_value=False, callback=_set_root("strict"),
+                     help="Exit 3 when an output is over its quality limits (also before the command)."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
 def verbosity(ctx: click.Context) -> int:
     """-1 quiet, 0 normal, 1 verbose (from the group's -v/-q)."""
     root = ctx.find_root()
@@ -136,6 +178,7 @@ def method_command(
     @progress_option
     @previews_option
     @json_option
+    @global_options
     @report_errors
     def command(config, out_dir, seed, overrides, overwrite, no_progress, previews, as_json, **extra):
         from synthkit.runner import default_out_dir, run_config

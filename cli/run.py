@@ -19,6 +19,7 @@ import click
 
 from .options import (
     describe_exception,
+    global_options,
     json_option,
     overwrite_option,
     previews_option,
@@ -61,6 +62,7 @@ IN_PROCESS = "in-process"
 @progress_option
 @previews_option
 @json_option
+@global_options
 @click.pass_context
 def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler, scheduler_file, connect_timeout,
             retries, overwrite, no_progress, previews, as_json) -> None:
@@ -102,13 +104,19 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
                    f"pip install '{batch.DIST_EXTRA}'", err=True)
         ctx.exit(2)
 
-    planned = sum(batch.count_runs([*file_axes, *axes]) for _, _, file_axes in entries)
+    plans = []  # (config, overrides before --set, the sweep axes its method has)
+    for path, base, file_axes in entries:
+        kept, dropped = batch.axes_for(batch.config_method(path), [*file_axes, *axes])
+        if dropped and verbosity(ctx) >= 0:
+            click.echo(f"note: {path} has no key {', '.join(dropped)}; it runs once for that sweep", err=True)
+        plans.append((path, base, kept))
+    planned = sum(batch.count_runs(kept) for _, _, kept in plans)
     if planned > batch.MAX_BATCH_RUNS:
         raise click.BadParameter(f"the configs and sweeps make {planned} runs; the limit is {batch.MAX_BATCH_RUNS}",
                                  param_hint="--sweep")
     jobs = [batch.Job(path, [*base, *overrides, *batch.sweep_overrides(combo)], combo,
                       set_overrides=[*base, *overrides])
-            for path, base, file_axes in entries for combo in batch.combinations([*file_axes, *axes])]
+            for path, base, kept in plans for combo in batch.combinations(kept)]
     names = [batch.folder_name(Path(job.config).stem, job.sweep) for job in jobs]
     clashes = sorted({s for s in names if names.count(s) > 1})
     if clashes:

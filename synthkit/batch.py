@@ -115,6 +115,32 @@ MAX_BATCH_RUNS = 100_000
 combination is built."""
 
 
+def config_method(path: str) -> str | None:
+    """The ``method:`` a config file declares, or None when it cannot be read (the run reports why)."""
+    from synthkit.config import load_yaml
+    from synthkit.errors import SynthkitError
+
+    try:
+        method = load_yaml(Path(path)).get("method")
+    except SynthkitError:
+        return None
+    return method if isinstance(method, str) else None
+
+
+def axes_for(method: str | None, axes: Sequence[tuple[str, Sequence[str]]]):
+    """Split sweep ``axes`` into those whose key ``method``'s schema has and those it lacks (a
+    batch may mix methods: a sweep key applies where it means something). An unknown method keeps
+    every axis, so that its run reports the problem."""
+    from synthkit.config import schema_has_key
+    from synthkit.methods import METHODS, config_module
+
+    if method not in METHODS:
+        return list(axes), []
+    model = config_module(method).CONFIG
+    kept = [(k, v) for k, v in axes if schema_has_key(model, k)]
+    return kept, [k for k, _ in axes if not schema_has_key(model, k)]
+
+
 def count_runs(axes: Sequence[tuple[str, Sequence[str]]]) -> int:
     """How many combinations :func:`combinations` yields (1 without axes)."""
     return math.prod(len(v) for _, v in axes)
@@ -213,7 +239,7 @@ def read_batch_file(path: str) -> BatchFile | None:
         if isinstance(values, str):
             values = split_values(values)
         elif isinstance(values, list) and values:
-            values = [_yaml_text(v) for v in values]
+            values = [v if isinstance(v, str) else _yaml_text(v) for v in values]  # strings as on the command line
         else:
             raise ConfigError(f"{path}: sweep.{key}: expected a list of values or a range such as 0..9")
         try:

@@ -333,6 +333,21 @@ def _unwrap(annotation: Any) -> list[Any]:
     return []
 
 
+def schema_has_key(model: type[BaseModel], dotted: str) -> bool:
+    """Whether ``dotted`` (``key.path``, aliases allowed) names a key of ``model``'s schema: every
+    part but the last a section (a sub-model, possibly optional or in a list), the last a field."""
+    candidates: list[type[BaseModel]] = [model]
+    parts = dotted.split(".")
+    for i, part in enumerate(parts):
+        fields = [f for cls in candidates for name, f in cls.model_fields.items() if part in (name, f.alias)]
+        if not fields:
+            return False
+        if i == len(parts) - 1:
+            return True
+        candidates = [m for f in fields for m in _unwrap(f.annotation)]
+    return False
+
+
 def _field_names(model: type[BaseModel], loc: tuple) -> list[str]:
     """Field names (and aliases) of the sub-model reached by ``loc`` from ``model``."""
     candidates: list[type[BaseModel]] = [model]

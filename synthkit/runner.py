@@ -55,6 +55,8 @@ class RunContext:
         when an output mesh is over one of its method's quality limits (:meth:`check_quality`).
     quality_warnings : list[str]
         The lines :meth:`check_quality` warned with (``--strict`` names the first).
+    label : str
+        What the stage line on a terminal starts with (``<method> <output folder name>``).
     previews : str
         ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
     budget : Budget
@@ -81,6 +83,7 @@ class RunContext:
         self.budget = budget if budget is not None else Budget()
         self.status = "ok"
         self.quality_warnings: list[str] = []
+        self.label = "run"
         if previews not in PREVIEW_LEVELS:
             raise ValueError(f"previews must be one of {', '.join(PREVIEW_LEVELS)}, got {previews!r}")
         self.previews = previews
@@ -113,25 +116,35 @@ class RunContext:
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        """Time the enclosed block; seconds are added to ``timings[name]``. A SIGTERM that a
-        library swallowed is raised again on entry and on a normal exit (:func:`raise_if_terminated`)."""
+        """Time the enclosed block; seconds are added to ``timings[name]``. On a terminal a stage
+        that takes over 2 s says so on stderr (:class:`~synthkit.progress.StageTicker`). A SIGTERM
+        that a library swallowed is raised again on entry and on a normal exit
+        (:func:`raise_if_terminated`)."""
+        from synthkit.progress import StageTicker
+
         raise_if_terminated()
         log.info("stage %s ...", name)
         start = time.perf_counter()
+        ticker = (StageTicker(sys.stderr, f"{self.label}: {name}", busy=_bar_open)
+                  if self._progress_on() else contextlib.nullcontext())
         try:
-            yield
+            with ticker:
+                yield
             raise_if_terminated()
         finally:
             elapsed = time.perf_counter() - start
             self.timings[name] = self.timings.get(name, 0.0) + elapsed
             log.info("stage %s done in %.3f s", name, elapsed)
 
+    def _progress_on(self) -> bool:
+        return self.show_progress and sys.stderr.isatty()
+
     def progress(self, iterable: Iterable | None = None, *, total: int | None = None, desc: str = ""):
-        """A tqdm progress bar on stderr, silent with --no-progress or when stderr is no TTY."""
+        """A tqdm progress bar on stderr, silent with --no-progress or when stderr is no TTY (the
+        stage line of :meth:`stage` waits while a bar is open)."""
         from tqdm import tqdm
 
-        enabled = self.show_progress and sys.stderr.isatty()
-        return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not enabled, leave=False)
+        return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not self._progress_on(), leave=False)
 
     def path(self, key: str, filename: str) -> Path:
         """Register output ``key`` as ``filename`` and return the path to write it to."""
@@ -141,6 +154,13 @@ class RunContext:
         target = self.out_dir / filename
         target.parent.mkdir(parents=True, exist_ok=True)
         return target
+
+
+def _bar_open() -> bool:
+    """Whether a tqdm progress bar is on screen (tqdm tracks its open, enabled bars)."""
+    from tqdm import tqdm
+
+    return len(getattr(tqdm, "_instances", ())) > 0
 
 
 def load_method_config(
@@ -278,6 +298,7 @@ def run_config(
         try:
             outdir.make_staging(staging)
             ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
+            ctx.label = f"{method} {target.name}"
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:

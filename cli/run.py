@@ -153,6 +153,9 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
         click.echo(json.dumps([r | {"ok": r["status"] == "ok"} for r in rows], indent=2))
     failed = [r for r in rows if r["status"] not in ("ok", "degraded") or r["exit_code"]]
     if verbosity(ctx) >= 0:
+        for config in batch.seed_independent(rows):
+            click.echo(f"note: {config}: every seed gave the same result (this method does not depend on "
+                       "the seed here)", err=True)
         click.echo(f"run: {len(rows) - len(failed)} succeeded, {len(failed)} failed", err=True)
         for r in failed:
             where = f" [{batch.folder_name(Path(r['config']).stem, r['sweep'])}]" if r["sweep"] else ""

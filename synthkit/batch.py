@@ -141,6 +141,31 @@ def axes_for(method: str | None, axes: Sequence[tuple[str, Sequence[str]]]):
     return kept, [k for k, _ in axes if not schema_has_key(model, k)]
 
 
+def _folder_digest(folder: Path) -> str:
+    """SHA-1 over the names and bytes of every file in ``folder`` but ``report.json``."""
+    digest = hashlib.sha1()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "report.json"):
+        digest.update(path.relative_to(folder).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def seed_independent(rows: Sequence[dict]) -> list[str]:
+    """The configs of a batch whose runs that differ only by a swept seed wrote byte-identical
+    outputs (``report.json`` aside): their method's result does not depend on the seed."""
+    groups: dict[tuple, list[dict]] = {}
+    for row in rows:
+        sweep = dict(row.get("sweep") or {})
+        if "seed" in sweep and row.get("status") == "ok" and row.get("out"):
+            sweep.pop("seed")
+            groups.setdefault((row["config"], tuple(sorted(sweep.items()))), []).append(row)
+    found = []
+    for (config, _), members in groups.items():
+        if len(members) > 1 and len({_folder_digest(Path(r["out"])) for r in members}) == 1 and config not in found:
+            found.append(config)
+    return found
+
+
 def count_runs(axes: Sequence[tuple[str, Sequence[str]]]) -> int:
     """How many combinations :func:`combinations` yields (1 without axes)."""
     return math.prod(len(v) for _, v in axes)

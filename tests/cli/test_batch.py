@@ -472,3 +472,19 @@ def test_sigterm_during_a_local_cluster_batch_leaves_no_half_folder(tmp_path):
         # a run may finish on its worker after the client stopped listening: skipped, yet complete
         assert (folder / "report.json").is_file() and (folder / ".synthkit-output").is_file() or (
             row["status"] == "skipped" and not folder.exists())
+
+
+def test_a_seed_sweep_that_changes_nothing_is_named_once(tmp_path):
+    rows = []
+    for seed, content in (("0", b"same"), ("1", b"same"), ("2", b"same")):
+        out = tmp_path / f"a{seed}"
+        out.mkdir()
+        (out / "result.bin").write_bytes(content)
+        (out / "report.json").write_text(seed)  # reports differ (seed, timings): not compared
+        rows.append({"config": "a.yaml", "sweep": {"seed": seed}, "status": "ok", "out": str(out)})
+    for seed in ("0", "1"):
+        out = tmp_path / f"b{seed}"
+        out.mkdir()
+        (out / "result.bin").write_bytes(seed.encode())
+        rows.append({"config": "b.yaml", "sweep": {"seed": seed}, "status": "ok", "out": str(out)})
+    assert batch.seed_independent(rows) == ["a.yaml"]

@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-dev
 BENCH_STAMP := $(VENV)/.installed-bench
 
 .DEFAULT_GOAL := help
-.PHONY: help install browser constraints demo test test-fast bench samples samples-check lint clean
+.PHONY: help install browser constraints demo test test-fast bench pictures samples samples-check lint clean
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -47,6 +47,9 @@ test-fast: $(STAMP) ## Run the tests not marked slow
 
 bench: $(BENCH_STAMP) ## Run the benchmarks; figures go to bench-results/<area>.json
 	@set -e; for script in benchmarks/[a-z]*.py; do echo "== $$script"; $(BIN)/python $$script; done
+
+pictures: $(STAMP) browser ## Regenerate docs/images/ (README and docs pictures) from the bundled samples
+	$(BIN)/python docs/make_pictures.py
 
 samples: $(STAMP) ## Regenerate data-samples/ and its SHA256SUMS
 	$(BIN)/python data-samples/generate.py

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import json
-import logging
 import sys
 import traceback
 from collections.abc import Callable
@@ -12,6 +11,7 @@ from collections.abc import Callable
 import click
 
 from synthkit.errors import Terminated
+from synthkit.logs import configure_logging, describe_exception
 from synthkit.summary import headline
 
 SET_HELP = "Override a config key (repeatable; values are YAML), e.g. --set {example}."
@@ -131,18 +131,6 @@ def report_errors(fn: Callable) -> Callable:
     return wrapper
 
 
-def describe_exception(exc: BaseException) -> tuple[int, str]:
-    """(exit code, one-line message) for an exception raised by a run."""
-    from synthkit.errors import SynthkitError
-
-    if isinstance(exc, SynthkitError):
-        return exc.exit_code, str(exc)
-    if isinstance(exc, MemoryError):
-        return 1, "out of memory"
-    text = str(exc).splitlines()[0] if str(exc) else ""
-    return 1, f"internal error: {type(exc).__name__}: {text} (run with -v for the traceback)"
-
-
 def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     """One line per run on stderr (unless -q): method, folder, seconds, headline metrics."""
     if verbosity(ctx) < 0:
@@ -209,14 +197,3 @@ def method_command(
 
 def _flag_name(param: str) -> str:
     return "--" + param.replace("_", "-")
-
-
-def configure_logging(verbosity_level: int) -> None:
-    """Log to stderr: warnings by default, info with -v, errors only with -q."""
-    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(verbosity_level, logging.DEBUG)
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
-    root = logging.getLogger("synthkit")
-    root.handlers[:] = [handler]
-    root.setLevel(level)
-    root.propagate = False

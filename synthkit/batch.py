@@ -308,8 +308,8 @@ def execute(config: str, out_dir: str, *, seed: int | None, overrides: Sequence[
 
     Returns ``{"status", "exit_code", "error", "traceback", "seconds", "report", "worker"}``.
     """
-    from synthkit.cli.options import configure_logging, describe_exception
     from synthkit.limits import Budget
+    from synthkit.logs import configure_logging, describe_exception
     from synthkit.runner import run_config
 
     configure_logging(verbosity)

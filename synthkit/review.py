@@ -26,7 +26,7 @@ from pathlib import Path
 
 import cv2
 
-from synthkit.io.atomic import write_text_atomic
+from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.summary import headline, summary_preview
 
 __all__ = ["write_review", "collect_runs", "RunEntry", "REVIEW_DIR", "THUMB_SIZE", "GENERATOR"]
@@ -119,9 +119,7 @@ def _thumbnail(root: Path, entry: RunEntry) -> str | None:
     ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 85])
     if not ok:
         return None
-    tmp = target.with_name(target.name + ".tmp.jpg")
-    tmp.write_bytes(data.tobytes())
-    os.replace(tmp, target)
+    write_bytes_atomic(target, data.tobytes())
     return rel
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from synthkit import __version__, outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
 from synthkit.errors import ConfigError, QualityError, SynthkitError, raise_if_terminated
+from synthkit.io.atomic import write_text_atomic
 from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
 from synthkit.summary import summary_preview
@@ -401,10 +402,7 @@ def _finite_or_none(obj: Any) -> Any:
 def write_json(path: Path, obj: Any) -> None:
     """Write ``obj`` as indented JSON, atomically; numpy values become plain values and non-finite
     floats become null."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
 
 
 __all__ = ["RunContext", "run_config", "load_method_config", "default_out_dir", "write_json", "SynthkitError"]

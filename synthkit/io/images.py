@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -44,6 +43,7 @@ import numpy as np
 
 from synthkit.errors import InputError
 from synthkit.io._capture import captured_stderr, check_readable
+from synthkit.io.atomic import write_bytes_atomic
 from synthkit.io.probe import image_shape
 
 log = logging.getLogger(__name__)
@@ -135,20 +135,20 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
             arr = arr[..., [2, 1, 0, 3]]
         else:
             raise ValueError(f"image must have 1, 3 or 4 channels, got {arr.shape[2]}")
-    tmp = path.with_name(path.name + ".tmp" + suffix)
     with _opencv_captured() as lines:
         try:
-            ok = cv2.imwrite(str(tmp), np.ascontiguousarray(arr))
+            ok, encoded = cv2.imencode(suffix, np.ascontiguousarray(arr))
         except cv2.error as exc:
             ok, lines = False, [*lines, str(exc).strip().splitlines()[-1]]
     if not ok:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
         said = [_strip_prefix(line) for line in lines]
         raise OSError(f"cannot write image {path}" + (f": {said[0]}" if said else ""))
     for line in lines:
         log.debug("%s: encoder said: %s", path, line)
-    os.replace(tmp, path)
+    try:
+        write_bytes_atomic(path, encoded.tobytes())
+    except OSError as exc:
+        raise OSError(f"cannot write image {path}: {exc.strerror or exc}") from None
 
 
 def _over_white(img: np.ndarray, path: Path) -> np.ndarray:

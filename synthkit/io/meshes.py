@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,6 +26,7 @@ import trimesh
 
 from synthkit.errors import InputError
 from synthkit.io._capture import check_readable
+from synthkit.io.atomic import write_bytes_atomic
 
 log = logging.getLogger(__name__)
 
@@ -183,7 +183,6 @@ def save_mesh(
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"unsupported mesh format {suffix!r}")
-    tmp = path.with_name(path.name + ".tmp" + suffix)
     if face_colors is not None and face_labels is None:
         raise ValueError("face colours are stored beside face labels only")
     if face_labels is not None:
@@ -199,10 +198,9 @@ def save_mesh(
                 raise ValueError(f"face_colors has shape {colors.shape}, expected ({len(mesh.faces)}, 3)")
             colors = colors.astype(np.uint8)
         data = _ply_with_face_labels(mesh, labels.astype(np.int32), colors)
-        tmp.write_bytes(data)
     else:
-        mesh.export(tmp, file_type=suffix.lstrip("."))
-    os.replace(tmp, path)
+        data = mesh.export(file_type=suffix.lstrip("."))
+    write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
 
 
 _FACE_RECORDS = {

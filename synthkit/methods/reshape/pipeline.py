@@ -175,8 +175,9 @@ def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float,
     stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``. ``rest (n, 3)`` (a
     resize's rest shape, :mod:`resize`; default the model) is what the rows keep, except the rest
     lengths of rigid edges, measured on the model like ``l_min``, contacts and groups, and hole-plane
-    normals, mapped by ``factors (3,)``. Clusters that hold none of the ``known`` nodes and no
-    contact are carried by the nearest surface (:func:`parts.attach_clusters`, strict rows).
+    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape. Clusters that hold
+    none of the ``known`` nodes and no contact are carried by the nearest surface
+    (:func:`parts.attach_clusters`, strict rows).
     """
     X0, edges = graph.X0, graph.edges
     R = X0 if rest is None else np.asarray(rest, np.float64)
@@ -197,7 +198,7 @@ def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float,
         blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
             R, graph.Fn, contacts, strict_weight=W, w_c=w_c
         )
-    normals = graph.bridge_normals / (1.0 if factors is None else np.asarray(factors))
+    normals = graph.bridge_normals / (1.0 if factors is None else np.asarray(factors)[graph.bridges[:, 0]])
     normals = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(R, graph.bridges, normals, strict_weight=W, w_c=w_c)
     groups = []
@@ -593,7 +594,7 @@ def run(cfg, ctx) -> None:
         rest = graph.X0 if resize is None else resize.R
         system = build_system(cfg, graph, links, size=sc.size, known=np.concatenate([handles, fixed]),
                               rest=None if resize is None else rest,
-                              factors=None if resize is None else resize.factors)
+                              factors=None if resize is None else resize.node_factors())
         known = _known(graph, handles, fixed)
         free = _free_parts(cfg, graph, sc)
     result, reached, full, cache, frozen = _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest)

@@ -20,10 +20,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
-from synthkit.methods.reshape.parts import attach_clusters, mesh_parts
+from synthkit.methods.reshape.parts import attach_clusters, closest_points, mesh_parts
 
-__all__ = ["Resize", "axis_factors", "plan_resize"]
+__all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups"]
+
+
+END_BAND = 0.02
+"""A rigid group this close to an end of the model (share of the extent) stays at that end (the
+garage door of house4 stands 0.7 % of the height above the lowest vertex)."""
 
 
 @dataclass
@@ -38,6 +45,11 @@ class Resize:
     known: np.ndarray
     part: np.ndarray
     rigid: np.ndarray
+
+    def node_factors(self) -> np.ndarray:
+        """Scale ``(n, 3)`` of the rest shape at each node: the factors, 1 along a rigid axis."""
+        rigid = self.rigid[np.maximum(self.part, 0)] & (self.part >= 0)[:, None]
+        return np.where(rigid, 1.0, self.factors)
 
 
 def axis_factors(scale, size, extent) -> tuple[np.ndarray, np.ndarray]:
@@ -57,27 +69,67 @@ def axis_factors(scale, size, extent) -> tuple[np.ndarray, np.ndarray]:
     return f, asked
 
 
-def _rest(X0, Fn, part, rigid, f, lo) -> np.ndarray:
-    """Rest shape ``(n, 3)``: scaled about ``lo``, rigid axes of parts translated with their host."""
+def touching_groups(X0, Fn, part, *, tol: float) -> np.ndarray:
+    """Group label ``(n,)``: parts other than the root (the part with most nodes) that touch one
+    another (a node within ``tol`` of the other's triangles: the four panes of a bay window) form
+    one group, which moves as one; the root is a group of its own; -1 stays -1."""
+    n_parts = int(part.max()) + 1
+    root = int(np.argmax(np.bincount(part[part >= 0])))
+    face_part = part[Fn[:, 0]]
+    pairs = []
+    for k in range(n_parts):
+        other = (face_part != k) & (face_part != root)
+        if k == root or not other.any():
+            continue
+        d, t, _ = closest_points(X0[part == k], X0[Fn[other]])
+        touched = np.unique(face_part[other][t[d <= tol]])
+        pairs += [(k, int(j)) for j in touched]
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n_parts, n_parts))
+    _, label = connected_components(G, directed=False)
+    return np.where(part >= 0, label[np.maximum(part, 0)], -1)
+
+
+def _rest(X0, Fn, part, rigid, f, lo, margin: float) -> np.ndarray:
+    """Rest shape ``(n, 3)``: scaled about ``lo``, rigid axes of groups translated with their host;
+    the root's nodes inside a rigid group's box grown by ``margin`` (the rim of the hole a window
+    fills) move with the group, so the hole keeps the window's size. A group within ``END_BAND`` of
+    the extent from an end of the model along an axis (a door or garage door on the ground) keeps
+    its place at that end."""
     R = lo + f * (X0 - lo)
     root = part == int(np.argmax(np.bincount(part[part >= 0])))
-    pairs = np.vstack([Fn[:, [0, 1]], Fn[:, [1, 2]]])
+    used = np.flatnonzero(part >= 0)
+    _, lead = np.unique(part[used], return_index=True)
+    tie = np.column_stack([used, used[lead][part[used]]])
+    pairs = np.vstack([Fn[:, [0, 1]], Fn[:, [1, 2]], tie])
     att = attach_clusters(X0, Fn, pairs, np.flatnonzero(root))
+    hi = X0[part >= 0].max(axis=0)
     for nodes, t, lam in zip(att.nodes, att.tri, att.bary, strict=True):
         move = lam @ R[Fn[t]] - lam @ X0[Fn[t]]
-        axes = rigid[part[nodes[0]]]
-        R[np.ix_(nodes, np.flatnonzero(axes))] = X0[np.ix_(nodes, np.flatnonzero(axes))] + move[axes]
+        axes = np.flatnonzero(rigid[part[nodes[0]]])
+        lo_g, hi_g = X0[nodes].min(axis=0) - margin, X0[nodes].max(axis=0) + margin
+        band = END_BAND * (hi - lo)
+        g_lo, g_hi = X0[nodes].min(axis=0), X0[nodes].max(axis=0)
+        move = np.where(g_lo <= lo + band, 0.0, np.where(g_hi >= hi - band, (f - 1) * (hi - lo), move))
+        rim = np.flatnonzero(root & np.all((X0 >= lo_g) & (X0 <= hi_g), axis=1))
+        moved = np.concatenate([nodes, rim])
+        R[np.ix_(moved, axes)] = X0[np.ix_(moved, axes)] + move[axes]
     return R
 
 
-def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float) -> Resize:
+def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float, touch_tol: float = 1e-4,
+                rim_margin: float = 2e-3) -> Resize:
     """The :class:`Resize` of nodes ``X0 (n, 3)`` with triangles ``Fn (F, 3)`` for ``factors (3,)``
-    and ``asked (3,)`` extents (:func:`axis_factors`)."""
+    and ``asked (3,)`` extents (:func:`axis_factors`); parts within ``touch_tol`` (share of the
+    model size) of each other move as one group (:func:`touching_groups`); ``rim_margin`` (share of
+    the model size) grows a rigid group's box to find the rim of its hole."""
     n = len(X0)
-    part = mesh_parts(Fn, n)
-    used = part >= 0
+    used = np.zeros(n, bool)
+    used[Fn.reshape(-1)] = True
     lo, hi = X0[used].min(axis=0), X0[used].max(axis=0)
     extent = hi - lo
+    size = float(np.linalg.norm(extent))
+    part = touching_groups(X0, Fn, mesh_parts(Fn, n), tol=touch_tol * size)
     n_parts = int(part.max()) + 1
     plo = np.full((n_parts, 3), np.inf)
     phi = np.full((n_parts, 3), -np.inf)
@@ -87,12 +139,12 @@ def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float) -
     rigid[int(np.argmax(np.bincount(part[used])))] = False
     f = factors.astype(np.float64).copy()
     for _ in range(2):
-        R = _rest(X0, Fn, part, rigid, f, lo)
+        R = _rest(X0, Fn, part, rigid, f, lo, rim_margin * size)
         got = R[used].max(axis=0) - R[used].min(axis=0)
         fix = np.isfinite(asked) & (f != 1) & (np.abs(got - asked) > 1e-12 * extent)
         slope = (got[fix] - extent[fix]) / (f[fix] - 1)
         f[fix] = 1 + (asked[fix] - extent[fix]) / slope
-    R = _rest(X0, Fn, part, rigid, f, lo)
+    R = _rest(X0, Fn, part, rigid, f, lo, rim_margin * size)
     scaled = np.flatnonzero(np.isfinite(asked))
     tol = end_tol * extent
     ends = (X0[:, scaled] <= (lo + tol)[scaled]) | (X0[:, scaled] >= (hi - tol)[scaled])

@@ -175,7 +175,8 @@ def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float,
     stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``. ``rest (n, 3)`` (a
     resize's rest shape, :mod:`resize`; default the model) is what the rows keep, except the rest
     lengths of rigid edges, measured on the model like ``l_min``, contacts and groups, and hole-plane
-    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape. Clusters that hold
+    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape (plane rows keep the
+    rest shape's offset along the normal: a hole's rim may move with its window). Clusters that hold
     none of the ``known`` nodes and no contact are carried by the nearest surface
     (:func:`parts.attach_clusters`, strict rows).
     """
@@ -211,6 +212,9 @@ def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float,
     attachment = attach_clusters(X0, graph.Fn, pairs, np.asarray(known, np.int64))
     blocks["attach"] = C.attach_rows(R, graph.Fn, attachment, strict_weight=W)
     A, b, slices = C.stack_rows(blocks, graph.n_nodes)
+    if rest is not None:
+        for name in ("coplanarity", "hole_plane"):
+            b[slices[name]] = A[slices[name]] @ R.ravel()
     return System(A, b, slices, w, length < l_min, contacts, groups, l_min, targets, attachment)
 
 

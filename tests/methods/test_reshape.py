@@ -392,18 +392,20 @@ def house_config(**extra) -> dict:
     }
 
 
-def test_roof_frame_moves_together_only_with_a_link(tmp_path):
+def test_roof_frame_free_post_is_carried_and_a_link_ties_it(tmp_path):
     tie, post = truth("reshape-house")["link"]
     src = SAMPLES / "reshape-house.obj"
     rest = node_positions(src, src, [tie, post])
     moved = {}
     for name, links in (("free", []), ("linked", [{"nearest": [tie, post]}])):
-        report, out = reshape(tmp_path, name, **house_config(links=links))
+        report, out = reshape(tmp_path, name, **house_config(links=links, parts={"attach_distance": 1e-3}))
         moved[name] = node_positions(out / "reshape-house.obj", src, [tie, post]) - rest
         m = report["metrics"]
         assert m["links"] == len(links) and m["contacts"] == truth("reshape-house")["contacts"]
         assert all(v < STRICT_TOL for v in m["strict_residuals"].values()), m["strict_residuals"]
-    assert moved["free"][0, 1] > 0.3 and np.abs(moved["free"][1]).max() < 1e-6  # parts separate
+        assert [f["nodes"] for f in m["free_parts"]] == ([8] if not links else [])
+    # without the link the post (0.008 of the model size from the roof) is still carried, never left behind
+    assert moved["free"][0, 1] > 0.3 and moved["free"][1, 1] > 0.3
     np.testing.assert_allclose(moved["linked"][1], moved["linked"][0], atol=1e-8)  # they move together
 
 
@@ -573,11 +575,19 @@ def _invoke(runner, tmp_path, cfg: dict):
          "handles[0].index: vertex 999 is out of range (piece reshape-wall has 72 vertices)"),
         ({"handles": [above("y", 50.0, displacement=[0, 1, 0])]}, 2, "handles[0]: selects no vertex"),
         ({"fixed": [below("y", 10.0)]}, 2, "fixed[0]: 4 vertices are also handles"),
-        ({"handles": []}, 2, "handles: List should have at least 1 item"),
+        ({"handles": []}, 2, "give exactly one of handles, scale, size (got none)"),
+        ({"scale": {"x": 1.3}}, 2, "give exactly one of handles, scale, size (got handles, scale)"),
+        ({"handles": [], "fixed": [], "scale": {}}, 2, "scale: give at least one of x, y, z"),
+        ({"handles": [above("y", -1.0, displacement=[0, 1, 0])], "fixed": []}, 2,
+         "handles: the handles and fixed vertices select every vertex; nothing is left to reshape"),
+        ({"handles": [above("y", 2.0, displacement=[0, 1, 0])], "fixed": []}, 2,
+         "handles: the recipe stretches nothing (every edge keeps its length within 1e-6"),
+        ({"handles": [], "fixed": [], "scale": {"x": 1.0}}, 2, "scale: the recipe stretches nothing"),
         ({"stiffness": {"l_min": 0}}, 2, "stiffness.l_min: Input should be greater than 0"),
         ({"stiffness": {"l_min": -1.0}}, 2, "stiffness.l_min: Input should be greater than 0"),
     ],
-    ids=["index-out-of-range", "selects-nothing", "handle-also-fixed", "no-handle", "l_min-zero", "l_min-negative"],
+    ids=["index-out-of-range", "selects-nothing", "handle-also-fixed", "no-handle", "handles-and-scale", "empty-scale",
+         "selects-everything", "translates-only", "scale-one", "l_min-zero", "l_min-negative"],
 )
 def test_bad_input_exit_codes(runner, tmp_path, change, code, message):
     got, line = _invoke(runner, tmp_path, {**wall_config(), **change})
@@ -615,7 +625,7 @@ def test_missing_handles_key_exit_2(runner, tmp_path):
     cfg = wall_config()
     del cfg["handles"]
     code, line = _invoke(runner, tmp_path, cfg)
-    assert code == 2 and "missing required key 'handles'" in line
+    assert code == 2 and "give exactly one of handles, scale, size (got none)" in line
 
 
 @pytest.mark.parametrize(

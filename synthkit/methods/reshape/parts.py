@@ -81,15 +81,17 @@ def _point_triangle(p, tri) -> tuple[np.ndarray, np.ndarray]:
 
 
 def part_distances(X: np.ndarray, Fn: np.ndarray, part: np.ndarray) -> np.ndarray:
-    """Distance ``(p,)`` from each part to the nearest triangle of another part (inf when alone)."""
+    """Distance ``(p,)`` from each part to the nearest other part (inf when alone): the smallest
+    distance from a node of either to a triangle of the other."""
     n_parts = int(part.max()) + 1
     face_part = part[Fn[:, 0]]
-    out = np.full(n_parts, np.inf)
+    D = np.full((n_parts, n_parts), np.inf)
     for k in range(n_parts):
-        other = face_part != k
-        if other.any():
-            out[k] = closest_points(X[part == k], X[Fn[other]])[0].min()
-    return out
+        other = np.flatnonzero(face_part != k)
+        if len(other):
+            d, t, _ = closest_points(X[part == k], X[Fn[other]])
+            np.minimum.at(D, (np.full(len(d), k), face_part[other[t]]), d)
+    return np.minimum(D, D.T).min(axis=1)
 
 
 @dataclass

@@ -510,16 +510,20 @@ def _texture_previews(ctx, cfg, results) -> None:
                     titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)
 
 
-def _free_parts(cfg, graph, sc) -> list[dict]:
-    """Parts (face-connected components) farther than ``parts.attach_distance`` from every other
-    part: carried by the nearest surface all the same, listed in ``metrics.free_parts`` and named
-    in one warning line."""
+def _free_parts(cfg, graph, sc, links) -> list[dict]:
+    """Parts (face-connected components; the one with most nodes is the root) farther than
+    ``parts.attach_distance`` from every other part and not linked to one (``links (k, 2)``):
+    carried by the nearest surface all the same, listed in ``metrics.free_parts`` and named in
+    one warning line."""
     part = mesh_parts(graph.Fn, graph.n_nodes)
     if part.max() < 1:
         return []
     dist = part_distances(graph.X0, graph.Fn, part) / sc.size
+    dist[np.argmax(np.bincount(part[part >= 0]))] = 0.0
+    pl = part[np.asarray(links, np.int64).reshape(-1, 2)]
+    linked = np.unique(pl[pl[:, 0] != pl[:, 1]])
     free = []
-    for k in np.flatnonzero(dist > cfg.parts.attach_distance):
+    for k in np.setdiff1d(np.flatnonzero(dist > cfg.parts.attach_distance), linked):
         nodes = np.flatnonzero(part == k)
         free.append({"part": int(k), "first": _vertex_name(int(nodes[0]), graph, sc.ranges),
                      "nodes": int(len(nodes)), "centre": graph.X0[nodes].mean(axis=0).round(6).tolist(),
@@ -600,7 +604,7 @@ def run(cfg, ctx) -> None:
                               rest=None if resize is None else rest,
                               factors=None if resize is None else resize.node_factors())
         known = _known(graph, handles, fixed)
-        free = _free_parts(cfg, graph, sc)
+        free = _free_parts(cfg, graph, sc, links)
     result, reached, full, cache, frozen = _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest)
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
                   attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),

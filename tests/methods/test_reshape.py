@@ -556,6 +556,91 @@ def test_real_houses(tmp_path, name, mode):
     assert again.materials == mesh.materials
 
 
+def _nodes_of(path):
+    """Graph nodes ``(n, 3)``, triangles over nodes and part labels of a house (the file's vertex
+    order, so input and output nodes correspond)."""
+    from synthkit.methods.reshape.parts import mesh_parts
+
+    mesh = load_textured(path)
+    size = float(np.linalg.norm(mesh.V.max(axis=0) - mesh.V.min(axis=0)))
+    g = build_graph(mesh.V, mesh.F, mesh.face_material, weld_tol=1e-6 * size)
+    return g, mesh_parts(g.Fn, g.n_nodes), size
+
+
+def _attachment_error(X0, X1, Fn, part) -> float:
+    """Largest, over the parts but the root, of the smallest mismatch between the motion of the
+    part's centroid or of one of its nodes and the motion of the host point beneath it (the nearest
+    point of another part's triangles, same barycentric coordinates after)."""
+    from synthkit.methods.reshape.parts import closest_points
+
+    root = np.argmax(np.bincount(part[part >= 0]))
+    worst = 0.0
+    for k in set(np.unique(part[part >= 0]).tolist()) - {int(root)}:
+        nodes = np.flatnonzero(part == k)
+        other = np.flatnonzero(part[Fn[:, 0]] != k)
+        P0 = np.vstack([X0[nodes].mean(axis=0), X0[nodes]])
+        P1 = np.vstack([X1[nodes].mean(axis=0), X1[nodes]])
+        _, t, lam = closest_points(P0, X0[Fn[other]])
+        host0 = np.einsum("kj,kjc->kc", lam, X0[Fn[other[t]]])
+        host1 = np.einsum("kj,kjc->kc", lam, X1[Fn[other[t]]])
+        worst = max(worst, float(np.linalg.norm((P1 - P0) - (host1 - host0), axis=1).min()))
+    return worst
+
+
+def _storey_ratios(X0, X1, part, size, axis=1) -> np.ndarray:
+    """After / before height of each band (> 10 % of the height) between the levels of the root's
+    nodes along ``axis``, leaving out nodes inside another part's box (the rim of a window's hole)."""
+    root = np.argmax(np.bincount(part[part >= 0]))
+    keep = part == root
+    for k in set(np.unique(part[part >= 0]).tolist()) - {int(root)}:
+        lo, hi = X0[part == k].min(axis=0) - 2e-3 * size, X0[part == k].max(axis=0) + 2e-3 * size
+        keep &= ~np.all((X0 >= lo) & (X0 <= hi), axis=1)
+    y0, y1 = X0[keep, axis], X1[keep, axis]
+    order = np.argsort(y0)
+    height = y0.max() - y0.min()
+    cuts = np.flatnonzero(np.diff(y0[order]) > 0.02 * height) + 1
+    levels = [(y0[order][g].mean(), y1[order][g].mean()) for g in np.split(np.arange(len(y0)), cuts)]
+    bands = [(b[0] - a[0], b[1] - a[1]) for a, b in zip(levels[:-1], levels[1:], strict=True)]
+    return np.array([after / before for before, after in bands if before > 0.1 * height])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
+@pytest.mark.parametrize("name", ["house1", "house2", "house4"])
+@pytest.mark.parametrize("axis, factor", [("x", 1.3), ("y", 1.5)])
+def test_real_houses_resized_in_one_line(tmp_path, name, axis, factor):
+    src = HOUSES / "houses" / f"{name}_baked.obj"
+    report, out = reshape(tmp_path, name, input=str(src), scale={axis: factor})
+    m = report["metrics"]
+    a = "xyz".index(axis)
+    assert m["status"] == "ok" and m["free_parts"] == [] and m["attached_parts"] > 10
+    want = np.where(np.arange(3) == a, factor, 1.0)
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], want, rtol=0.02)
+    g, part, size = _nodes_of(src)
+    X1 = np.zeros_like(g.X0)
+    X1[g.node_of_vertex] = load_textured(out / src.name).V
+    assert _attachment_error(g.X0, X1, g.Fn, part) < 0.005 * size
+    root = np.argmax(np.bincount(part[part >= 0]))
+    top, extent = g.X0.max(axis=0)[a], np.ptp(g.X0, axis=0)[a]
+    for k in set(np.unique(part).tolist()) - {int(root), -1}:  # doors, windows, frames keep their size
+        e0, e1 = np.ptp(g.X0[part == k], axis=0), np.ptp(X1[part == k], axis=0)
+        if e0[a] < 0.45 * extent and g.X0[part == k, a].max() < top - 1e-3 * extent:  # not the chimney
+            assert abs(e1[a] / e0[a] - 1) < 0.03, (k, e0, e1)
+    if axis == "y":
+        ratios = _storey_ratios(g.X0, X1, part, size)
+        assert len(ratios) >= 2 and np.all(np.abs(ratios / factor - 1) < 0.05), ratios
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
+def test_tudor_house_resized_in_one_line(tmp_path):
+    report, _ = reshape(tmp_path, "tudor", input=str(HOUSES / "tudorhouse" / "tudorhouse.obj"),
+                        size={"x": 862.0}, scale=None)
+    m = report["metrics"]
+    assert m["status"] == "ok" and m["free_parts"] == []
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], [862.0 / 662.72998, 1, 1], rtol=0.02)
+
+
 # ---------------------------------------------------------------- bad input through the CLI
 
 

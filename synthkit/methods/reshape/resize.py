@@ -3,12 +3,17 @@
 The user's intent is the model scaled along the given axes, as if a wall were dragged: the rest
 shape of the solve becomes ``R (n, 3)``, the model scaled about its lower corner, except that a
 part (face-connected component, :func:`parts.mesh_parts`) shorter than ``rigid_share`` of the
-model along an axis keeps its size along that axis (doors, windows, frames, chimneys) and is
-carried there by the point of its host surface under its centroid (:func:`parts.attach_clusters`:
+model along an axis keeps its size along that axis (doors, windows, frames) and is carried
+there by the point of its host surface under its centroid (:func:`parts.attach_clusters`:
 a window on a side wall stays on that wall). The largest part (the walls and roof) is never
-rigid. The solve (pipeline) then writes every constraint of section 3.2 against ``R`` but keeps
-the rest lengths of the model's rigid edges (shorter than ``l_min``): a thin slab or a wall's
-thickness does not take the raise, and the stretch spreads over the long edges.
+rigid, nor is a part along an axis where it forms the model's upper end (house1's chimney tops
+the ridge: kept rigid it would leave the model 2 % short of a 1.5x raise). Parts that touch one
+another move as one group (:func:`touching_groups`); the root's nodes around a rigid group (the
+rim of the hole a window fills) move with it, and a group at the lower end (a door on the
+ground) stays there. The solve (pipeline) then writes every constraint of section 3.2 against
+``R`` but keeps the rest lengths of the model's rigid edges (shorter than ``l_min``): a thin
+slab or a wall's thickness does not take the raise, and the stretch spreads over the long edges.
+Beyond the paper, which only drags handles.
 
 Handles and fixed vertices are the nodes within ``end_tol`` of the extent of either end of each
 scaled axis, moved to their place in ``R``. The factors are corrected once so that the extent of
@@ -29,7 +34,7 @@ __all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups"]
 
 
 END_BAND = 0.02
-"""A rigid group this close to an end of the model (share of the extent) stays at that end (the
+"""A rigid group this close to the lower end of the model (share of the extent) stays at that end (the
 garage door of house4 stands 0.7 % of the height above the lowest vertex)."""
 
 
@@ -94,8 +99,8 @@ def _rest(X0, Fn, part, rigid, f, lo, margin: float) -> np.ndarray:
     """Rest shape ``(n, 3)``: scaled about ``lo``, rigid axes of groups translated with their host;
     the root's nodes inside a rigid group's box grown by ``margin`` (the rim of the hole a window
     fills) move with the group, so the hole keeps the window's size. A group within ``END_BAND`` of
-    the extent from an end of the model along an axis (a door or garage door on the ground) keeps
-    its place at that end."""
+    the extent from the lower end of the model along an axis (a door or garage door on the ground)
+    keeps its place there; at the upper end a group (a chimney) rides on its host like any other."""
     R = lo + f * (X0 - lo)
     root = part == int(np.argmax(np.bincount(part[part >= 0])))
     used = np.flatnonzero(part >= 0)
@@ -103,14 +108,13 @@ def _rest(X0, Fn, part, rigid, f, lo, margin: float) -> np.ndarray:
     tie = np.column_stack([used, used[lead][part[used]]])
     pairs = np.vstack([Fn[:, [0, 1]], Fn[:, [1, 2]], tie])
     att = attach_clusters(X0, Fn, pairs, np.flatnonzero(root))
-    hi = X0[part >= 0].max(axis=0)
     for nodes, t, lam in zip(att.nodes, att.tri, att.bary, strict=True):
         move = lam @ R[Fn[t]] - lam @ X0[Fn[t]]
         axes = np.flatnonzero(rigid[part[nodes[0]]])
         lo_g, hi_g = X0[nodes].min(axis=0) - margin, X0[nodes].max(axis=0) + margin
-        band = END_BAND * (hi - lo)
-        g_lo, g_hi = X0[nodes].min(axis=0), X0[nodes].max(axis=0)
-        move = np.where(g_lo <= lo + band, 0.0, np.where(g_hi >= hi - band, (f - 1) * (hi - lo), move))
+        band = END_BAND * (X0[part >= 0].max(axis=0) - lo)
+        g_lo = X0[nodes].min(axis=0)
+        move = np.where(g_lo <= lo + band, 0.0, move)
         rim = np.flatnonzero(root & np.all((X0 >= lo_g) & (X0 <= hi_g), axis=1))
         moved = np.concatenate([nodes, rim])
         R[np.ix_(moved, axes)] = X0[np.ix_(moved, axes)] + move[axes]
@@ -135,7 +139,7 @@ def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float, t
     phi = np.full((n_parts, 3), -np.inf)
     np.minimum.at(plo, part[used], X0[used])
     np.maximum.at(phi, part[used], X0[used])
-    rigid = (phi - plo) < rigid_share * extent
+    rigid = ((phi - plo) < rigid_share * extent) & (phi < hi - end_tol * extent)
     rigid[int(np.argmax(np.bincount(part[used])))] = False
     f = factors.astype(np.float64).copy()
     for _ in range(2):

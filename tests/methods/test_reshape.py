@@ -225,6 +225,48 @@ def test_solver_eliminates_known_nodes_and_reuses_its_factor():
     assert len(solver.solve_ms) == 2
 
 
+def test_closest_points_on_a_triangle_exact():
+    from synthkit.methods.reshape.parts import closest_points
+
+    tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[5, 5, 5], [5, 5, 5], [5, 5, 5]]], float)  # one degenerate
+    P = np.array([[0.2, 0.2, 1.0], [2.0, 0.0, 0.0], [0.5, -1.0, 0.0], [-1.0, -1.0, 0.0]])
+    d, t, lam = closest_points(P, tri)
+    np.testing.assert_allclose(d, [1.0, 1.0, 1.0, np.sqrt(2.0)])
+    np.testing.assert_array_equal(t, [0, 0, 0, 0])
+    np.testing.assert_allclose(lam, [[0.6, 0.2, 0.2], [0, 1, 0], [0.5, 0.5, 0], [1, 0, 0]], atol=1e-12)
+
+
+def test_attach_clusters_hang_each_free_part_on_the_nearest_held_one():
+    from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
+
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    X = np.vstack([square, square + [0, 0, 0.1], square + [0, 0, 0.15], square + [0, 0, 5.0]])
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    Fn = np.vstack([quad + 4 * k for k in range(4)])
+    part = mesh_parts(Fn, len(X))
+    np.testing.assert_array_equal(part, np.repeat([0, 1, 2, 3], 4))
+    np.testing.assert_allclose(part_distances(X, Fn, part), [0.1, 0.05, 0.05, 4.85])
+    pairs = np.vstack([Fn[:, :2], Fn[:, 1:]])
+    att = attach_clusters(X, Fn, pairs, known=[0])
+    hosts = [int(part[Fn[t, 0]]) for t in att.tri]
+    assert [int(part[n[0]]) for n in att.nodes] == [1, 2, 3] and hosts == [0, 1, 2]
+    np.testing.assert_allclose(att.gap, [0.1, 0.05, 4.85])
+
+
+def test_wall_doubled_in_one_line_keeps_door_and_window_widths(tmp_path):
+    t = truth("reshape-wall")
+    report, out = reshape(tmp_path, "wide", input=str(SAMPLES / "reshape-wall.obj"),
+                          stiffness={"l_min": t["l_min"]}, scale={"x": 2.0})
+    m = report["metrics"]
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], [2, 1, 1], atol=1e-9)
+    assert m["status"] == "ok" and m["handles"] > 0 and m["fixed"] > 0 and m["free_parts"] == []
+    (x0, y0, x1, _), (wx0, wy0, wx1, _) = t["door"], t["window"]
+    src = SAMPLES / "reshape-wall.obj"
+    door = node_positions(out / src.name, src, [[x0, y0, 0], [x1, y0, 0]])
+    window = node_positions(out / src.name, src, [[wx0, wy0, 0], [wx1, wy0, 0]])
+    assert abs(door[1, 0] - door[0, 0] - (x1 - x0)) < 0.02 and abs(window[1, 0] - window[0, 0] - (wx1 - wx0)) < 0.02
+
+
 def test_selections_and_handle_targets():
     from synthkit.methods.reshape.config import Handle, Selection
     from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, select_nodes

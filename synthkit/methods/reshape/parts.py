@@ -51,6 +51,13 @@ def closest_points(P: np.ndarray, tri: np.ndarray, *, chunk: int = 256) -> tuple
 def _point_triangle(p, tri) -> tuple[np.ndarray, np.ndarray]:
     """Squared distances ``(k, T)`` and barycentric coordinates ``(k, T, 3)`` of the nearest point
     of each triangle ``tri (1, T, 3, 3)`` to each point ``p (k, 1, 3)``."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d, lam = _regions(p, tri)
+    return np.where(np.isfinite(d), d, np.inf), lam
+
+
+def _regions(p, tri) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_point_triangle` without the guards: degenerate triangles give non-finite values."""
     a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
     ab, ac, ap = b - a, c - a, p - a
     d1, d2 = np.einsum("...i,...i", ab, ap), np.einsum("...i,...i", ac, ap)
@@ -58,12 +65,11 @@ def _point_triangle(p, tri) -> tuple[np.ndarray, np.ndarray]:
     d3, d4 = np.einsum("...i,...i", ab, bp), np.einsum("...i,...i", ac, bp)
     d5, d6 = np.einsum("...i,...i", ab, cp), np.einsum("...i,...i", ac, cp)
     va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v, w = vb / denom, vc / denom
-        t_ab = d1 / (d1 - d3)
-        t_ac = d2 / (d2 - d6)
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    denom = va + vb + vc
+    v, w = vb / denom, vc / denom
+    t_ab = d1 / (d1 - d3)
+    t_ac = d2 / (d2 - d6)
+    t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
     lam = np.stack([1 - v - w, v, w], axis=-1)
     cases = [
         ((vc <= 0) & (d1 >= 0) & (d3 <= 0), np.stack([1 - t_ab, t_ab, 0 * t_ab], -1)),

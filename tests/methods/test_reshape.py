@@ -706,7 +706,7 @@ def _invoke(runner, tmp_path, cfg: dict):
         ({"scale": {"x": 1.3}}, 2, "give exactly one of handles, scale, size (got handles, scale)"),
         ({"handles": [], "fixed": [], "scale": {}}, 2, "scale: give at least one of x, y, z"),
         ({"handles": [above("y", -1.0, displacement=[0, 1, 0])], "fixed": []}, 2,
-         "handles: the handles and fixed vertices select every vertex; nothing is left to reshape"),
+         "handles: the recipe stretches nothing (every edge keeps its length within 1e-6"),
         ({"handles": [above("y", 2.0, displacement=[0, 1, 0])], "fixed": []}, 2,
          "handles: the recipe stretches nothing (every edge keeps its length within 1e-6"),
         ({"handles": [], "fixed": [], "scale": {"x": 1.0}}, 2, "scale: the recipe stretches nothing"),

@@ -359,7 +359,20 @@ def test_bad_input_uvs_outside_unit_square(tmp_path):
     text = (SAMPLES / "reshape-facade.obj").read_text().replace("vt 1 0\nvt 1 1", "vt 2 0\nvt 2 1")
     code, line = _invoke(tmp_path, _facade_copy(tmp_path, obj=text), texture_reshape={"toroidal": []})
     assert code == 3
-    assert "has UVs outside [0, 1] (u 0..2, v 0..1) but texture reshape-facade.png is not toroidal" in line
+    assert "has UVs spanning a whole tile (u 0..2, v 0..1) but texture reshape-facade.png is not toroidal" in line
+
+
+@pytest.mark.parametrize("u, toroidal", [(1.004, False), (1.5, True)])
+def test_uv_excursion_clamped_and_whole_tiles_toroidal(tmp_path, u, toroidal):
+    from synthkit.methods.reshape.retexture import _check_uv
+
+    mesh = load_textured(SAMPLES / "reshape-facade.obj")
+    UV = np.array([[-0.003, 0.0], [u, 0.2], [0.5, 0.9]])
+    got, read = _check_uv(mesh, "s", "facade", Path("t.png"), UV, "auto")
+    assert got == toroidal
+    np.testing.assert_allclose(read, UV if toroidal else np.clip(UV, 0, 1))
+    shifted = _check_uv(mesh, "s", "facade", Path("t.png"), np.array([[1.2, 0.1], [1.5, 0.4], [1.3, 0.2]]), "auto")
+    np.testing.assert_allclose(shifted[1], [[0.2, 0.1], [0.5, 0.4], [0.3, 0.2]])
 
 
 def test_bad_input_missing_texture(tmp_path):

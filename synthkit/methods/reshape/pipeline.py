@@ -537,12 +537,11 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
     return free
 
 
-def _stretches_nothing(cfg, quality, solver) -> None:
-    """Item 6 of issue 23: a recipe that leaves nothing to reshape, or whose result only moves the
-    model rigidly, is refused in one line (ConfigError) instead of writing a translated model."""
+def _stretches_nothing(cfg, quality) -> None:
+    """Item 6 of issue 23: a recipe whose result only moves the model rigidly (handles that select
+    everything, or nothing fixed) is refused in one line (ConfigError) instead of writing a
+    translated model with perfect metrics."""
     key = "handles" if cfg.handles else ("scale" if cfg.scale is not None else "size")
-    if solver.vars == 0:
-        raise ConfigError(f"{key}: the handles and fixed vertices select every vertex; nothing is left to reshape")
     if quality["max_stretch"] - 1 < 1e-6 and 1 - quality["min_stretch"] < 1e-6:
         raise ConfigError(
             f"{key}: the recipe stretches nothing (every edge keeps its length within 1e-6; the handles move the "
@@ -610,7 +609,7 @@ def run(cfg, ctx) -> None:
                   attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
     quality = _quality(graph, system, result.X, known, reached, sc.size, rest)
-    _stretches_nothing(cfg, quality, full)
+    _stretches_nothing(cfg, quality)
     if resize is not None:
         counts.update(_resize_metrics(resize, graph, result.X))
     ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))

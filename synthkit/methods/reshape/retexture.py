@@ -9,8 +9,8 @@ comes back unchanged. Each texture is analysed once
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
-Errors name the file, the surface and the key: a textured surface without UVs, UVs outside [0, 1]
-on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
+Errors name the file, the surface and the key: a textured surface without UVs, UVs spanning a
+whole tile on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
 below one texel (ConfigError on ``texture_reshape.spacing``). GLB inputs keep the naive stretch
 (their textures are embedded; the writer only retextures OBJ files) and say so in the report.
 """
@@ -37,6 +37,9 @@ UNCHANGED_TOL = 1e-9
 
 MIN_UV_AREA = 16.0
 """Texels a surface's UVs must cover to get a deformation grid."""
+
+WHOLE_TILE_SLACK = 1e-2
+"""UVs spanning a tile plus at most this (share of a tile) still read as one tile, clamped."""
 
 WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max, "bake_ms": max,
          "rigid_scale_error": max, "stochastic_stretch": max, "detail_energy_ratio": min, "tiles": min,
@@ -80,21 +83,31 @@ def _contour(F: np.ndarray) -> np.ndarray:
     return he[counts[inv.reshape(-1)] == 1]
 
 
-def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> bool:
-    """Whether the surface is toroidal; InputError for missing UVs or UVs outside [0, 1] on a
-    texture that does not repeat."""
+def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> tuple[bool, np.ndarray]:
+    """Whether the surface is toroidal, and its UVs ``(c, 2)`` as read. With ``toroidal: auto`` a
+    surface is toroidal only when its UVs leave [0, 1] and span more than a whole tile (plus
+    :data:`WHOLE_TILE_SLACK`) along an axis; otherwise they
+    are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small excursion
+    past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A listed material is
+    toroidal whatever its UVs. InputError for missing UVs, or for UVs spanning a whole tile when
+    ``toroidal`` lists other materials only."""
     if np.isnan(UV).any():
         raise InputError(f"{mesh.source}: surface {name} (material {material}) has no UVs, but its texture "
                          f"{path.name} needs them")
     outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
-    toroidal = outside if toroidal_cfg == "auto" else material in toroidal_cfg
-    if outside and not toroidal:
+    whole = outside and bool((np.ptp(UV, axis=0) > 1 + WHOLE_TILE_SLACK).any())
+    toroidal = whole if toroidal_cfg == "auto" else material in toroidal_cfg
+    if toroidal:
+        return True, UV
+    if whole:
         lo, hi = UV.min(axis=0), UV.max(axis=0)
         raise InputError(
-            f"{mesh.source}: surface {name} (material {material}) has UVs outside [0, 1] (u {lo[0]:.4g}..{hi[0]:.4g}, "
-            f"v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal (texture_reshape.toroidal)"
+            f"{mesh.source}: surface {name} (material {material}) has UVs spanning a whole tile "
+            f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal "
+            "(texture_reshape.toroidal)"
         )
-    return toroidal
+    shift = np.floor(0.5 * (UV.min(axis=0) + UV.max(axis=0)))
+    return False, np.clip(UV - shift, 0.0, 1.0)
 
 
 def _ratio(a, b, i, j) -> np.ndarray:
@@ -155,9 +168,8 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             untouched += 1
             continue
         name = f"{r.name}.{material}.{k}"
-        toroidal = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
+        toroidal, UV = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
         W, H = _texture(cfg, path, images)
-        UV = mesh.UV[verts]
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
         if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
             untouched += 1

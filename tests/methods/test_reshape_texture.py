@@ -16,6 +16,7 @@ from synthkit.cli.main import cli
 from synthkit.io.images import load_image
 from synthkit.io.textured import load_textured
 from synthkit.methods.reshape.texture import autosim, bake, detail
+from synthkit.methods.reshape.texture.atlas import PAD
 from synthkit.methods.reshape.texture.grid import BOUNDARY, CORNER, INTERIOR, build_grid, dda_crossings
 from synthkit.methods.reshape.texture.solve import CornerSolver, InteriorSolver, edge_stiffness, toroidal_repetitions
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
@@ -300,11 +301,14 @@ def test_pipeline_writes_reshaped_mesh_textures_and_report(tmp_path):
     assert m["rigid_scale_error"] == surf["rigid_scale_error"] < 0.05
     assert m["detail_energy_ratio"] >= 0.8 and m["texture_factor_ms"] < 1000
     mesh = load_textured(out / "reshape-facade.obj")
-    assert mesh.materials == ["facade_retex0", "facade_end"]
+    assert mesh.materials == ["facade_atlas", "facade_end"] and m["texture_images"] == 1
     end = mesh.face_material == 1
     src = load_textured(SAMPLES / "reshape-facade.obj")
     np.testing.assert_array_equal(mesh.UV[np.unique(mesh.F[end])], src.UV[np.unique(src.F[src.face_material == 1])])
-    baked = load_image(out / "facade_retex0.png")
+    x, y, w, h = surf["atlas_box"]
+    atlas = load_image(out / surf["atlas"])
+    assert atlas.shape[0] == FACADE["size"] + h + 2 * PAD and atlas.shape[1] == max(FACADE["size"], w + 2 * PAD)
+    baked = atlas[y:y + h, x:x + w]
     n = FACADE["size"]
     assert baked.shape[1] == pytest.approx(2 * n, abs=2)
     x0, _, x1, _ = FACADE["door"]
@@ -321,7 +325,8 @@ def test_pipeline_stretch_mode_and_no_previews_and_determinism(tmp_path):
     assert load_textured(out / "reshape-facade.obj").materials == ["facade", "facade_end"]
     _, out_a = run(tmp_path, "a")
     _, out_b = run(tmp_path, "b", previews="summary")
-    assert (out_a / "facade_retex0.png").read_bytes() == (out_b / "facade_retex0.png").read_bytes()
+    name = "facade_atlas.png"
+    assert (out_a / name).read_bytes() == (out_b / name).read_bytes()
     assert (out_a / "texture").is_dir() and not (out_b / "texture").exists()
 
 
@@ -479,4 +484,18 @@ def test_real_house_door_and_window_surfaces(tmp_path, name, mode):
     assert rows, "no stretched door or window surface"
     assert np.mean([r[2] for r in rows]) <= np.mean([r[3] for r in rows]), rows
     again = load_textured(out / name)
-    assert len(again.materials) == len(mesh.materials) + report["metrics"]["texture_surfaces"]
+    assert len(again.materials) == len(mesh.materials) + 1 == 2  # one atlas for the one input material
+    assert report["metrics"]["texture_images"] == 1 and len(list(out.glob("*_atlas.png"))) == 1
+
+
+def test_atlas_packs_source_on_top_and_patches_on_shelves():
+    from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
+
+    src = np.zeros((8, 8, 3))
+    a, b = np.full((4, 10, 3), 0.5), np.full((6, 3, 3), 1.0)
+    atlas, top, (pa, pb) = pack_atlas(src, [a, b])
+    assert atlas.shape == (8 + 10 + 8, 14, 3)  # b is taller: first shelf; a does not fit beside it
+    assert (pb.x, pb.y, pb.w, pb.h) == (PAD, 8 + PAD, 3, 6) and (pa.x, pa.y) == (PAD, 8 + 10 + PAD)
+    assert atlas[pb.y - PAD, pb.x - PAD, 0] == 1.0 and atlas[pa.y + 3, pa.x + 9, 0] == 0.5
+    np.testing.assert_allclose(to_atlas(np.array([[0.0, 1.0], [1.0, 0.0]]), top, atlas.shape),
+                               [[0, 1], [8 / 14, 1 - 8 / 26]])

@@ -475,8 +475,10 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
         texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
         ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
                            bytes_each=_BYTES_PER_TEXEL)
-        entries, results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
-        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped))
+        results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
+        entries, boxes = RT.atlas_entries(sc, results, images)
+        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
+        ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
     with ctx.stage("texture_previews"):
         _texture_previews(ctx, cfg, results)
     return entries

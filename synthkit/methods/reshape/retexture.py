@@ -26,9 +26,11 @@ import numpy as np
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
+from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
-__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "texture_metrics", "params_of", "UNCHANGED_TOL", "WORST"]
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
+           "UNCHANGED_TOL", "WORST"]
 
 log = logging.getLogger("synthkit")
 
@@ -209,10 +211,16 @@ def _safe(name: str) -> str:
 
 
 def reshape_jobs(cfg, jobs, images, rng):
-    """Run every job: per piece the :class:`Retexture` entries, per surface its result and metrics.
-    A stage ValueError becomes an InputError naming the surface."""
-    params, analyses, entries, results = params_of(cfg), {}, {}, {}
+    """Run every job: per surface name ``(job, result, analysis)``; a surface mapping the same
+    texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
+    patch), shares its result. A stage ValueError becomes an InputError naming the surface."""
+    params, analyses, results, done = params_of(cfg), {}, {}, {}
     for job in jobs:
+        same = _job_key(job)
+        if same in done:
+            results[job.name] = (job, *results[done[same]][1:])
+            continue
+        done[same] = job.name
         key = (job.texture, job.toroidal)
         if key not in analyses:
             analyses[key] = analyse_texture(images[job.texture], wrap=job.toroidal, params=params, rng=rng)
@@ -223,22 +231,81 @@ def reshape_jobs(cfg, jobs, images, rng):
             if "max_side" in str(exc):
                 raise ConfigError(f"texture_reshape.max_side: surface {job.name}: {exc}") from None
             raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
-        UV = np.zeros((int(job.vertices.max()) + 1, 2))
-        UV[job.vertices] = res.UV
-        material = _safe(f"{job.material}_retex{len(results)}")
-        entries.setdefault(job.piece, []).append(
-            Retexture(job.faces, UV, material, f"{material}.png", res.texture))
         results[job.name] = (job, res, analyses[key])
-    return entries, results
+    return results
 
 
-def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict) -> dict:
-    """``surfaces`` (name -> metrics) and the worst case of each :data:`WORST` metric."""
+def _job_key(job) -> tuple:
+    """What makes two jobs bake the same patch: texture, wrap, texel corners, triangles and the
+    edge length ratios (rounded to 1e-6)."""
+    e = np.vstack([job.F[:, [0, 1]], job.F[:, [1, 2]], job.F[:, [2, 0]]])
+    ratio = np.round(job.ratio(e[:, 0], e[:, 1]), 6)
+    return (job.texture, job.toroidal, np.round(job.C, 6).tobytes(), job.F.tobytes(), ratio.tobytes())
+
+
+def _own_entry(job, res, k: int) -> Retexture:
+    """A surface written with its own material and PNG (toroidal: its UVs repeat the baked tile)."""
+    UV = np.zeros((int(job.vertices.max()) + 1, 2))
+    UV[job.vertices] = res.UV
+    material = _safe(f"{job.material}_retex{k}")
+    return Retexture(job.faces, UV, material, f"{material}.png", res.texture)
+
+
+def _untouched_faces(mesh, material, done, taken) -> np.ndarray:
+    """Faces of ``material`` not reshaped (``done``), with UVs in [0, 1] and no render vertex in
+    ``taken (#V,) bool``: they move into the atlas's source area."""
+    faces = np.setdiff1d(np.flatnonzero(mesh.face_material == mesh.materials.index(material)), done)
+    uv = mesh.UV[mesh.F[faces]]
+    ok = np.all(np.isfinite(uv) & (uv >= -1e-9) & (uv <= 1 + 1e-9), axis=(1, 2)) & ~taken[mesh.F[faces]].any(axis=1)
+    return faces[ok]
+
+
+def atlas_entries(sc, results, images) -> tuple[dict, dict]:
+    """The Retexture entries per piece index: per (piece, input material) one atlas (source on top,
+    every non-toroidal reshaped surface's patch below, :func:`texture.atlas.pack_atlas`) holding
+    the material's reshaped and untouched faces; toroidal surfaces (and a surface sharing a render
+    vertex with one already packed) keep their own PNG. Also per surface name its ``[x, y, w, h]``
+    box in its atlas (texels) and the atlas file."""
+    entries, boxes, groups = {}, {}, {}
+    for k, (name, (job, res, _)) in enumerate(results.items()):
+        if job.toroidal:
+            entries.setdefault(job.piece, []).append(_own_entry(job, res, k))
+        else:
+            groups.setdefault((job.piece, job.material), []).append((name, job, res))
+    for (p, material), items in groups.items():
+        mesh = sc.meshes[p]
+        patches = list({id(res): res.texture for _, _, res in items}.values())
+        atlas, spot0, spots = pack_atlas(images[items[0][1].texture], patches)
+        slot = {id(res): spots[i] for i, res in enumerate({id(r): r for _, _, r in items}.values())}
+        UV, taken, faces = np.zeros((len(mesh.V), 2)), np.zeros(len(mesh.V), bool), []
+        file = f"{_safe(material)}_atlas.png"
+        for name, job, res in items:
+            spot = slot[id(res)]
+            if taken[job.vertices].any():
+                entries.setdefault(p, []).append(_own_entry(job, res, len(boxes)))
+                continue
+            UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
+            taken[job.vertices] = True
+            faces.append(job.faces)
+            boxes[name] = ([spot.x, spot.y, spot.w, spot.h], file)
+        rest = _untouched_faces(mesh, material, np.concatenate(faces), taken)
+        corners = np.unique(mesh.F[rest])
+        UV[corners] = to_atlas(mesh.UV[corners], spot0, atlas.shape)
+        entries.setdefault(p, []).append(
+            Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas))
+    return entries, boxes
+
+
+def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict, boxes: dict) -> dict:
+    """``surfaces`` (name -> metrics, with its ``atlas`` file and ``atlas_box`` [x, y, w, h] when
+    packed) and the worst case of each :data:`WORST` metric."""
     surfaces = {}
     for name, (job, res, _) in results.items():
         m = dict(res.metrics)
         m["grid_nodes"] = m.pop("nodes")
         m.update(material=job.material, texture=job.texture.name, toroidal=job.toroidal)
+        if name in boxes:
+            m["atlas_box"], m["atlas"] = boxes[name]
         surfaces[name] = m
     out = {"surfaces": surfaces, "texture_surfaces": len(surfaces), "texture_notes": notes,
            "texture_untouched_surfaces": untouched, "texture_skipped": skipped}

@@ -337,8 +337,9 @@ class ReshapeConfig(RunConfig):
     parts: PartsSection = Field(default_factory=PartsSection)
     solver: SolverSection = Field(default_factory=SolverSection)
     baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
-    texture: Literal["reshape", "stretch"] = Field(
-        "reshape", description="reshape: each changed textured surface gets a reshaped, baked texture (section 4); "
+    texture: Literal["continue", "reshape", "stretch"] = Field(
+        "continue", description="continue: brick, siding and roof tiles keep their texel scale, the patch continued "
+        "by whole periods (surfaces whose map is not affine take reshape); reshape: the paper's section 4; "
         "stretch: UVs kept, the texture follows the geometry (the naive baseline).",
     )
     texture_reshape: TextureSection = Field(default_factory=TextureSection)

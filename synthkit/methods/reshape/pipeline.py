@@ -467,7 +467,7 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
     """The texture stage (``texture: reshape``): per piece index the Retexture entries; metrics
     ``surfaces`` and their worst case go into the report; previews of the largest surfaces."""
     ctx.metrics["texture"] = cfg.texture
-    if cfg.texture != "reshape":
+    if cfg.texture == "stretch":
         return {}
     with ctx.stage("texture"):
         images, skipped = {}, {}
@@ -494,7 +494,8 @@ def _texture_previews(ctx, cfg, results) -> None:
         res = item[1][1]
         return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
 
-    order = sorted(results.items(), key=distortion)[: cfg.texture_reshape.previews]
+    paper = {k: v for k, v in results.items() if v[2] is not None}
+    order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
     for name, (job, res, tex) in order:
         rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
         stem = f"texture/{RT._safe(name)}"

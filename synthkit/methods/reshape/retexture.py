@@ -27,6 +27,7 @@ from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
+from synthkit.methods.reshape.texture.extend import extend_surface
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
 __all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
@@ -53,7 +54,8 @@ WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max,
 class SurfaceJob:
     """One changed textured surface: its name, piece, faces ``(k,)`` (piece-local), render vertices
     ``(c,)`` (piece-local), material, texture path, corners ``C (c, 2)`` texels, triangles ``F (k, 3)``
-    and contour ``segments (S, 2)`` over them, edge length ratios (callable) and toroidal flag."""
+    and contour ``segments (S, 2)`` over them, edge length ratios (callable), toroidal flag and the
+    corners' world positions before ``P0 (c, 3)`` and after ``P1 (c, 3)``."""
 
     name: str
     piece: int
@@ -66,6 +68,8 @@ class SurfaceJob:
     segments: np.ndarray
     ratio: object
     toroidal: bool
+    P0: np.ndarray
+    P1: np.ndarray
 
 
 def params_of(cfg) -> TextureParams:
@@ -184,7 +188,7 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
         seg = _contour(Fl)
         seg = seg[np.linalg.norm(C[seg[:, 1]] - C[seg[:, 0]], axis=1) > 1e-9]  # duplicated corners
         jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, seg,
-                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal))
+                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal, a, b))
     return jobs, untouched
 
 
@@ -211,7 +215,9 @@ def _safe(name: str) -> str:
 
 
 def reshape_jobs(cfg, jobs, images, rng):
-    """Run every job: per surface name ``(job, result, analysis)``; a surface mapping the same
+    """Run every job: per surface name ``(job, result, analysis)``. With ``texture: continue`` a
+    non-toroidal surface whose map is affine is extended (:func:`texture.extend.extend_surface`,
+    analysis None), the others take the paper's reshape. A surface mapping the same
     texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
     patch), shares its result. A stage ValueError becomes an InputError naming the surface."""
     params, analyses, results, done = params_of(cfg), {}, {}, {}
@@ -221,6 +227,11 @@ def reshape_jobs(cfg, jobs, images, rng):
             results[job.name] = (job, *results[done[same]][1:])
             continue
         done[same] = job.name
+        if cfg.texture == "continue" and not job.toroidal:
+            ext = extend_surface(images[job.texture], job.C, job.F, job.P0, job.P1)
+            if ext is not None:
+                results[job.name] = (job, ext, None)
+                continue
         key = (job.texture, job.toroidal)
         if key not in analyses:
             analyses[key] = analyse_texture(images[job.texture], wrap=job.toroidal, params=params, rng=rng)
@@ -302,7 +313,7 @@ def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict, b
     surfaces = {}
     for name, (job, res, _) in results.items():
         m = dict(res.metrics)
-        m["grid_nodes"] = m.pop("nodes")
+        m["grid_nodes"] = m.pop("nodes", None)
         m.update(material=job.material, texture=job.texture.name, toroidal=job.toroidal)
         if name in boxes:
             m["atlas_box"], m["atlas"] = boxes[name]

@@ -1,0 +1,166 @@
+"""Materials continue instead of stretching (issue 23 item 4, beyond the paper's section 4).
+
+A surface of a house (a brick wall, a roof slope) maps its atlas patch with one affine map from
+world to texels. When the wall widens, :func:`extend_surface` keeps that map, anchored at the
+corner that moved least (a wall widened from its left end keeps its left texels; a wall carried
+up by a raise keeps all of them) and with the new surface turned back into the input's plane (a
+roof slope whose pitch changes): the new corners get the texels the input's map gives their new
+positions, so every world length keeps its texel length (texel scale 1), and the texels the
+patch does not hold are filled by continuing its content: each is read one or more whole periods
+back into the patch (:func:`periods`), so brick courses, siding boards and roof tiles repeat
+whole. Stochastic content (plaster, concrete) is continued the same way, by its strongest
+repetition shift, not synthesized by quilting. Copies are by whole texels: nothing is
+resampled. A surface whose map is not affine (bent over an angle edge, mirrored) returns None and
+goes through the paper's reshape instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+
+__all__ = ["Extended", "affine_map", "patch_mask", "periods", "extend_surface"]
+
+AFFINE_TOL = 0.75
+"""Largest misfit (texels) of the world-to-texel affine map of a surface that still counts as affine."""
+
+
+@dataclass
+class Extended:
+    """An extended surface: new ``UV (c, 2)`` of its corners in the patch, the patch ``(h, w, 3)``,
+    its metrics (``texel_scale_error``: mean |new texel length / world length over the input's - 1|
+    over the surface's edges, ``periods`` in texels, ``continued`` share of copied texels)."""
+
+    UV: np.ndarray
+    texture: np.ndarray
+    metrics: dict
+
+
+def affine_map(P: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares ``M (4, 2)`` with ``[P, 1] @ M ~ C`` for corners ``P (c, 3)`` and texels
+    ``C (c, 2)``, and its largest misfit (texels)."""
+    A = np.column_stack([P, np.ones(len(P))])
+    M = np.linalg.lstsq(A, C, rcond=None)[0]
+    return M, float(np.abs(A @ M - C).max()) if len(C) else 0.0
+
+
+def patch_mask(C: np.ndarray, F: np.ndarray, shape) -> np.ndarray:
+    """``(H, W) bool``: the texels inside the triangles ``F`` over texel corners ``C (c, 2)``,
+    shrunk by one texel (their border may hold a neighbour patch's texels)."""
+    mask = np.zeros(shape[:2], np.uint8)
+    for tri in F:
+        cv2.fillPoly(mask, [np.round(C[tri] * 16).astype(np.int32)], 1, shift=4)
+    return cv2.erode(mask, np.ones((3, 3), np.uint8)).astype(bool)
+
+
+def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int]:
+    """Strongest repetition shift ``(px, py)`` (texels) of ``img (H, W, 3)`` inside ``mask``: the
+    masked, normalised autocorrelation of the luminance over its bounding box: its largest value
+    past its first negative value (so the period is a whole brick course, not the smoothness of
+    neighbouring texels) and ``min_period``, up to half the box along each axis (half the box
+    when the correlation never turns negative)."""
+    ys, xs = np.nonzero(mask)
+    if not len(ys):
+        return 1, 1
+    box = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+    lum = img[box].mean(axis=2) if img.ndim == 3 else img[box]
+    m = mask[box].astype(np.float64)
+    lum = np.where(m > 0, lum - lum[m > 0].mean(), 0.0)
+    shape = [2 * s for s in lum.shape]
+    corr = np.fft.irfft2(np.abs(np.fft.rfft2(lum, shape)) ** 2, shape)
+    norm = np.fft.irfft2(np.abs(np.fft.rfft2(m, shape)) ** 2, shape)
+    r = corr / np.maximum(norm, 1.0) / max(float((lum ** 2).sum() / m.sum()), 1e-12)
+    out = []
+    for axis, n in ((1, lum.shape[1]), (0, lum.shape[0])):
+        line = r[0, :n] if axis == 1 else r[:n, 0]
+        hi = max(n // 2, min_period + 1)
+        dips = np.flatnonzero(line[:hi] < 0)
+        start = max(min_period, int(dips[0]) if len(dips) else hi)
+        seg = line[start:hi]
+        out.append(int(start + np.argmax(seg)) if len(seg) else max(n // 2, 1))
+    return out[0], out[1]
+
+
+def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
+    """Patch ``(h, w, 3)`` over the texel box ``box_new = (x0, y0, w, h)`` (source texel frame):
+    texels inside ``mask`` copied, others read whole ``period (px, py)`` steps back into it
+    (nearest source texel of the mask as a last resort); returns it and the share continued."""
+    x0, y0, w, h = box_new
+    H, W = mask.shape
+    X, Y = np.meshgrid(np.arange(x0, x0 + w), np.arange(y0, y0 + h))
+    sx, sy = X.copy(), Y.copy()
+    inside = _inside(mask, sx, sy)
+    continued = float(1 - inside.mean())
+    ys, xs = np.nonzero(mask)
+    cx, cy = xs.mean(), ys.mean()
+    for _ in range(4 * (w // max(period[0], 1) + h // max(period[1], 1) + 2)):
+        if inside.all():
+            break
+        out = ~inside
+        step_x = np.where(sx[out] > cx, -period[0], period[0])
+        step_y = np.where(sy[out] > cy, -period[1], period[1])
+        far_x = np.abs(sx[out] - cx) * (np.ptp(ys) + 1) >= np.abs(sy[out] - cy) * (np.ptp(xs) + 1)
+        sx[out] += np.where(far_x, step_x, 0)
+        sy[out] += np.where(far_x, 0, step_y)
+        inside = _inside(mask, sx, sy)
+    sx, sy = np.clip(sx, 0, W - 1), np.clip(sy, 0, H - 1)
+    if not inside.all():
+        near = distance_transform_edt(~mask, return_distances=False, return_indices=True)
+        bad = ~inside
+        sy[bad], sx[bad] = near[0][sy[bad], sx[bad]], near[1][sy[bad], sx[bad]]
+    return img[sy, sx], continued
+
+
+def _normal(P: np.ndarray) -> np.ndarray:
+    """Unit normal ``(3,)`` of the plane nearest the points ``P (c, 3)``."""
+    return np.linalg.svd(P - P.mean(axis=0))[2][-1]
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation ``(3, 3)`` taking unit vector ``a`` to ``b`` (or to ``-b``, whichever
+    is nearer: a plane's normal has no sign)."""
+    if a @ b < 0:
+        a = -a
+    v, c = np.cross(a, b), float(a @ b)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
+
+
+def _inside(mask, x, y) -> np.ndarray:
+    H, W = mask.shape
+    ok = (x >= 0) & (x < W) & (y >= 0) & (y < H)
+    out = np.zeros(x.shape, bool)
+    out[ok] = mask[y[ok], x[ok]]
+    return out
+
+
+def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray, P1: np.ndarray) -> Extended | None:
+    """The continued patch of a surface with texel corners ``C (c, 2)`` (x right, y down, in
+    ``img (H, W, 3)``), triangles ``F (k, 3)``, corner positions before ``P0 (c, 3)`` and after
+    ``P1 (c, 3)``; None when its world-to-texel map is not affine within :data:`AFFINE_TOL`."""
+    M, misfit = affine_map(P0, C)
+    if misfit > AFFINE_TOL:
+        return None
+    a = int(np.argmin(np.linalg.norm(P1 - P0, axis=1)))
+    Q1 = (P1 - P1[a]) @ _turn(_normal(P1), _normal(P0)).T + P0[a]
+    C1 = np.column_stack([Q1, np.ones(len(Q1))]) @ M
+    lo = np.floor(C1.min(axis=0)).astype(int)
+    hi = np.ceil(C1.max(axis=0)).astype(int)
+    w, h = (np.maximum(hi - lo, 1)).tolist()
+    mask = patch_mask(C, F, img.shape)
+    if not mask.any():
+        return None
+    period = periods(img, mask)
+    patch, continued = _fill(img, mask, (int(lo[0]), int(lo[1]), w, h), period)
+    UV = np.column_stack([(C1[:, 0] - lo[0]) / w, 1.0 - (C1[:, 1] - lo[1]) / h])
+    e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    world0, world1 = (np.linalg.norm(P[e[:, 1]] - P[e[:, 0]], axis=1) for P in (P0, P1))
+    tex0, tex1 = (np.linalg.norm(Q[e[:, 1]] - Q[e[:, 0]], axis=1) for Q in (C, C1))
+    ok = (world0 > 1e-12) & (world1 > 1e-12) & (tex0 > 0.5)
+    scale = (tex1[ok] / world1[ok]) / (tex0[ok] / world0[ok])
+    metrics = {"texel_scale_error": float(np.abs(scale - 1).mean()) if ok.any() else 0.0,
+               "periods": list(period), "continued": continued}
+    return Extended(UV, patch, metrics)

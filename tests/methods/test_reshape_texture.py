@@ -281,7 +281,9 @@ def test_toroidal_surface_keeps_whole_repetitions():
 # ---------------------------------------------------------------- the pipeline
 
 def run(tmp_path, name="facade", previews="all", **cfg):
+    """The facade widened 2x with the paper's texture reshape unless ``cfg`` says otherwise."""
     base = {"method": "reshape", "input": str(SAMPLES / "reshape-facade.obj"), "preview_size": 128,
+            "texture": "reshape",
             "handles": [{"half_space": {"axis": "x", "above": 3.99}, "displacement": [4, 0, 0]}],
             "fixed": [{"half_space": {"axis": "x", "below": 0.01}}]}
     path = tmp_path / f"{name}.yaml"
@@ -346,7 +348,8 @@ def _invoke(tmp_path, source: Path, **cfg):
     path = tmp_path / "bad.yaml"
     handles = [{"half_space": {"axis": "x", "above": 3.99}, "displacement": [4, 0, 0]}]
     path.write_text(yaml.safe_dump({"method": "reshape", "input": str(source), "handles": handles,
-                                    "fixed": [{"half_space": {"axis": "x", "below": 0.01}}], **cfg}))
+                                    "texture": "reshape", "fixed": [{"half_space": {"axis": "x", "below": 0.01}}],
+                                    **cfg}))
     result = CliRunner().invoke(cli, ["reshape", str(path), "--out", str(tmp_path / "o")])
     assert not (tmp_path / "o").exists()
     assert "Traceback" not in result.stderr
@@ -499,3 +502,74 @@ def test_atlas_packs_source_on_top_and_patches_on_shelves():
     assert atlas[pb.y - PAD, pb.x - PAD, 0] == 1.0 and atlas[pa.y + 3, pa.x + 9, 0] == 0.5
     np.testing.assert_allclose(to_atlas(np.array([[0.0, 1.0], [1.0, 0.0]]), top, atlas.shape),
                                [[0, 1], [8 / 14, 1 - 8 / 26]])
+
+
+# ---------------------------------------------------------------- materials continue (texture: continue)
+
+
+def test_periods_and_extend_surface_repeat_whole_stripes():
+    from synthkit.methods.reshape.texture.extend import extend_surface, periods
+
+    y, x = np.mgrid[:64, :64]
+    img = (((x % 8) < 3) ^ ((y % 16) < 5)).astype(np.float32)[..., None].repeat(3, axis=2)  # periods 8 and 16
+    mask = np.zeros((64, 64), bool)
+    mask[8:56, 8:56] = True
+    assert periods(img, mask) == (8, 16)
+    C = np.array([[8.0, 56.0], [56.0, 56.0], [56.0, 8.0], [8.0, 8.0]])  # texels (x right, y down)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    P0 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    P1 = P0 * [2.0, 1.0, 1.0]
+    ext = extend_surface(img, C, F, P0, P1)
+    assert ext.texture.shape[:2] == (48, 96) and ext.metrics["texel_scale_error"] < 1e-12
+    np.testing.assert_allclose(ext.UV[[0, 1, 2]], [[0, 0], [1, 0], [1, 1]], atol=1e-12)
+    np.testing.assert_array_equal(ext.texture[:, 8:], ext.texture[:, :-8])  # whole stripes, no stretch
+    np.testing.assert_array_equal(ext.texture[:, :48], img[8:56, 8:56])  # the patch itself untouched
+    u_shape = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 1, 1], [0, 1, 1], [1, 0, 1], [0, 0, 1]], float)
+    unfolded = np.array([[8, 56], [56, 56], [56, 40], [8, 40], [56, 24], [8, 24], [56, 8], [8, 8]], float)
+    assert extend_surface(img, unfolded, F, u_shape, u_shape) is None  # not affine: left to the paper's reshape
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
+@pytest.mark.parametrize("name, axis, factor", [("house1_baked.obj", "x", 1.3), ("house4_baked.obj", "y", 1.5)])
+def test_real_house_materials_continue(tmp_path, name, axis, factor):
+    source = HOUSES / name
+    report, out = run(tmp_path, "house", input=str(source), texture="continue", handles=[], fixed=[],
+                      scale={axis: factor}, preview_size=64, baseline=False, texture_reshape={"previews": 0})
+    m = report["metrics"]
+    continued = [s for s in m["surfaces"].values() if "texel_scale_error" in s]
+    assert len(continued) >= 0.7 * m["texture_surfaces"] and m["texture_images"] == 1
+    big = [s["texel_scale_error"] for s in continued if min(s["atlas_box"][2:]) >= 32]
+    assert max(big) < 0.05, big  # brick, siding, roof tiles keep their texel scale
+    src, again = load_textured(source), load_textured(out / name)
+    atlas = load_image(out / next(iter(continued))["atlas"])
+    texture = load_image(HOUSES / HOUSE_ATLAS[name])
+    root_faces = _root_faces(src)
+    e = src.F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 3, 2)
+    before, after = (np.linalg.norm(np.diff(M.V[e], axis=2)[:, :, 0], axis=2) for M in (src, again))
+    same = np.all(np.abs(after - before) <= 1e-3 * before + 1e-12, axis=1)
+    rows = np.flatnonzero(~root_faces & same)  # doors, windows, frames the geometry kept: the same texels
+    kept = [np.abs(_texel(texture, src.UV[src.F[f]].mean(axis=0)) - _texel(atlas, again.UV[again.F[f]].mean(axis=0)))
+            .max() <= 2 / 255 for f in rows]
+    # house4 raised: 320 of 376 faces (its pipes stretch), house1 widened: 308 of their 316 faces the same
+    assert len(rows) > 0.8 * (~root_faces).sum() and np.mean(kept) >= 0.95
+    door_scale = np.ptp(again.V[again.F[~root_faces]], axis=0) / np.ptp(src.V[src.F[~root_faces]], axis=0)
+    assert door_scale.min() > 0.97
+
+
+def _root_faces(mesh) -> np.ndarray:
+    """``(#F,) bool``: the faces of the largest part (walls and roof); the others are doors,
+    windows, frames, chimneys and pipes."""
+    from synthkit.methods.reshape.graph import build_graph
+    from synthkit.methods.reshape.parts import mesh_parts
+
+    size = float(np.linalg.norm(np.ptp(mesh.V, axis=0)))
+    g = build_graph(mesh.V, mesh.F, mesh.face_material, weld_tol=1e-6 * size)
+    part = mesh_parts(g.Fn, g.n_nodes)
+    return part[g.Fn[:, 0]] == np.argmax(np.bincount(part[part >= 0]))
+
+
+def _texel(img, uv) -> np.ndarray:
+    """The texel of ``img (H, W, 3)`` under ``uv (2,)`` (v up)."""
+    H, W = img.shape[:2]
+    return img[min(int((1 - uv[1]) * H), H - 1), min(int(uv[0] * W), W - 1)]

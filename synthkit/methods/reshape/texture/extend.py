@@ -147,8 +147,8 @@ def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray
     a = int(np.argmin(np.linalg.norm(P1 - P0, axis=1)))
     Q1 = (P1 - P1[a]) @ _turn(_normal(P1), _normal(P0)).T + P0[a]
     C1 = np.column_stack([Q1, np.ones(len(Q1))]) @ M
-    lo = np.floor(C1.min(axis=0)).astype(int)
-    hi = np.ceil(C1.max(axis=0)).astype(int)
+    lo = np.floor(C1.min(axis=0) + 1e-6).astype(int)
+    hi = np.ceil(C1.max(axis=0) - 1e-6).astype(int)
     w, h = (np.maximum(hi - lo, 1)).tolist()
     mask = patch_mask(C, F, img.shape)
     if not mask.any():

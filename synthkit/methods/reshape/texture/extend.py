@@ -10,7 +10,8 @@ patch does not hold are filled by continuing its content: each is read one or mo
 back into the patch (:func:`periods`), so brick courses, siding boards and roof tiles repeat
 whole. Stochastic content (plaster, concrete) is continued the same way, by its strongest
 repetition shift, not synthesized by quilting. Copies are by whole texels: nothing is
-resampled. A surface whose map is not affine (bent over an angle edge, mirrored) returns None and
+resampled; texels more than two texels outside the new triangles are black (they are never
+sampled, and compress). A surface whose map is not affine (bent over an angle edge, mirrored) returns None and
 goes through the paper's reshape instead.
 """
 
@@ -47,13 +48,13 @@ def affine_map(P: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, float]:
     return M, float(np.abs(A @ M - C).max()) if len(C) else 0.0
 
 
-def patch_mask(C: np.ndarray, F: np.ndarray, shape) -> np.ndarray:
+def patch_mask(C: np.ndarray, F: np.ndarray, shape, *, erode: bool = True) -> np.ndarray:
     """``(H, W) bool``: the texels inside the triangles ``F`` over texel corners ``C (c, 2)``,
-    shrunk by one texel (their border may hold a neighbour patch's texels)."""
+    shrunk by one texel with ``erode`` (their border may hold a neighbour patch's texels)."""
     mask = np.zeros(shape[:2], np.uint8)
     for tri in F:
         cv2.fillPoly(mask, [np.round(C[tri] * 16).astype(np.int32)], 1, shift=4)
-    return cv2.erode(mask, np.ones((3, 3), np.uint8)).astype(bool)
+    return (cv2.erode(mask, np.ones((3, 3), np.uint8)) if erode else mask).astype(bool)
 
 
 def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int]:
@@ -155,6 +156,8 @@ def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray
         return None
     period = periods(img, mask)
     patch, continued = _fill(img, mask, (int(lo[0]), int(lo[1]), w, h), period)
+    used = cv2.dilate(patch_mask(C1 - lo, F, (h + 2, w + 2), erode=False).astype(np.uint8), np.ones((5, 5), np.uint8))
+    patch[~used[:h, :w].astype(bool)] = 0.0
     UV = np.column_stack([(C1[:, 0] - lo[0]) / w, 1.0 - (C1[:, 1] - lo[1]) / h])
     e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     world0, world1 = (np.linalg.norm(P[e[:, 1]] - P[e[:, 0]], axis=1) for P in (P0, P1))

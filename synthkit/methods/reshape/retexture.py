@@ -27,7 +27,7 @@ from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
-from synthkit.methods.reshape.texture.extend import extend_surface
+from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
 __all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
@@ -227,8 +227,10 @@ def reshape_jobs(cfg, jobs, images, rng):
             results[job.name] = (job, *results[done[same]][1:])
             continue
         done[same] = job.name
-        if cfg.texture == "continue" and not job.toroidal:
-            ext = extend_surface(images[job.texture], job.C, job.F, job.P0, job.P1)
+        if cfg.texture == "continue":
+            img = images[job.texture]
+            ext = (extend_tiled(job.C, job.F, job.P0, job.P1, img.shape) if job.toroidal
+                   else extend_surface(img, job.C, job.F, job.P0, job.P1))
             if ext is not None:
                 results[job.name] = (job, ext, None)
                 continue
@@ -274,12 +276,16 @@ def _untouched_faces(mesh, material, done, taken) -> np.ndarray:
 def atlas_entries(sc, results, images) -> tuple[dict, dict]:
     """The Retexture entries per piece index: per (piece, input material) one atlas (source on top,
     every non-toroidal reshaped surface's patch below, :func:`texture.atlas.pack_atlas`) holding
-    the material's reshaped and untouched faces; toroidal surfaces (and a surface sharing a render
-    vertex with one already packed) keep their own PNG. Also per surface name its ``[x, y, w, h]``
+    the material's reshaped and untouched faces; toroidal surfaces continued by their UVs share one
+    copy of their tile per material (``<material>_tiled``); other toroidal surfaces (and a surface
+    sharing a render vertex with one already packed) keep their own PNG. Also per surface name its ``[x, y, w, h]``
     box in its atlas (texels) and the atlas file."""
     entries, boxes, groups = {}, {}, {}
+    tiled = {}
     for k, (name, (job, res, _)) in enumerate(results.items()):
-        if job.toroidal:
+        if job.toroidal and res.texture is None:
+            tiled.setdefault((job.piece, job.material), []).append((job, res))
+        elif job.toroidal:
             entries.setdefault(job.piece, []).append(_own_entry(job, res, k))
         else:
             groups.setdefault((job.piece, job.material), []).append((name, job, res))
@@ -304,6 +310,13 @@ def atlas_entries(sc, results, images) -> tuple[dict, dict]:
         UV[corners] = to_atlas(mesh.UV[corners], spot0, atlas.shape)
         entries.setdefault(p, []).append(
             Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas))
+    for (p, material), items in tiled.items():
+        UV = np.zeros((len(sc.meshes[p].V), 2))
+        for job, res in items:
+            UV[job.vertices] = res.UV
+        file = f"{_safe(material)}_tiled.png"
+        entries.setdefault(p, []).append(Retexture(np.concatenate([job.faces for job, _ in items]), UV, file[:-4],
+                                                   file, images[items[0][0].texture]))
     return entries, boxes
 
 

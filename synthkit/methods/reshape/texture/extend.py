@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-__all__ = ["Extended", "affine_map", "patch_mask", "periods", "extend_surface"]
+__all__ = ["Extended", "affine_map", "patch_mask", "periods", "extend_surface", "extend_tiled"]
 
 AFFINE_TOL = 0.75
 """Largest misfit (texels) of the world-to-texel affine map of a surface that still counts as affine."""
@@ -142,12 +142,9 @@ def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray
     """The continued patch of a surface with texel corners ``C (c, 2)`` (x right, y down, in
     ``img (H, W, 3)``), triangles ``F (k, 3)``, corner positions before ``P0 (c, 3)`` and after
     ``P1 (c, 3)``; None when its world-to-texel map is not affine within :data:`AFFINE_TOL`."""
-    M, misfit = affine_map(P0, C)
-    if misfit > AFFINE_TOL:
+    C1 = _kept_map(C, P0, P1)
+    if C1 is None:
         return None
-    a = int(np.argmin(np.linalg.norm(P1 - P0, axis=1)))
-    Q1 = (P1 - P1[a]) @ _turn(_normal(P1), _normal(P0)).T + P0[a]
-    C1 = np.column_stack([Q1, np.ones(len(Q1))]) @ M
     lo = np.floor(C1.min(axis=0) + 1e-6).astype(int)
     hi = np.ceil(C1.max(axis=0) - 1e-6).astype(int)
     w, h = (np.maximum(hi - lo, 1)).tolist()
@@ -159,11 +156,38 @@ def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray
     used = cv2.dilate(patch_mask(C1 - lo, F, (h + 2, w + 2), erode=False).astype(np.uint8), np.ones((5, 5), np.uint8))
     patch[~used[:h, :w].astype(bool)] = 0.0
     UV = np.column_stack([(C1[:, 0] - lo[0]) / w, 1.0 - (C1[:, 1] - lo[1]) / h])
+    return Extended(UV, patch, {**_scale_error(C, C1, F, P0, P1), "periods": list(period), "continued": continued})
+
+
+def _kept_map(C, P0, P1) -> np.ndarray | None:
+    """Texel corners ``(c, 2)`` the input's world-to-texel map gives the new corners ``P1``
+    (anchored at the least moved corner, turned back into the input's plane), or None."""
+    M, misfit = affine_map(P0, C)
+    if misfit > AFFINE_TOL:
+        return None
+    a = int(np.argmin(np.linalg.norm(P1 - P0, axis=1)))
+    Q1 = (P1 - P1[a]) @ _turn(_normal(P1), _normal(P0)).T + P0[a]
+    return np.column_stack([Q1, np.ones(len(Q1))]) @ M
+
+
+def extend_tiled(C: np.ndarray, F: np.ndarray, P0: np.ndarray, P1: np.ndarray, shape) -> Extended | None:
+    """A toroidal surface continued by its UVs alone: the new corners' UVs ``(c, 2)`` from the
+    kept map (texels of a texture of ``shape (H, W, ...)``), so the tile repeats more often and
+    keeps its size; no new texels (``texture`` None). None when the map is not affine."""
+    C1 = _kept_map(C, P0, P1)
+    if C1 is None:
+        return None
+    H, W = shape[:2]
+    UV = np.column_stack([C1[:, 0] / W, 1.0 - C1[:, 1] / H])
+    return Extended(UV, None, {**_scale_error(C, C1, F, P0, P1), "periods": None, "continued": None})
+
+
+def _scale_error(C, C1, F, P0, P1) -> dict:
+    """``texel_scale_error``: mean |texel length / world length after over before - 1| over the
+    edges of ``F`` (edges under half a texel left out)."""
     e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     world0, world1 = (np.linalg.norm(P[e[:, 1]] - P[e[:, 0]], axis=1) for P in (P0, P1))
     tex0, tex1 = (np.linalg.norm(Q[e[:, 1]] - Q[e[:, 0]], axis=1) for Q in (C, C1))
     ok = (world0 > 1e-12) & (world1 > 1e-12) & (tex0 > 0.5)
     scale = (tex1[ok] / world1[ok]) / (tex0[ok] / world0[ok])
-    metrics = {"texel_scale_error": float(np.abs(scale - 1).mean()) if ok.any() else 0.0,
-               "periods": list(period), "continued": continued}
-    return Extended(UV, patch, metrics)
+    return {"texel_scale_error": float(np.abs(scale - 1).mean()) if ok.any() else 0.0}

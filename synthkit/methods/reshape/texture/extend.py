@@ -25,6 +25,9 @@ from scipy.ndimage import distance_transform_edt
 
 __all__ = ["Extended", "affine_map", "patch_mask", "periods", "extend_surface", "extend_tiled"]
 
+SHIFTS = 12
+"""Whole periods tried each way when continuing a texel."""
+
 AFFINE_TOL = 0.75
 """Largest misfit (texels) of the world-to-texel affine map of a surface that still counts as affine."""
 
@@ -87,32 +90,32 @@ def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[
 
 def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     """Patch ``(h, w, 3)`` over the texel box ``box_new = (x0, y0, w, h)`` (source texel frame):
-    texels inside ``mask`` copied, others read whole ``period (px, py)`` steps back into it
-    (nearest source texel of the mask as a last resort); returns it and the share continued."""
+    texels inside ``mask`` copied, each other one read at the shortest whole-period offset
+    ``(i px, j py)`` that lands inside it (the nearest texel of the mask when none of up to
+    ``SHIFTS`` periods each way does); returns it and the share of texels continued."""
     x0, y0, w, h = box_new
     H, W = mask.shape
     X, Y = np.meshgrid(np.arange(x0, x0 + w), np.arange(y0, y0 + h))
-    sx, sy = X.copy(), Y.copy()
+    sx, sy = X.ravel(), Y.ravel()
     inside = _inside(mask, sx, sy)
     continued = float(1 - inside.mean())
-    ys, xs = np.nonzero(mask)
-    cx, cy = xs.mean(), ys.mean()
-    for _ in range(4 * (w // max(period[0], 1) + h // max(period[1], 1) + 2)):
-        if inside.all():
+    px, py = max(period[0], 1), max(period[1], 1)
+    k = np.arange(-SHIFTS, SHIFTS + 1)
+    offsets = np.array([(i * px, j * py) for i in k for j in k])
+    offsets = offsets[np.argsort(np.hypot(offsets[:, 0], offsets[:, 1]), kind="stable")][1:]
+    todo = np.flatnonzero(~inside)
+    for dx, dy in offsets:
+        if not len(todo):
             break
-        out = ~inside
-        step_x = np.where(sx[out] > cx, -period[0], period[0])
-        step_y = np.where(sy[out] > cy, -period[1], period[1])
-        far_x = np.abs(sx[out] - cx) * (np.ptp(ys) + 1) >= np.abs(sy[out] - cy) * (np.ptp(xs) + 1)
-        sx[out] += np.where(far_x, step_x, 0)
-        sy[out] += np.where(far_x, 0, step_y)
-        inside = _inside(mask, sx, sy)
+        hit = _inside(mask, sx[todo] + dx, sy[todo] + dy)
+        sx[todo[hit]] += dx
+        sy[todo[hit]] += dy
+        todo = todo[~hit]
     sx, sy = np.clip(sx, 0, W - 1), np.clip(sy, 0, H - 1)
-    if not inside.all():
+    if len(todo):
         near = distance_transform_edt(~mask, return_distances=False, return_indices=True)
-        bad = ~inside
-        sy[bad], sx[bad] = near[0][sy[bad], sx[bad]], near[1][sy[bad], sx[bad]]
-    return img[sy, sx], continued
+        sy[todo], sx[todo] = near[0][sy[todo], sx[todo]], near[1][sy[todo], sx[todo]]
+    return img[sy, sx].reshape(h, w, -1), continued
 
 
 def _normal(P: np.ndarray) -> np.ndarray:

@@ -514,7 +514,9 @@ def test_periods_and_extend_surface_repeat_whole_stripes():
     img = (((x % 8) < 3) ^ ((y % 16) < 5)).astype(np.float32)[..., None].repeat(3, axis=2)  # periods 8 and 16
     mask = np.zeros((64, 64), bool)
     mask[8:56, 8:56] = True
-    assert periods(img, mask) == (8, 16)
+    assert periods(img, mask) == (8, 0, 16)
+    bond = ((((x + 4 * ((y // 8) % 2)) % 8) < 3) | ((y % 8) == 0)).astype(np.float32)  # courses of 8, offset 4
+    assert periods(bond[..., None].repeat(3, axis=2), mask) in ((8, 4, 8), (8, -4, 8))
     C = np.array([[8.0, 56.0], [56.0, 56.0], [56.0, 8.0], [8.0, 8.0]])  # texels (x right, y down)
     F = np.array([[0, 1, 2], [0, 2, 3]])
     P0 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)

@@ -60,15 +60,18 @@ def patch_mask(C: np.ndarray, F: np.ndarray, shape, *, erode: bool = True) -> np
     return (cv2.erode(mask, np.ones((3, 3), np.uint8)) if erode else mask).astype(bool)
 
 
-def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int]:
-    """Strongest repetition shift ``(px, py)`` (texels) of ``img (H, W, 3)`` inside ``mask``: the
-    masked, normalised autocorrelation of the luminance over its bounding box: its largest value
-    past its first negative value (so the period is a whole brick course, not the smoothness of
-    neighbouring texels) and ``min_period``, up to half the box along each axis (half the box
-    when the correlation never turns negative)."""
+def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int, int]:
+    """The repetition lattice ``(px, qx, py)`` (texels) of ``img (H, W, 3)`` inside ``mask``: the
+    content repeats by ``(px, 0)`` along a row and by ``(qx, py)`` to the next course (``qx`` half a
+    brick in a running bond, 0 in a stack). From the masked, normalised autocorrelation of the
+    luminance over the mask's box (shifts whose overlap is under a quarter of the mask left out):
+    along each axis its largest value past its first negative value (a whole course, not the
+    smoothness of neighbouring texels) and ``min_period``, up to half the box (half the box when
+    it never turns negative); ``py`` and ``qx`` maximise it over the horizontal offsets too, ``qx``
+    reduced modulo ``px``."""
     ys, xs = np.nonzero(mask)
     if not len(ys):
-        return 1, 1
+        return 1, 0, 1
     box = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
     lum = img[box].mean(axis=2) if img.ndim == 3 else img[box]
     m = mask[box].astype(np.float64)
@@ -77,31 +80,45 @@ def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[
     corr = np.fft.irfft2(np.abs(np.fft.rfft2(lum, shape)) ** 2, shape)
     norm = np.fft.irfft2(np.abs(np.fft.rfft2(m, shape)) ** 2, shape)
     r = corr / np.maximum(norm, 1.0) / max(float((lum ** 2).sum() / m.sum()), 1e-12)
-    out = []
-    for axis, n in ((1, lum.shape[1]), (0, lum.shape[0])):
-        line = r[0, :n] if axis == 1 else r[:n, 0]
-        hi = max(n // 2, min_period + 1)
-        dips = np.flatnonzero(line[:hi] < 0)
-        start = max(min_period, int(dips[0]) if len(dips) else hi)
-        seg = line[start:hi]
-        out.append(int(start + np.argmax(seg)) if len(seg) else max(n // 2, 1))
-    return out[0], out[1]
+    r[norm < 0.25 * m.sum()] = -np.inf
+    h, w = lum.shape
+    px = _first_peak(r[0, :w], min_period, w)
+    dx = np.r_[0:w // 2, shape[1] - w // 2 + 1:shape[1]]
+    best = r[:h][:, dx].max(axis=1)
+    py = _first_peak(np.where(np.isfinite(best), best, -np.inf), min_period, h, line=r[:h, 0])
+    j = int(dx[np.argmax(r[py, dx])])
+    qx = j - shape[1] if j >= shape[1] // 2 else j
+    return px, (qx + px // 2) % px - px // 2, py
+
+
+def _first_peak(values, min_period: int, n: int, line=None) -> int:
+    """Shift of the largest of ``values`` past the first negative value of ``line`` (default
+    ``values``) and ``min_period``, below ``n // 2`` (``n // 2`` when there is none)."""
+    hi = max(n // 2, min_period + 1)
+    line = values if line is None else line
+    dips = np.flatnonzero(line[:hi] < 0)
+    start = max(min_period, int(dips[0]) if len(dips) else hi)
+    seg = values[start:hi]
+    if not len(seg) or not np.isfinite(seg).any():
+        return max(n // 2, 1)
+    return int(start + np.argmax(seg))
 
 
 def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     """Patch ``(h, w, 3)`` over the texel box ``box_new = (x0, y0, w, h)`` (source texel frame):
-    texels inside ``mask`` copied, each other one read at the shortest whole-period offset
-    ``(i px, j py)`` that lands inside it (the nearest texel of the mask when none of up to
-    ``SHIFTS`` periods each way does); returns it and the share of texels continued."""
+    texels inside ``mask`` copied, each other one read at the shortest lattice offset
+    ``i (px, 0) + j (qx, py)`` (``period``, :func:`periods`) that lands inside it (the nearest
+    texel of the mask when none of up to ``SHIFTS`` periods each way does); returns it and the
+    share of texels continued."""
     x0, y0, w, h = box_new
     H, W = mask.shape
     X, Y = np.meshgrid(np.arange(x0, x0 + w), np.arange(y0, y0 + h))
     sx, sy = X.ravel(), Y.ravel()
     inside = _inside(mask, sx, sy)
     continued = float(1 - inside.mean())
-    px, py = max(period[0], 1), max(period[1], 1)
+    px, qx, py = max(period[0], 1), period[1], max(period[2], 1)
     k = np.arange(-SHIFTS, SHIFTS + 1)
-    offsets = np.array([(i * px, j * py) for i in k for j in k])
+    offsets = np.array([(i * px + j * qx, j * py) for i in k for j in k])
     offsets = offsets[np.argsort(np.hypot(offsets[:, 0], offsets[:, 1]), kind="stable")][1:]
     todo = np.flatnonzero(~inside)
     for dx, dy in offsets:

@@ -474,6 +474,7 @@ def door_window_rows(report, mesh, atlas) -> list[tuple]:
     return rows
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
 @pytest.mark.parametrize("name, mode", [("house1_baked.obj", "widen"), ("house4_baked.obj", "raise")])
 def test_real_house_door_and_window_surfaces(tmp_path, name, mode):

@@ -102,11 +102,19 @@ class RegionTermSection(StrictModel):
         0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
     )
     concavity: float = Field(
-        1000.0,
+        1e5,
         ge=0,
         le=1e6,
         description="model: geodesic: extra length of a step across a concave edge, in mean edge lengths times "
         "1 - cos(bending angle) (0 = plain edge-graph distance).",
+    )
+    trust: float = Field(
+        2.0,
+        ge=0,
+        le=100,
+        description="model: geodesic: the term acts at a node only where its nearest region's strokes are more than "
+        "`trust` times nearer than the next region's (full weight from 1.5 x trust; between, the boundary term alone "
+        "places the cut); 0 = everywhere.",
     )
     clusters: int = Field(64, ge=1, le=1024, description="k-means clusters per region for model: color (paper: 64).")
 

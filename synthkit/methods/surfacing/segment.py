@@ -38,7 +38,8 @@ class Options:
     gamma: float = 1.0
     region_model: str = "geodesic"
     region_weight: float = 0.5
-    concavity: float = 1000.0
+    concavity: float = 1e5
+    trust: float = 2.0
     clusters: int = 64
     multires: bool = True
     coarsest_nodes: int = 8000
@@ -71,13 +72,16 @@ class Segmentation:
 
 
 def region_costs(graph: SegGraph, seeds, n_labels: int, opt: Options, *, colors=None, rng=None) -> np.ndarray:
-    """Node costs ``(n, L)`` of the region model (zeros for ``none``)."""
+    """Node costs ``(n, L)`` of the region model (zeros for ``none``); the geodesic model's are
+    scaled per node by :func:`regions.trust_weights`."""
     if opt.region_model == "none" or opt.region_weight == 0:
         return np.zeros((graph.n, n_labels))
     if opt.region_model == "geodesic":
         extra = opt.concavity * graph.lengths.mean() * np.where(graph.bend < 0, 1 - np.cos(graph.bend), 0.0)
         d = regions.geodesic_distances(graph.points, graph.edges, seeds, n_labels, extra=extra)
-    elif opt.region_model == "color":
+        trusted = regions.trust_weights(d, opt.trust)
+        return opt.region_weight * (graph.areas * trusted)[:, None] * regions.normalised_cost(d)
+    if opt.region_model == "color":
         if colors is None:
             raise ValueError("region model 'color' needs vertex colours or a texture, and the mesh has neither")
         d = regions.color_distances(colors, seeds, n_labels, clusters=opt.clusters, rng=rng)

@@ -67,7 +67,12 @@ class ImageStrokes(StrictModel):
         min_length=1, description="Region name -> the RGB (0-255) its strokes are painted in."
     )
     tolerance: float = Field(
-        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour."
+        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour "
+        "blended over the render (paint)."
+    )
+    opacity: float = Field(
+        0.25, gt=0, le=1, description="Least opacity of a painted pixel read as a stroke: a soft or semi-transparent "
+        "brush leaves render + alpha (colour - render); fainter pixels (brush edges) are ignored and counted."
     )
 
 

@@ -648,6 +648,49 @@ def test_psb_five_point_polyline_along_a_finger_is_accepted():
     assert len(got) > 20 and np.mean(region == np.bincount(region).argmax()) > 0.95
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("mtl", ["missing", "none", "present"])
+def test_region_meshes_invent_no_material(samples, tmp_path, mtl):
+    """An OBJ with UVs whose MTL is missing (or that names none): region meshes keep their UVs and
+    reference no material, and the run says so in one line; a real MTL is written beside them."""
+    from synthkit.io.images import save_image
+
+    mesh = trimesh.load(samples / "surfacing-figure.ply", process=False)
+    V, F = mesh.vertices, mesh.faces
+    head = {"missing": ["mtllib gone.mtl", "usemtl brick"], "none": [], "present": ["mtllib here.mtl", "usemtl brick"]}
+    if mtl == "present":
+        (tmp_path / "here.mtl").write_text("newmtl brick\nKd 1 1 1\nmap_Kd brick.png\n")
+        save_image(tmp_path / "brick.png", np.full((4, 4, 3), 0.5, np.float32))
+    body = [f"v {x} {y} {z}" for x, y, z in V] + [f"vt {x / 9} {y / 6.5}" for x, y, _ in V]
+    body += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in F]
+    (tmp_path / "fig.obj").write_text("\n".join(head[mtl] + body) + "\n")
+    cfg = write_config(tmp_path, "input: fig.obj\npreview_size: 64\nregions:\n  - {name: a, vertices: [730]}\n"
+                       "  - {name: b, vertices: [1509]}\n")
+    result = invoke(cfg, tmp_path / "out")
+    assert result.exit_code == 0, result.stderr
+    files = sorted(p.name for p in (tmp_path / "out" / "regions").iterdir())
+    text = (tmp_path / "out" / "regions" / "a.obj").read_text()
+    assert text.count("\nvt ") > 0
+    if mtl == "present":
+        assert "mtllib" in text and any(f.endswith(".mtl") for f in files)
+        return
+    assert files == ["a.obj", "b.obj"] and "mtllib" not in text and "usemtl" not in text
+    warnings = [line for line in result.stderr.splitlines() if "WARNING" in line]
+    assert len(warnings) == 1 and ("gone.mtl" in warnings[0] if mtl == "missing" else "no mtllib" in warnings[0])
+
+
+def test_lod_kernel_takes_the_shared_numba_cache_path():
+    """lod's kernel caches exactly when synthkit.core's do (flow.NUMBA_CACHE, with its read-only
+    fallback), never with its own cache=True."""
+    import inspect
+
+    from synthkit.core import flow
+    from synthkit.methods.surfacing import lod
+
+    assert "cache=True" not in inspect.getsource(lod)
+    assert type(lod._roots._cache) is type(flow._bk._cache)
+
+
 def test_collapse_map_equals_the_replayed_one():
     import fast_simplification
 

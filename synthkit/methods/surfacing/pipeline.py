@@ -22,10 +22,13 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+from pathlib import Path
 
 import cv2
 import numpy as np
 import trimesh
+from trimesh.exchange.obj import export_obj
 
 from synthkit import preview
 from synthkit.errors import ConfigError
@@ -230,12 +233,43 @@ def _export(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray)
     write_polylines_obj(ctx.path("cut", "cut.obj"), V, chain_edges(cut))
     suffix = cfg.input.suffix.lower()
     suffix = suffix if suffix in (".obj", ".ply", ".off", ".stl", ".glb") else ".ply"
+    bare = suffix == ".obj" and _invented_material(cfg.input, mesh)
     for k, region in enumerate(cfg.regions):
         sel = np.flatnonzero(seg.face_labels == k)
         if not len(sel):
             continue
         part = mesh.submesh([sel], append=True, repair=False)
-        save_mesh(part, ctx.path(f"region_{region.name}", f"regions/{region.name}{suffix}"))
+        path = ctx.path(f"region_{region.name}", f"regions/{region.name}{suffix}")
+        if bare:
+            _write_obj_without_material(part, path)
+        else:
+            save_mesh(part, path)
+
+
+def _invented_material(path, mesh: trimesh.Trimesh) -> bool:
+    """Whether ``mesh`` (loaded from the OBJ ``path``) carries a material trimesh made up: its UVs
+    come with a placeholder material when the OBJ names no material file (warned here, once) or one
+    that is missing (the loader has warned)."""
+    if getattr(mesh.visual, "kind", None) != "texture":
+        return False
+    names = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if line.startswith("mtllib"):
+                names += line.split()[1:]
+    if not names:
+        log.warning("%s: UVs without a material file (no mtllib): region meshes keep the UVs, with no material",
+                    path)
+    return not any((Path(path).parent / name).is_file() for name in names)
+
+
+def _write_obj_without_material(part: trimesh.Trimesh, path: Path) -> None:
+    """Write ``part`` as OBJ with its UVs but no ``mtllib``/``usemtl`` and no material files."""
+    text, _ = export_obj(part, include_texture=True, return_texture=True, write_texture=False)
+    lines = [line for line in text.splitlines() if not line.startswith(("mtllib ", "usemtl "))]
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)
 
 
 def _stroked_faces(F, seg: Segmentation) -> np.ndarray:

@@ -292,6 +292,35 @@ def test_no_accepted_patch_triangle_exceeds_the_bound():
         assert ds.max() <= bound + 1e-9 and (dets > 0).all()
 
 
+@pytest.mark.slow
+def test_up_error_exact_and_held_on_every_face_of_a_curved_target():
+    """orientation: up on the side of a sphere (the log map turns directions away from its centre):
+    every covered face's up maps within UP_TOLERANCE of the domain's +y."""
+    from synthkit.methods.surfacing.transfer.param import UP_TOLERANCE, up_error
+
+    P = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 0], [1, 0, 0], [0, 0, 1]]], float)
+    Q = P[:1, :, :2] @ rotation(np.radians(20)).T
+    np.testing.assert_allclose(up_error(P[:1], Q, np.array([0, 1.0, 0]), signed=True), [-20.0])
+    assert np.isnan(up_error(P[1:], P[:1, :, :2], np.array([0, 1.0, 0])))[0]  # the up is the normal
+    V, F, colors = sample.stripes(30)
+    S, G = sample.sphere(4)
+    side = np.flatnonzero(np.abs(S[G].mean(axis=1)[:, 1]) < 0.6)
+    errors = []
+    for hold in (False, True):
+        src = make_surface(V, F, np.arange(len(F)), Signal("color", values=(colors / 255.0)[F]))
+        tgt = make_surface(S, G, side, None, largest=False, margin=0.6)
+        if hold:
+            tgt.orient((0.0, 1.0, 0.0))
+            src.orient((0.0, 1.0, 0.0))
+        res = synthesize(tgt, src, Options(patch_radius=0.6, max_patches=30, fixed_orientation=True),
+                         rng=np.random.default_rng(1))
+        cov = res.patch_of >= 0
+        assert cov.mean() > 0.95
+        errors.append(up_error(tgt.V[tgt.F[cov]], res.corner_uv[cov], np.array([0, 1.0, 0])))
+    assert np.nanmax(errors[0]) > UP_TOLERANCE  # only the seeds level: the patches tilt
+    assert np.nanmax(errors[1]) <= UP_TOLERANCE + 1e-9
+
+
 def test_geometry_transfer_keeps_rms_and_wavelength_and_the_smooth_shape(tmp_path):
     amplitude, wavelength = 0.03, 0.4
     V, F = sample.bumps(60, amplitude=amplitude, wavelength=wavelength)
@@ -483,13 +512,17 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
     B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
     n = np.cross(A[..., 0], A[..., 1])
+    area = 0.5 * np.linalg.norm(n, axis=1)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
     walls = np.linalg.norm(up, axis=1) > 0.5
     J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
     d = np.einsum("nij,nj->ni", J, up)
     angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
-    assert np.mean(angle < 10) >= 0.85, np.percentile(angle, [50, 90])  # measured 0.91 (free orientation: 0.07)
+    level = area[walls][angle < 10].sum() / area[walls].sum()
+    # issue 29: at least 95% of the vertical area within 10 degrees; measured 1.000 (0.808 when only the
+    # seed was held level; free orientation: 0.07 of the faces)
+    assert level >= 0.95, np.percentile(angle, [50, 90, 99])
     assert m["seam_cost"]["final"] < m["baseline_seam_cost"]
     if m["seam_ratio"] > 0.5:  # the known-answer goal (at most half the random/no-trim baseline), missed here
         pytest.xfail(f"issue 11 seam goal missed on tudorhouse: seam ratio {m['seam_ratio']:.2f} > 0.5 (its plaster "

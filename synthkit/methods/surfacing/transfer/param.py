@@ -16,6 +16,15 @@ piece connected to the seed face; among overlapping accepted faces (a centroid s
 another accepted triangle) the one farther from the origin is dropped. A target face is accepted
 only when its corners and centroid lie inside the accepted source triangles (the containment test
 of the paper), so every target point maps into the source patch.
+
+With ``orientation: up`` (a surface with ``up`` set) the orientation is held on every face, not
+only at the seed: a log map (or an unfolding) turns directions away from its centre (holonomy on
+curved parts, the vector heat method's angular error on coarse meshes with large triangles), so a
+patch laid level at its seed can tilt 15-20 degrees at its rim and more across a corner. A face
+whose up direction (``up`` projected on the face) maps more than ``UP_TOLERANCE`` (10 degrees) away
+from the domain's +y is not accepted, on either surface; it is left to a later patch seeded nearer
+to it, which is level there by construction. Faces nearly perpendicular to ``up`` (less than half
+of it in their plane: floors, roofs flatter than 30 degrees) have no up direction and are not tested.
 """
 
 from __future__ import annotations
@@ -29,7 +38,10 @@ from scipy.spatial import cKDTree
 
 from synthkit.methods.surfacing.transfer.surface import Surface
 
-__all__ = ["Locator", "Patch", "distortion", "mutual_patch", "rotation"]
+__all__ = ["Locator", "Patch", "distortion", "mutual_patch", "rotation", "up_error", "UP_TOLERANCE"]
+
+UP_TOLERANCE = 10.0
+"""Degrees: the largest turn of a face's up direction in the domain with ``orientation: up``."""
 
 
 def rotation(theta: float) -> np.ndarray:
@@ -60,6 +72,21 @@ def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(divide="ignore"):
         dist = np.maximum(s[:, 0], 1.0 / s[:, 1])
     return np.where(ok & np.isfinite(dist), dist, np.inf), det
+
+
+def up_error(P: np.ndarray, Q: np.ndarray, up: np.ndarray, *, signed: bool = False) -> np.ndarray:
+    """Angle in degrees ``(n,)`` between the domain image of ``up (3,)`` projected on each triangle
+    ``P (n, 3, 3)`` (mapped affinely to ``Q (n, 3, 2)``) and the domain's +y (``signed``: positive
+    towards +x, else its absolute value); NaN where less than half of ``up`` lies in the triangle's
+    plane."""
+    A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
+    B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
+    n = np.cross(A[..., 0], A[..., 1])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    t = up[None, :] - (n @ up)[:, None] * n
+    d = np.einsum("nij,nj->ni", B @ np.linalg.pinv(A), t)
+    angle = np.degrees(np.arctan2(d[:, 0] if signed else np.abs(d[:, 0]), d[:, 1]))
+    return np.where(np.linalg.norm(t, axis=1) >= 0.5, angle, np.nan)
 
 
 class Locator:
@@ -229,6 +256,9 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
     dist, det = distortion(surface.V[F[cand]], U[F[cand]] / scale)
     ok = np.zeros(len(F), bool)
     ok[cand] = (dist <= bound) & (det > 0)
+    if surface.up is not None:
+        with np.errstate(invalid="ignore"):
+            ok[cand] &= ~(up_error(surface.V[F[cand]], U[F[cand]], surface.up) > UP_TOLERANCE)
     ok = _piece(surface.pairs, ok, seed)
     faces = np.flatnonzero(ok)
     keep = _drop_overlaps(U[F[faces]], faces)
@@ -241,13 +271,24 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
     return faces, d[faces]
 
 
+def _level(surface: Surface, U: np.ndarray, face: int) -> np.ndarray:
+    """``U (#V, 2)`` turned about the origin so that ``face``'s up direction maps exactly to +y (the
+    log map's frame is the seed vertex's tangent plane, a few degrees off the face's at a crease);
+    unchanged without ``surface.up`` or where the face has no up direction."""
+    if surface.up is None:
+        return U
+    alpha = up_error(surface.V[surface.F[[face]]], U[surface.F[[face]]], surface.up, signed=True)[0]
+    return U if not np.isfinite(alpha) else U @ rotation(np.radians(alpha)).T
+
+
 def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, theta: float, *,
                  radius: float, bound: float, scale: float) -> Patch | None:
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
     the seed face itself cannot be placed within the bound inside the source patch."""
-    Ut = _centred_log_map(target, seed, radius=radius, bound=bound)
-    Us = scale * (_centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound) @ rotation(-theta).T)
+    Ut = _level(target, _centred_log_map(target, seed, radius=radius, bound=bound), seed)
+    Us = _level(source, _centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound), source_face)
+    Us = scale * (Us @ rotation(-theta).T)
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):
         return None

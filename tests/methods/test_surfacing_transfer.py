@@ -321,6 +321,40 @@ def test_up_error_exact_and_held_on_every_face_of_a_curved_target():
     assert np.nanmax(errors[1]) <= UP_TOLERANCE + 1e-9
 
 
+@pytest.mark.slow
+def test_subdivide_keeps_the_targets_texture(tmp_path):
+    """extraction.subdivide: the faces outside the region keep the target's own texture (material
+    'original', UVs interpolated into the children), not a bare material."""
+    from synthkit.io.images import save_image
+
+    n = 8
+    xs = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(xs, xs)
+    V = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    q = np.arange(n * n).reshape(n, n) // n * (n + 1) + np.arange(n * n).reshape(n, n) % n
+    F = np.concatenate([np.c_[q.ravel(), q.ravel() + 1, q.ravel() + n + 2], np.c_[q.ravel(), q.ravel() + n + 2,
+                                                                                 q.ravel() + n + 1]])
+    rng = np.random.default_rng(0)
+    save_image(tmp_path / "tex.png", rng.random((32, 32, 3)).astype(np.float32))
+    (tmp_path / "plane.mtl").write_text("newmtl skin\nKd 1 1 1\nmap_Kd tex.png\n")
+    lines = ["mtllib plane.mtl", "usemtl skin"] + [f"v {x} {y} {z}" for x, y, z in V]
+    lines += [f"vt {x} {y}" for x, y, _ in V] + [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in F]
+    (tmp_path / "plane.obj").write_text("\n".join(lines) + "\n")
+    region = V[F].mean(axis=1)[:, 0] < 0.5
+    (tmp_path / "half.seg").write_text("".join(f"{int(not r)}\n" for r in region))
+    pair = {"target": {"labels": "half.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(tmp_path / "tex.png"), "width": 1.0}}
+    cfg = write_config(tmp_path, "sub", top={"input": str(tmp_path / "plane.obj")}, pairs=[pair],
+                       synthesis={"patch_radius": 0.2}, extraction={"subdivide": 1}, baseline=False)
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    own = obj.face_material == obj.materials.index("original")
+    assert own.sum() == 4 * (~region).sum()
+    np.testing.assert_allclose(uv[own], obj.V[obj.F[own]][..., :2], atol=1e-6)  # this plane's UVs are (x, y)
+    assert (tmp_path / "out" / "original.png").is_file()
+
+
 def test_geometry_transfer_keeps_rms_and_wavelength_and_the_smooth_shape(tmp_path):
     amplitude, wavelength = 0.03, 0.4
     V, F = sample.bumps(60, amplitude=amplitude, wavelength=wavelength)

@@ -260,13 +260,29 @@ def _consistent_winding(V, F) -> tuple[np.ndarray, np.ndarray]:
     return G, (G != F).any(axis=1)
 
 
+def _child_uvs(P: np.ndarray, uv: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Corner UVs ``(n, 3, 2)`` of child triangles ``C (n, 3, 3)`` lying in their parents ``P (n, 3, 3)``
+    whose corner UVs are ``uv (n, 3, 2)``: each corner's barycentric coordinates in its parent (exact
+    for midpoint subdivision), so a subdivided target keeps its texture (seams included, UVs are per
+    corner)."""
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    den = np.where(np.abs(d11 * d22 - d12 * d12) > 1e-300, d11 * d22 - d12 * d12, 1e-300)
+    r = C - P[:, :1]
+    r1, r2 = np.einsum("nkd,nd->nk", r, e1), np.einsum("nkd,nd->nk", r, e2)
+    b1 = (d22[:, None] * r1 - d12[:, None] * r2) / den[:, None]
+    b2 = (d11[:, None] * r2 - d12[:, None] * r1) / den[:, None]
+    bary = np.stack([1 - b1 - b2, b1, b2], axis=2)  # (n, 3 child corners, 3 parent corners)
+    return np.einsum("nkj,njd->nkd", bary, uv)
+
+
 def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     from synthkit.core.mesh import weld
     from synthkit.methods.surfacing.pipeline import mesh_colors
 
     colors = mesh_colors(mesh)
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-    tex = texture_of(mesh) if cfg.transfer.extraction.subdivide == 0 else None
+    tex = texture_of(mesh)
     original, texture = (tex[0][F], tex[1]) if tex is not None else (None, None)
     if mesh.visual.kind == "texture":
         _, _, o2n = weld(V, F, 1e-7 * float(np.linalg.norm(np.ptp(V, axis=0))), return_index=True)
@@ -280,11 +296,13 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     for _ in range(cfg.transfer.extraction.subdivide):
         if colors is not None:  # trimesh returns attributes or the face index, not both
             colors = trimesh.remesh.subdivide(V, F, vertex_attributes={"c": colors})[2]["c"]
-        V, F, children = trimesh.remesh.subdivide(V, F, return_index=True)
-        new_parent = np.empty(len(F), np.int64)
+        V2, F2, children = trimesh.remesh.subdivide(V, F, return_index=True)
+        step = np.empty(len(F2), np.int64)
         for old, new in children.items():
-            new_parent[new] = parent[old]
-        parent = new_parent
+            step[new] = old
+        if original is not None:
+            original = _child_uvs(V[F[step]], original[step], V2[F2])
+        V, F, parent = V2, F2, parent[step]
     return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors, original, texture)
 
 

@@ -9,7 +9,9 @@ the smaller area: 0.6 units). Measured in one process:
 - the whole transfer (surfaces with their log-map solvers, synthesis to coverage and until the
   seam cost stops falling, extraction with the kernel blend), seconds per step kind;
 - the random-matching baseline (``matching: random``, same trimming), and the random/no-trim
-  baseline of the quality check with the same number of patches; their seam costs beside ours.
+  baseline of the quality check with the same number of patches; their seam costs beside ours;
+- the parameterization step with the per-triangle distortion as it was before issue 29 (an SVD
+  per 2 x 2 Jacobian, :func:`svd_distortion` here) against the closed form, same seed and result.
 
 The paper's figure: "usually a few minutes" offline on a 1.5 GHz PC, dominated by the
 parameterization, then by patch finding. Goals on this machine: the whole transfer <= 60 s,
@@ -30,6 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import print_table, record, write_results  # noqa: E402
+from synthkit.methods.surfacing.transfer import param  # noqa: E402
 from synthkit.methods.surfacing.transfer.extract import corner_values, vertex_values  # noqa: E402
 from synthkit.methods.surfacing.transfer.fans import build_index, make_cloud  # noqa: E402
 from synthkit.methods.surfacing.transfer.surface import Signal, make_surface  # noqa: E402
@@ -63,6 +66,46 @@ def transfer(target_mesh, source_mesh, opt: Options, seed: int):
     return time.perf_counter() - t, res
 
 
+def svd_distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`param.distortion` as it was before issue 29 (``np.linalg.svd`` per Jacobian), the
+    baseline of the parameterization timing."""
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    l1 = np.linalg.norm(e1, axis=1)
+    t1 = e1 / np.maximum(l1, 1e-300)[:, None]
+    x2 = (e2 * t1).sum(axis=1)
+    y2 = np.linalg.norm(e2 - x2[:, None] * t1, axis=1)
+    q1, q2 = Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]
+    det_p = l1 * y2
+    ok = det_p > 1e-300
+    inv_det = np.where(ok, 1.0 / np.where(ok, det_p, 1.0), 0.0)
+    J = np.empty((len(P), 2, 2))
+    J[:, :, 0] = q1 * (y2 * inv_det)[:, None]
+    J[:, :, 1] = (q2 * l1[:, None] - q1 * x2[:, None]) * inv_det[:, None]
+    s = np.linalg.svd(J, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        dist = np.maximum(s[:, 0], 1.0 / s[:, 1])
+    return np.where(ok & np.isfinite(dist), dist, np.inf), np.linalg.det(J)
+
+
+def parameterize_speed(target_mesh, source_mesh, opt: Options, res) -> None:
+    """Parameterization seconds with :func:`svd_distortion` (before) and the closed form (after),
+    alternated twice in this process; the same patches either way."""
+    fast = param.distortion
+    runs = {"svd": [], "closed form": []}
+    for _ in range(2):
+        for name, fn in (("svd", svd_distortion), ("closed form", fast)):
+            param.distortion = fn
+            try:
+                _, again = transfer(target_mesh, source_mesh, opt, 0)
+            finally:
+                param.distortion = fast
+            assert len(again.patches) == len(res.patches)
+            runs[name].append(again.timings["parameterize"])
+    before, after = min(runs["svd"]), min(runs["closed form"])
+    print(f"parameterize: svd {runs['svd']} s, closed form {runs['closed form']} s", file=sys.stderr)
+    record(AREA, "  parameterize, closed-form distortion", after, "s", baseline=before)
+
+
 def main() -> int:
     rng = np.random.default_rng(0)
     target_mesh = sample.sphere(5)
@@ -91,6 +134,7 @@ def main() -> int:
     record(AREA, "seam cost (random + no trim)", res_none.seam_cost[-1], "")
     cov = res.patch_of >= 0
     record(AREA, "distortion max (bound 2)", float(res.distortion[cov].max()), "", goal=2.0)
+    parameterize_speed(target_mesh, source_mesh, base_opt, res)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}")
     return 0

@@ -69,18 +69,7 @@ def transfer(target_mesh, source_mesh, opt: Options, seed: int):
 def svd_distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`param.distortion` as it was before issue 29 (``np.linalg.svd`` per Jacobian), the
     baseline of the parameterization timing."""
-    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
-    l1 = np.linalg.norm(e1, axis=1)
-    t1 = e1 / np.maximum(l1, 1e-300)[:, None]
-    x2 = (e2 * t1).sum(axis=1)
-    y2 = np.linalg.norm(e2 - x2[:, None] * t1, axis=1)
-    q1, q2 = Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]
-    det_p = l1 * y2
-    ok = det_p > 1e-300
-    inv_det = np.where(ok, 1.0 / np.where(ok, det_p, 1.0), 0.0)
-    J = np.empty((len(P), 2, 2))
-    J[:, :, 0] = q1 * (y2 * inv_det)[:, None]
-    J[:, :, 1] = (q2 * l1[:, None] - q1 * x2[:, None]) * inv_det[:, None]
+    J, ok = param.jacobians(P, Q)
     s = np.linalg.svd(J, compute_uv=False)
     with np.errstate(divide="ignore"):
         dist = np.maximum(s[:, 0], 1.0 / s[:, 1])

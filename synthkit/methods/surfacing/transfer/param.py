@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.methods.surfacing.transfer.surface import Surface
 
-__all__ = ["Locator", "Patch", "distortion", "mutual_patch", "rotation", "singular_values_2x2", "up_error",
+__all__ = ["Locator", "Patch", "distortion", "jacobians", "mutual_patch", "rotation", "singular_values_2x2", "up_error",
            "UP_TOLERANCE"]
 
 UP_TOLERANCE = 10.0
@@ -51,10 +51,10 @@ def rotation(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distortion ``max(s1, 1 / s2)`` ``(n,)`` of the affine maps from triangles ``P (n, 3, 3)`` to
-    ``Q (n, 3, 2)`` and their Jacobian determinants ``(n,)`` (negative: flipped; the 3-D triangle's
-    own frame follows its right-hand normal). Degenerate triangles get ``inf``."""
+def jacobians(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians ``(n, 2, 2)`` of the affine maps from triangles ``P (n, 3, 3)`` (in the frame of
+    their first edge and right-hand normal) to ``Q (n, 3, 2)``, and the mask ``(n,)`` of
+    non-degenerate triangles (zeros elsewhere)."""
     e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     l1 = np.linalg.norm(e1, axis=1)
     t1 = e1 / np.maximum(l1, 1e-300)[:, None]
@@ -65,9 +65,18 @@ def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ok = det_p > 1e-300
     inv_det = np.where(ok, 1.0 / np.where(ok, det_p, 1.0), 0.0)
     # J = [q1 q2] [[l1, x2], [0, y2]]^-1
-    a, c = q1[:, 0] * y2 * inv_det, q1[:, 1] * y2 * inv_det  # J = [[a, b], [c, d]]
-    b = (q2[:, 0] * l1 - q1[:, 0] * x2) * inv_det
-    d = (q2[:, 1] * l1 - q1[:, 1] * x2) * inv_det
+    J = np.empty((len(P), 2, 2))
+    J[:, :, 0] = q1 * (y2 * inv_det)[:, None]
+    J[:, :, 1] = (q2 * l1[:, None] - q1 * x2[:, None]) * inv_det[:, None]
+    return J, ok
+
+
+def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distortion ``max(s1, 1 / s2)`` ``(n,)`` of the affine maps from triangles ``P (n, 3, 3)`` to
+    ``Q (n, 3, 2)`` and their Jacobian determinants ``(n,)`` (negative: flipped; the 3-D triangle's
+    own frame follows its right-hand normal). Degenerate triangles get ``inf``."""
+    J, ok = jacobians(P, Q)
+    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
     s1, s2 = singular_values_2x2(a, b, c, d)
     with np.errstate(divide="ignore"):
         dist = np.maximum(s1, 1.0 / s2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from synthkit.io.segmentation import read_seg
 from synthkit.methods.surfacing import measures
 from synthkit.methods.surfacing import solve as solve_mod
 from synthkit.methods.surfacing.graph import boundary_cost, build_graph, face_labels_from_vertices
-from synthkit.methods.surfacing.regions import normalised_cost, trust_weights
+from synthkit.methods.surfacing.regions import normalised_cost, trust_weights, walled_off
 from synthkit.methods.surfacing.segment import Options, chain_edges, cut_edges, segment
 from synthkit.methods.surfacing.solve import Problem, build_hierarchy, contract, cut_cost, solve_labels
 from synthkit.methods.surfacing.strokes import graph_seeds
@@ -214,6 +215,31 @@ def test_three_or_more_parts_recovered(figure):
     res = segment(V, F, vo, fo, 4, Options())
     assert res.solver.startswith("alpha-expansion")
     assert min(iou(res.face_labels, part, k) for k in range(4)) >= 0.95
+
+
+def test_walled_off_parts_take_only_their_own_strokes():
+    # a path 0-1-2-3-4 with a wall between 1 and 2 and between 3 and 4: parts {0, 1}, {2, 3}, {4}
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    walls = np.array([False, True, False, True])
+    seeds = np.array([0, -1, 1, 2, -1])
+    got = walled_off(5, edges, walls, seeds, 3)
+    np.testing.assert_array_equal(got, [[0, 1, 1], [0, 1, 1], [1, 0, 0], [1, 0, 0], [0, 0, 0]])
+
+
+def test_no_leak_across_the_creases_around_head_and_arms(figure):
+    """The body stroked along its whole front, one vertex for the head and each arm: the plain
+    geodesic term trusted everywhere lets the body take 410 faces of head and arms; the walls (the
+    closed concave creases where they meet the body) keep every part to its own strokes."""
+    V, F, part, strokes = figure
+    front = np.flatnonzero(np.isclose(V[:, 2], 2.0) & (V[:, 1] > 0.2) & (V[:, 1] < 4.9) & (V[:, 0] > 3.1)
+                           & (V[:, 0] < 5.9))
+    vo, fo = owners(V, F, vertex_sets=[front, [strokes[1]], [strokes[2]], [strokes[3]]])
+    plain = Options(concavity=0.0, trust=0.0, region_weight=2.0)
+    leaky = segment(V, F, vo, fo, 4, replace(plain, wall_deg=180.0), rng=0).face_labels
+    assert ((leaky == 0) & (part != 0)).sum() > 300
+    walled = segment(V, F, vo, fo, 4, plain, rng=0).face_labels
+    np.testing.assert_array_equal(walled, part)
+    np.testing.assert_array_equal(segment(V, F, vo, fo, 4, Options(), rng=0).face_labels, part)
 
 
 def test_paper_energy_shrinks_around_small_strokes(figure):

@@ -121,6 +121,13 @@ class RegionTermSection(StrictModel):
         "`trust` times nearer than the next region's (full weight from 1.5 x trust; between, the boundary term alone "
         "places the cut); 0 = everywhere.",
     )
+    wall_deg: float = Field(
+        30.0,
+        ge=0,
+        le=180,
+        description="model: geodesic or color: a part closed off by concave creases sharper than this (degrees) "
+        "that holds strokes takes only the regions stroked in it (no leak across a strong crease); 180 = off.",
+    )
     clusters: int = Field(64, ge=1, le=1024, description="k-means clusters per region for model: color (paper: 64).")
 
 

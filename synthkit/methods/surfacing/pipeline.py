@@ -57,7 +57,8 @@ def options_of(cfg: SurfacingConfig) -> Options:
     m, r = cfg.multires, cfg.region_term
     return Options(
         graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
-        region_weight=r.weight, concavity=r.concavity, trust=r.trust, clusters=r.clusters, multires=m.enabled,
+        region_weight=r.weight, concavity=r.concavity, trust=r.trust, wall_deg=r.wall_deg, clusters=r.clusters,
+        multires=m.enabled,
         coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
         crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
     )

@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-__all__ = ["normalised_cost", "geodesic_distances", "color_distances", "trust_weights"]
+__all__ = ["normalised_cost", "geodesic_distances", "color_distances", "trust_weights", "walled_off"]
 
 
 def normalised_cost(d) -> np.ndarray:
@@ -66,6 +66,20 @@ def trust_weights(d, trust: float) -> np.ndarray:
         rho = np.where(two[:, 0] > 0, two[:, 1] / two[:, 0], np.inf)
     rho = np.where(np.isinf(two[:, 0]), 1.0, rho)  # no stroke reachable: no evidence
     return np.clip((rho - trust) / (0.5 * trust), 0.0, 1.0)
+
+
+def walled_off(n: int, edges, walls, seeds, n_labels: int) -> np.ndarray:
+    """``(n, L) bool``: the labels each node may not take. ``walls (E,) bool`` marks the edges across
+    strong concave creases; a part the walls close off (a connected component of the graph without
+    them) that holds strokes takes only the regions stroked in it, so no region crosses a strong
+    crease to swallow a part whose strokes it does not touch. A part without strokes is free."""
+    e = np.asarray(edges)[~np.asarray(walls, bool)]
+    A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    n_parts, part = connected_components(A, directed=False)
+    held = np.zeros((n_parts, n_labels), bool)
+    s = seeds >= 0
+    held[part[s], seeds[s]] = True
+    return held.any(axis=1)[part][:, None] & ~held[part]
 
 
 def geodesic_distances(points, edges, seeds, n_labels: int, *, extra=None) -> np.ndarray:

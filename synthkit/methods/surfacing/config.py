@@ -264,9 +264,11 @@ class ExtractionSection(StrictModel):
         "linear", description="linear = barycentric (bilinear in textures, prefiltered by a Gaussian of half the "
         "target's mean edge); nearest = the nearest source value (corner or texel, no prefilter)."
     )
-    blend: Literal["kernel", "none"] = Field(
-        "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "
-        "the region's border); none = one corner's value."
+    blend: Literal["poisson", "kernel", "none"] = Field(
+        "poisson", description="poisson = vertex values whose gradients match each patch's own, seams' jumps spread "
+        "over about 10 edge lengths (Poisson blending); kernel = area-weighted average of the corners at each vertex "
+        "(across patch seams); none = one corner's value. poisson and kernel average the region's border with the "
+        "target's own colours."
     )
     subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
                            "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")

@@ -50,6 +50,7 @@ from synthkit.methods.surfacing.transfer.extract import (
     corner_sources,
     corner_values,
     displacement_field,
+    seam_visibility,
     transfer_displacement,
     vertex_values,
 )
@@ -489,7 +490,7 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
                                            scale=pair.scale)
         else:
             corner = corner_values(mine, prep.source, len(F), nearest=ex.sampling == "nearest")
-        vals = vertex_values(F, corner, areas, nV, blend=ex.blend)
+        vals = vertex_values(F, corner, areas, nV, blend=ex.blend, V=V)
         ids = np.flatnonzero(np.isfinite(vals[:, 0]))
         if pair.signal == "displacement":
             ext.positions[ids] += vals[ids]
@@ -497,11 +498,29 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
             ext.attributes.setdefault(pair.attribute, np.zeros((nV, vals.shape[1])))[ids] = vals[ids]
         else:
             new = np.clip(vals[ids], 0, 1)
-            if original is not None and ex.blend == "kernel":
+            if original is not None and ex.blend != "none":
                 border = _border_vertices(F, np.flatnonzero(layout.pair == k), nV)[ids]
                 new[border] = 0.5 * (new[border] + original[ids[border]])
             ext.colors[ids] = new
     return ext
+
+
+def _seam_figures(prep: Prepared, res: Result, base: Result | None, blend: str) -> dict:
+    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``blend``) and,
+    with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
+    colour, texture and attribute signals."""
+    if prep.source.signal.kind == "displacement":
+        return {}
+    t = prep.target
+    out = {}
+    for key, r in (("seam_visibility", res), ("baseline_seam_visibility", base)):
+        if r is None:
+            continue
+        corner = corner_values(r, prep.source, len(t.F))
+        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
+        figure = seam_visibility(t.V, t.F, r.patch_of, vals)
+        out[key] = None if not np.isfinite(figure) else figure
+    return out
 
 
 def _pair_metrics(prep: Prepared, res: Result, base: Result | None) -> dict:
@@ -527,7 +546,9 @@ def _pair_metrics(prep: Prepared, res: Result, base: Result | None) -> dict:
 
 
 def _metrics(cfg, ctx, preps, results) -> None:
-    pairs = [_pair_metrics(p, r, b) for p, (r, b) in zip(preps, results, strict=True)]
+    blend = cfg.transfer.extraction.blend
+    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, blend)} for p, (r, b) in zip(preps, results,
+                                                                                             strict=True)]
     n = sum(m["target_faces"] for m in pairs)
     m = {
         "pairs": pairs, "patches": sum(p["patches"] for p in pairs),

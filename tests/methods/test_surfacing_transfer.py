@@ -355,6 +355,21 @@ def test_subdivide_keeps_the_targets_texture(tmp_path):
     assert (tmp_path / "out" / "original.png").is_file()
 
 
+def test_planar_surface_maps_by_its_own_coordinates():
+    from synthkit.methods.surfacing.transfer.param import _centred_log_map
+
+    V, F = sample.grid(10)
+    flat = make_surface(V, F, np.arange(len(F)), None)
+    S, G = sample.sphere(2)
+    assert flat.planar and not make_surface(S, G, np.arange(len(G)), None).planar
+    U = _centred_log_map(flat, 7, radius=1.0, bound=2.0)
+    np.testing.assert_allclose(U[flat.F[7]].mean(axis=0), 0, atol=1e-12)
+    d3 = np.linalg.norm(flat.V[:, None] - flat.V[None], axis=2)
+    np.testing.assert_allclose(np.linalg.norm(U[:, None] - U[None], axis=2), d3, atol=1e-12)  # isometric
+    np.testing.assert_allclose((flat.V[flat.F[7, 1]] - flat.V[flat.F[7, 0]]) @ flat.X[7],
+                               (U[flat.F[7, 1]] - U[flat.F[7, 0]])[0], atol=1e-12)  # in the face's frame
+
+
 def test_poisson_blend_hides_a_seam_and_keeps_the_detail():
     """Two patches of one field, the right one offset by 0.4: the kernel blend keeps the jump one ring
     wide, Poisson blending spreads it and keeps each patch's gradient."""

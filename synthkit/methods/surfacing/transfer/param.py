@@ -13,7 +13,8 @@ the global ``scale`` (target units per source unit). A face is accepted when its
 lie within the patch radius, its Jacobian (3-D triangle to domain, divided by the scale) has
 singular values ``s1 >= s2 > 0`` with ``max(s1, 1 / s2) <= bound`` and no flip, and it stays in the
 piece connected to the seed face; among overlapping accepted faces (a centroid strictly inside
-another accepted triangle) the one farther from the origin is dropped. A target face is accepted
+another accepted triangle) the one farther from the origin is dropped (not tested on a planar
+surface, whose map is the plane's own coordinates). A target face is accepted
 only when its corners and centroid lie inside the accepted source triangles (the containment test
 of the paper), so every target point maps into the source patch.
 
@@ -176,7 +177,12 @@ class Patch:
 def _centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
-    the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`)."""
+    the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
+    planar surface (an image's grid) the log map is the plane's coordinates in the face's frame,
+    exact, without a solve."""
+    if surface.planar:
+        c = surface.V[surface.F[face]].mean(axis=0)
+        return (surface.V - c) @ np.stack([surface.X[face], surface.Y[face]], axis=1)
     v = surface.F[face, 0]
     L = surface.log_map(v)
     bx, by = surface.vertex_frames[v, 0], surface.vertex_frames[v, 1]
@@ -283,7 +289,7 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
             ok[cand] &= ~(up_error(surface.V[F[cand]], U[F[cand]], surface.up) > UP_TOLERANCE)
     ok = _piece(surface.pairs, ok, seed)
     faces = np.flatnonzero(ok)
-    keep = _drop_overlaps(U[F[faces]], faces)
+    keep = np.ones(len(faces), bool) if surface.planar else _drop_overlaps(U[F[faces]], faces)
     if not keep.all():
         ok[faces[~keep]] = False
         ok = _piece(surface.pairs, ok, seed)

@@ -100,6 +100,19 @@ class Surface:
     _solver: object = field(default=None, repr=False)
     _support_index: np.ndarray | None = field(default=None, repr=False)
     up: np.ndarray | None = None
+    _planar: bool | None = field(default=None, repr=False)
+
+    @property
+    def planar(self) -> bool:
+        """Whether every face lies in one plane (normals within 1e-9 of the first face's, vertices
+        within 1e-9 of the size from its plane), as an image's grid does: its log maps are then the
+        plane's own coordinates, exact and without overlaps."""
+        if self._planar is None:
+            n0 = self.N[0]
+            size = max(float(np.ptp(self.V, axis=0).max()), 1e-300)
+            self._planar = bool(np.all(self.N @ n0 > 1 - 1e-9)
+                                and np.abs((self.V - self.V[0]) @ n0).max() <= 1e-9 * size)
+        return self._planar
 
     def orient(self, up) -> None:
         """Face frames with ``X = up x N`` (level, when ``up`` is the vertical) and ``Y = N x X``;

@@ -19,7 +19,8 @@ The paper's figure: "usually a few minutes" offline on a 1.5 GHz PC, dominated b
 parameterization, then by patch finding. Goals on this machine: the whole transfer <= 60 s,
 fan precomputation <= 10 s.
 
-Run: ``.venv/bin/python benchmarks/surfacing_transfer.py [--only parameterize]``; writes bench-results/surfacing_transfer.json.
+Run: ``.venv/bin/python benchmarks/surfacing_transfer.py`` (writes bench-results/surfacing_transfer.json), or with
+``--only parameterize`` (the parameterization timing alone).
 """
 
 from __future__ import annotations

@@ -9,13 +9,18 @@ the smaller area: 0.6 units). Measured in one process:
 - the whole transfer (surfaces with their log-map solvers, synthesis to coverage and until the
   seam cost stops falling, extraction with the kernel blend), seconds per step kind;
 - the random-matching baseline (``matching: random``, same trimming), and the random/no-trim
-  baseline of the quality check with the same number of patches; their seam costs beside ours.
+  baseline of the quality check with the same number of patches; their seam costs beside ours;
+- the parameterization step as it was before issue 29 (an SVD per 2 x 2 Jacobian,
+  :func:`svd_distortion` here, and log maps with the overlap test on the planar source grid)
+  against now (closed form, the grid's own coordinates), same seed (``--only parameterize`` runs
+  this alone).
 
 The paper's figure: "usually a few minutes" offline on a 1.5 GHz PC, dominated by the
 parameterization, then by patch finding. Goals on this machine: the whole transfer <= 60 s,
 fan precomputation <= 10 s.
 
-Run: ``.venv/bin/python benchmarks/surfacing_transfer.py``; writes bench-results/surfacing_transfer.json.
+Run: ``.venv/bin/python benchmarks/surfacing_transfer.py`` (writes bench-results/surfacing_transfer.json), or with
+``--only parameterize`` (the parameterization timing alone).
 """
 
 from __future__ import annotations
@@ -30,9 +35,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import print_table, record, write_results  # noqa: E402
+from synthkit.methods.surfacing.transfer import param  # noqa: E402
 from synthkit.methods.surfacing.transfer.extract import corner_values, vertex_values  # noqa: E402
 from synthkit.methods.surfacing.transfer.fans import build_index, make_cloud  # noqa: E402
-from synthkit.methods.surfacing.transfer.surface import Signal, make_surface  # noqa: E402
+from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface  # noqa: E402
 from synthkit.methods.surfacing.transfer.synth import Options, Synthesis  # noqa: E402
 from synthkit.samples import surfacing_transfer as sample  # noqa: E402
 
@@ -63,10 +69,44 @@ def transfer(target_mesh, source_mesh, opt: Options, seed: int):
     return time.perf_counter() - t, res
 
 
+def svd_distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`param.distortion` as it was before issue 29 (``np.linalg.svd`` per Jacobian), the
+    baseline of the parameterization timing."""
+    J, ok = param.jacobians(P, Q)
+    s = np.linalg.svd(J, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        dist = np.maximum(s[:, 0], 1.0 / s[:, 1])
+    return np.where(ok & np.isfinite(dist), dist, np.inf), np.linalg.det(J)
+
+
+def parameterize_speed(target_mesh, source_mesh, opt: Options) -> None:
+    """Parameterization seconds as before issue 29 (:func:`svd_distortion`, and the planar source
+    grid parameterized by log maps with the overlap test) and now (closed form, the grid's own
+    coordinates), alternated twice in this process with the same seed."""
+    fast, planar = param.distortion, Surface.planar
+    runs: dict[str, list] = {"before": [], "now": []}
+    for _ in range(2):
+        for name in runs:
+            if name == "before":
+                param.distortion, Surface.planar = svd_distortion, property(lambda self: False)
+            try:
+                _, again = transfer(target_mesh, source_mesh, opt, 0)
+            finally:
+                param.distortion, Surface.planar = fast, planar
+            runs[name].append((again.timings["parameterize"], len(again.patches)))
+    print(f"parameterize (seconds, patches): before {runs['before']}, now {runs['now']}", file=sys.stderr)
+    before, after = (min(t for t, _ in runs[k]) for k in ("before", "now"))
+    record(AREA, "  parameterize, closed form + planar source", after, "s", baseline=before)
+
+
 def main() -> int:
     rng = np.random.default_rng(0)
     target_mesh = sample.sphere(5)
     source_mesh = colour_source(rng)
+    if sys.argv[1:] == ["--only", "parameterize"]:
+        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0))
+        print_table(AREA)
+        return 0
     V, F, colors = source_mesh
     source = make_surface(V, F, np.arange(len(F)), Signal("color", values=colors[F]))
     t = time.perf_counter()
@@ -91,6 +131,7 @@ def main() -> int:
     record(AREA, "seam cost (random + no trim)", res_none.seam_cost[-1], "")
     cov = res.patch_of >= 0
     record(AREA, "distortion max (bound 2)", float(res.distortion[cov].max()), "", goal=2.0)
+    parameterize_speed(target_mesh, source_mesh, base_opt)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}")
     return 0

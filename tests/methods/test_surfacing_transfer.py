@@ -292,6 +292,104 @@ def test_no_accepted_patch_triangle_exceeds_the_bound():
         assert ds.max() <= bound + 1e-9 and (dets > 0).all()
 
 
+@pytest.mark.slow
+def test_up_error_exact_and_held_on_every_face_of_a_curved_target():
+    """orientation: up on the side of a sphere (the log map turns directions away from its centre):
+    every covered face's up maps within UP_TOLERANCE of the domain's +y."""
+    from synthkit.methods.surfacing.transfer.param import UP_TOLERANCE, up_error
+
+    P = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 0], [1, 0, 0], [0, 0, 1]]], float)
+    Q = P[:1, :, :2] @ rotation(np.radians(20)).T
+    np.testing.assert_allclose(up_error(P[:1], Q, np.array([0, 1.0, 0]), signed=True), [-20.0])
+    assert np.isnan(up_error(P[1:], P[:1, :, :2], np.array([0, 1.0, 0])))[0]  # the up is the normal
+    V, F, colors = sample.stripes(30)
+    S, G = sample.sphere(4)
+    side = np.flatnonzero(np.abs(S[G].mean(axis=1)[:, 1]) < 0.6)
+    errors = []
+    for hold in (False, True):
+        src = make_surface(V, F, np.arange(len(F)), Signal("color", values=(colors / 255.0)[F]))
+        tgt = make_surface(S, G, side, None, largest=False, margin=0.6)
+        if hold:
+            tgt.orient((0.0, 1.0, 0.0))
+            src.orient((0.0, 1.0, 0.0))
+        res = synthesize(tgt, src, Options(patch_radius=0.6, max_patches=30, fixed_orientation=True),
+                         rng=np.random.default_rng(1))
+        cov = res.patch_of >= 0
+        assert cov.mean() > 0.95
+        errors.append(up_error(tgt.V[tgt.F[cov]], res.corner_uv[cov], np.array([0, 1.0, 0])))
+    assert np.nanmax(errors[0]) > UP_TOLERANCE  # only the seeds level: the patches tilt
+    assert np.nanmax(errors[1]) <= UP_TOLERANCE + 1e-9
+
+
+@pytest.mark.slow
+def test_subdivide_keeps_the_targets_texture(tmp_path):
+    """extraction.subdivide: the faces outside the region keep the target's own texture (material
+    'original', UVs interpolated into the children), not a bare material."""
+    from synthkit.io.images import save_image
+
+    n = 8
+    xs = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(xs, xs)
+    V = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    q = np.arange(n * n).reshape(n, n) // n * (n + 1) + np.arange(n * n).reshape(n, n) % n
+    F = np.concatenate([np.c_[q.ravel(), q.ravel() + 1, q.ravel() + n + 2], np.c_[q.ravel(), q.ravel() + n + 2,
+                                                                                 q.ravel() + n + 1]])
+    rng = np.random.default_rng(0)
+    save_image(tmp_path / "tex.png", rng.random((32, 32, 3)).astype(np.float32))
+    (tmp_path / "plane.mtl").write_text("newmtl skin\nKd 1 1 1\nmap_Kd tex.png\n")
+    lines = ["mtllib plane.mtl", "usemtl skin"] + [f"v {x} {y} {z}" for x, y, z in V]
+    lines += [f"vt {x} {y}" for x, y, _ in V] + [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in F]
+    (tmp_path / "plane.obj").write_text("\n".join(lines) + "\n")
+    region = V[F].mean(axis=1)[:, 0] < 0.5
+    (tmp_path / "half.seg").write_text("".join(f"{int(not r)}\n" for r in region))
+    pair = {"target": {"labels": "half.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(tmp_path / "tex.png"), "width": 1.0}}
+    cfg = write_config(tmp_path, "sub", top={"input": str(tmp_path / "plane.obj")}, pairs=[pair],
+                       synthesis={"patch_radius": 0.2}, extraction={"subdivide": 1}, baseline=False)
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    own = obj.face_material == obj.materials.index("original")
+    assert own.sum() == 4 * (~region).sum()
+    np.testing.assert_allclose(uv[own], obj.V[obj.F[own]][..., :2], atol=1e-6)  # this plane's UVs are (x, y)
+    assert (tmp_path / "out" / "original.png").is_file()
+
+
+def test_planar_surface_maps_by_its_own_coordinates():
+    from synthkit.methods.surfacing.transfer.param import _centred_log_map
+
+    V, F = sample.grid(10)
+    flat = make_surface(V, F, np.arange(len(F)), None)
+    S, G = sample.sphere(2)
+    assert flat.planar and not make_surface(S, G, np.arange(len(G)), None).planar
+    U = _centred_log_map(flat, 7, radius=1.0, bound=2.0)
+    np.testing.assert_allclose(U[flat.F[7]].mean(axis=0), 0, atol=1e-12)
+    d3 = np.linalg.norm(flat.V[:, None] - flat.V[None], axis=2)
+    np.testing.assert_allclose(np.linalg.norm(U[:, None] - U[None], axis=2), d3, atol=1e-12)  # isometric
+    np.testing.assert_allclose((flat.V[flat.F[7, 1]] - flat.V[flat.F[7, 0]]) @ flat.X[7],
+                               (U[flat.F[7, 1]] - U[flat.F[7, 0]])[0], atol=1e-12)  # in the face's frame
+
+
+def test_poisson_blend_hides_a_seam_and_keeps_the_detail():
+    """Two patches of one field, the right one offset by 0.4: the kernel blend keeps the jump one ring
+    wide, Poisson blending spreads it and keeps each patch's gradient."""
+    from synthkit.core.mesh import face_areas
+    from synthkit.methods.surfacing.transfer.extract import seam_visibility, vertex_values
+
+    V, F = sample.grid(20)
+    P = V[F]
+    field = 0.3 * P[:, :, :1] + 0.1 * np.sin(3 * P[:, :, 1:2])
+    patch = (P.mean(axis=1)[:, 0] > 1).astype(np.int64)
+    vals = field + 0.4 * patch[:, None, None]
+    seen = {b: seam_visibility(V, F, patch, vertex_values(F, vals, face_areas(V, F), len(V), blend=b, V=V))
+            for b in ("none", "kernel", "poisson")}
+    assert seen["poisson"] < 1.3 < 3 < seen["kernel"] < seen["none"], seen  # measured 1.13, 4.98, 10.4
+    out = vertex_values(F, vals, face_areas(V, F), len(V), blend="poisson", V=V)
+    far = np.abs(V[:, 0] - 1) > 0.6
+    slope = np.polyfit(V[far & np.isclose(V[:, 1], 1.0), 0], out[far & np.isclose(V[:, 1], 1.0), 0], 1)[0]
+    assert 0.3 < slope < 0.4  # the ramp (0.3), plus a share of the jump spread around the seam (measured 0.366)
+
+
 def test_geometry_transfer_keeps_rms_and_wavelength_and_the_smooth_shape(tmp_path):
     amplitude, wavelength = 0.03, 0.4
     V, F = sample.bumps(60, amplitude=amplitude, wavelength=wavelength)
@@ -483,13 +581,17 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
     B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
     n = np.cross(A[..., 0], A[..., 1])
+    area = 0.5 * np.linalg.norm(n, axis=1)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
     walls = np.linalg.norm(up, axis=1) > 0.5
     J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
     d = np.einsum("nij,nj->ni", J, up)
     angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
-    assert np.mean(angle < 10) >= 0.85, np.percentile(angle, [50, 90])  # measured 0.91 (free orientation: 0.07)
+    level = area[walls][angle < 10].sum() / area[walls].sum()
+    # issue 29: at least 95% of the vertical area within 10 degrees; measured 1.000 (0.808 when only the
+    # seed was held level; free orientation: 0.07 of the faces)
+    assert level >= 0.95, np.percentile(angle, [50, 90, 99])
     assert m["seam_cost"]["final"] < m["baseline_seam_cost"]
     if m["seam_ratio"] > 0.5:  # the known-answer goal (at most half the random/no-trim baseline), missed here
         pytest.xfail(f"issue 11 seam goal missed on tudorhouse: seam ratio {m['seam_ratio']:.2f} > 0.5 (its plaster "

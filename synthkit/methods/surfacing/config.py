@@ -67,7 +67,12 @@ class ImageStrokes(StrictModel):
         min_length=1, description="Region name -> the RGB (0-255) its strokes are painted in."
     )
     tolerance: float = Field(
-        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour."
+        0.1, gt=0, le=1, description="Largest channel difference (0-1) from the render (unpainted) and from a colour "
+        "blended over the render (paint)."
+    )
+    opacity: float = Field(
+        0.25, gt=0, le=1, description="Least opacity of a painted pixel read as a stroke: a soft or semi-transparent "
+        "brush leaves render + alpha (colour - render); fainter pixels (brush edges) are ignored and counted."
     )
 
 
@@ -102,11 +107,26 @@ class RegionTermSection(StrictModel):
         0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
     )
     concavity: float = Field(
-        1000.0,
+        1e5,
         ge=0,
         le=1e6,
         description="model: geodesic: extra length of a step across a concave edge, in mean edge lengths times "
         "1 - cos(bending angle) (0 = plain edge-graph distance).",
+    )
+    trust: float = Field(
+        2.0,
+        ge=0,
+        le=100,
+        description="model: geodesic: the term acts at a node only where its nearest region's strokes are more than "
+        "`trust` times nearer than the next region's (full weight from 1.5 x trust; between, the boundary term alone "
+        "places the cut); 0 = everywhere.",
+    )
+    wall_deg: float = Field(
+        30.0,
+        ge=0,
+        le=180,
+        description="model: geodesic or color: a part closed off by concave creases sharper than this (degrees) "
+        "that holds strokes takes only the regions stroked in it (no leak across a strong crease); 180 = off.",
     )
     clusters: int = Field(64, ge=1, le=1024, description="k-means clusters per region for model: color (paper: 64).")
 
@@ -244,9 +264,11 @@ class ExtractionSection(StrictModel):
         "linear", description="linear = barycentric (bilinear in textures, prefiltered by a Gaussian of half the "
         "target's mean edge); nearest = the nearest source value (corner or texel, no prefilter)."
     )
-    blend: Literal["kernel", "none"] = Field(
-        "kernel", description="kernel = area-weighted average of the corners at each vertex (across patch seams and "
-        "the region's border); none = one corner's value."
+    blend: Literal["poisson", "kernel", "none"] = Field(
+        "poisson", description="poisson = vertex values whose gradients match each patch's own, seams' jumps spread "
+        "over about 10 edge lengths (Poisson blending); kernel = area-weighted average of the corners at each vertex "
+        "(across patch seams); none = one corner's value. poisson and kernel average the region's border with the "
+        "target's own colours."
     )
     subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
                            "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")

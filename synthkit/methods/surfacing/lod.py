@@ -14,6 +14,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.mesh import remove_unreferenced
 from synthkit.methods.surfacing.graph import face_labels_from_vertices
 
@@ -37,7 +38,7 @@ def collapse(V, F, keep: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.asarray(Vc, np.float64), np.asarray(Fc, np.int64), full
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=NUMBA_CACHE)
 def _roots(collapses, n):  # pragma: no cover (compiled)
     root = np.arange(n)
     for k in range(len(collapses) - 1, -1, -1):

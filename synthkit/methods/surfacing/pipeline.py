@@ -21,9 +21,14 @@ naming the key and value; a mesh without faces or an unreadable PNG is an input 
 from __future__ import annotations
 
 import json
+import logging
+import os
+from pathlib import Path
 
+import cv2
 import numpy as np
 import trimesh
+from trimesh.exchange.obj import export_obj
 
 from synthkit import preview
 from synthkit.errors import ConfigError
@@ -42,6 +47,7 @@ PALETTE = np.array(
     [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
      [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165]], dtype=np.uint8
 )
+log = logging.getLogger("synthkit")
 BYTES_PER_NODE = 1500
 """Peak bytes per graph node over the graph, hierarchy and cuts (measured about 1 kB at 1M faces)."""
 
@@ -51,15 +57,21 @@ def options_of(cfg: SurfacingConfig) -> Options:
     m, r = cfg.multires, cfg.region_term
     return Options(
         graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
-        region_weight=r.weight, concavity=r.concavity, clusters=r.clusters, multires=m.enabled,
+        region_weight=r.weight, concavity=r.concavity, trust=r.trust, wall_deg=r.wall_deg, clusters=r.clusters,
+        multires=m.enabled,
         coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
         crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
     )
 
 
 def region_colors(cfg: SurfacingConfig) -> np.ndarray:
-    """``(L, 3) uint8`` colour of each region (its ``color`` or the palette's)."""
-    return np.array([r.color if r.color is not None else PALETTE[k % len(PALETTE)]
+    """``(L, 3) uint8`` colour of each region: its ``color``, else the colour it is painted in (the first
+    image that lists it), else the palette's."""
+    painted = {}
+    for item in cfg.images:
+        for name, rgb in item.colors.items():
+            painted.setdefault(name, rgb)
+    return np.array([r.color if r.color is not None else painted.get(r.name, PALETTE[k % len(PALETTE)])
                      for k, r in enumerate(cfg.regions)], dtype=np.uint8)
 
 
@@ -88,10 +100,13 @@ class ViewCache:
         return self._views[name]
 
 
-def _image_sets(cfg: SurfacingConfig, cache: ViewCache) -> list[np.ndarray]:
-    """Vertices stroked per region by the painted images."""
+def _image_sets(cfg: SurfacingConfig, cache: ViewCache) -> tuple[list[np.ndarray], list[set], list[dict]]:
+    """Vertices stroked per region by the painted images, the views each region was painted in, and
+    per image the pixel counts of :func:`views.image_strokes`."""
     names = [r.name for r in cfg.regions]
     out = [np.zeros(0, np.int64) for _ in names]
+    seen: list[set] = [set() for _ in names]
+    counts = []
     for k, item in enumerate(cfg.images):
         img = load_image(item.image)
         cam, face_at, rendered = cache[item.view]
@@ -101,22 +116,46 @@ def _image_sets(cfg: SurfacingConfig, cache: ViewCache) -> list[np.ndarray]:
         colors = np.full((len(names), 3), np.nan)
         for name, rgb in item.colors.items():
             colors[names.index(name)] = np.asarray(rgb) / 255.0
-        try:
-            sets = views.image_strokes(img, rendered, face_at, cache.V, cache.F, cam, colors,
-                                       tolerance=item.tolerance)
-        except ValueError as exc:
-            raise ConfigError(f"images[{k}].image: {item.image}: {exc}") from None
+        sets, count = views.image_strokes(img, rendered, face_at, cache.V, cache.F, cam, colors,
+                                          tolerance=item.tolerance, opacity=item.opacity)
+        counts.append({"image": str(item.image), "view": item.view, **count})
+        for r, found in enumerate(sets):
+            if len(found):
+                seen[r].add(item.view)
         out = [np.union1d(a, b) for a, b in zip(out, sets, strict=True)]
-    return out
+    return out, seen, counts
 
 
-def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh, cache: ViewCache) -> tuple[np.ndarray, np.ndarray]:
-    """Owners of stroked vertices ``(#V,)`` and faces ``(#F,)``; ConfigError naming the key."""
+def _no_strokes(key: str, region, counts: list[dict]) -> ConfigError:
+    """The error of a region left without strokes, naming an image's unread paint when there is some."""
+    odd = [(k, c) for k, c in enumerate(counts) if c["ignored"]]
+    hint = ""
+    if odd:
+        k, c = max(odd, key=lambda kc: kc[1]["ignored"])
+        hint = (f"; images[{k}]: {c['ignored']} painted pixels match no stroke colour (most often "
+                f"{c['ignored_rgb']}; check images[{k}].colors)")
+    return ConfigError(f"{key} ({region.name}): region has no strokes (give vertices, faces, points or images){hint}")
+
+
+def _one_view_notes(cfg: SurfacingConfig, seen: list[set], other: list[bool]) -> list[str]:
+    """One note per view for the regions whose strokes all come from images of that view alone: the
+    faces it does not see (their far side) hold none of their strokes, so there only the cut decides."""
+    by_view: dict[str, list[str]] = {}
+    for region, views_of, more in zip(cfg.regions, seen, other, strict=True):
+        if len(views_of) == 1 and not more:
+            by_view.setdefault(next(iter(views_of)), []).append(region.name)
+    return [f"strokes of {', '.join(names)} reach only faces seen from view '{view}'; the far side is left to "
+            f"the cut (paint over another view too to hold it)" for view, names in by_view.items()]
+
+
+def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh, cache: ViewCache,
+                    notes: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Owners of stroked vertices ``(#V,)`` and faces ``(#F,)``; ConfigError naming the key. ``notes``
+    (when given) receives ``painted_pixels`` (per image) and ``stroke_notes``."""
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    from_images = _image_sets(cfg, cache)
+    from_images, seen, counts = _image_sets(cfg, cache)
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    step = 0.5 * float(mesh.edges_unique_length.mean())
-    vsets, fsets = [], []
+    vsets, fsets, other = [], [], []
     for k, region in enumerate(cfg.regions):
         key = f"regions[{k}]"
         try:
@@ -129,14 +168,18 @@ def resolve_strokes(cfg: SurfacingConfig, mesh: trimesh.Trimesh, cache: ViewCach
             raise ConfigError(f"{key}.faces: {exc}") from None
         for j, line in enumerate(region.points):
             try:
-                v = np.union1d(v, snap_polyline(mesh, line, step=step, tolerance=cfg.points_tolerance * diag))
+                v = np.union1d(v, snap_polyline(mesh, line, tolerance=cfg.points_tolerance * diag))
             except ValueError as exc:
                 raise ConfigError(f"{key}.points[{j}]: {exc}") from None
+        other.append(bool(len(v) or len(f)))
         v = np.union1d(v, from_images[k])
         if not len(v) and not len(f):
-            raise ConfigError(f"{key} ({region.name}): region has no strokes (give vertices, faces, points or images)")
+            raise _no_strokes(key, region, counts)
         vsets.append(v)
         fsets.append(f)
+    if notes is not None:
+        notes["painted_pixels"] = counts
+        notes["stroke_notes"] = _one_view_notes(cfg, seen, other)
     try:
         return stroke_sets(len(V), len(F), vsets, fsets, [r.name for r in cfg.regions])
     except ValueError as exc:
@@ -191,12 +234,43 @@ def _export(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray)
     write_polylines_obj(ctx.path("cut", "cut.obj"), V, chain_edges(cut))
     suffix = cfg.input.suffix.lower()
     suffix = suffix if suffix in (".obj", ".ply", ".off", ".stl", ".glb") else ".ply"
+    bare = suffix == ".obj" and _invented_material(cfg.input, mesh)
     for k, region in enumerate(cfg.regions):
         sel = np.flatnonzero(seg.face_labels == k)
         if not len(sel):
             continue
         part = mesh.submesh([sel], append=True, repair=False)
-        save_mesh(part, ctx.path(f"region_{region.name}", f"regions/{region.name}{suffix}"))
+        path = ctx.path(f"region_{region.name}", f"regions/{region.name}{suffix}")
+        if bare:
+            _write_obj_without_material(part, path)
+        else:
+            save_mesh(part, path)
+
+
+def _invented_material(path, mesh: trimesh.Trimesh) -> bool:
+    """Whether ``mesh`` (loaded from the OBJ ``path``) carries a material trimesh made up: its UVs
+    come with a placeholder material when the OBJ names no material file (warned here, once) or one
+    that is missing (the loader has warned)."""
+    if getattr(mesh.visual, "kind", None) != "texture":
+        return False
+    names = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if line.startswith("mtllib"):
+                names += line.split()[1:]
+    if not names:
+        log.warning("%s: UVs without a material file (no mtllib): region meshes keep the UVs, with no material",
+                    path)
+    return not any((Path(path).parent / name).is_file() for name in names)
+
+
+def _write_obj_without_material(part: trimesh.Trimesh, path: Path) -> None:
+    """Write ``part`` as OBJ with its UVs but no ``mtllib``/``usemtl`` and no material files."""
+    text, _ = export_obj(part, include_texture=True, return_texture=True, write_texture=False)
+    lines = [line for line in text.splitlines() if not line.startswith(("mtllib ", "usemtl "))]
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)
 
 
 def _stroked_faces(F, seg: Segmentation) -> np.ndarray:
@@ -219,7 +293,9 @@ def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarra
     views = ("front", "side", "top", "iso")
     size = cfg.preview_size
     imgs = [preview.rasterize_mesh(V, F, face_colors=base, view=v, size=size, lines=lines) for v in views]
-    preview.montage_png(ctx.path("preview_regions", "regions.png"), imgs, titles=list(views), height=size)
+    montage = preview.montage_png(None, imgs, titles=list(views), height=size)
+    legend = _legend([r.name for r in cfg.regions], region_colors(cfg), montage.shape[1])
+    preview.image_png(ctx.path("preview_regions", "regions.png"), np.concatenate([montage, legend], axis=0))
     if not ctx.wants_preview("all"):
         return
     for k, st in enumerate(seg.levels):
@@ -228,6 +304,29 @@ def _previews(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarra
         img = preview.rasterize_mesh(V, F, face_colors=col, view="iso", size=size)
         title = f"level {k}: {st['free_nodes']} of {st['nodes']} nodes free"
         preview.montage_png(ctx.path(f"preview_level_{k}", f"level_{k}.png"), [img], titles=[title], height=size)
+
+
+def _legend(names: list[str], colors: np.ndarray, width: int) -> np.ndarray:
+    """A white band ``(h, width, 3) float32`` with a swatch in each region's colour ``colors (L, 3)
+    uint8`` (the stroke colours) and its name, in rows as wide as ``width`` allows."""
+    font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.5
+    items = [(name, 24 + cv2.getTextSize(name, font, scale, 1)[0][0] + 16) for name in names]
+    rows, x = [[]], 0
+    for name, w in items:
+        if x + w > width and rows[-1]:
+            rows.append([])
+            x = 0
+        rows[-1].append((name, x))
+        x += w
+    band = np.full((22 * len(rows) + 4, width, 3), 255, np.uint8)
+    for r, row in enumerate(rows):
+        for name, x0 in row:
+            y = 4 + 22 * r
+            rgb = tuple(int(c) for c in colors[names.index(name)])
+            cv2.rectangle(band, (x0 + 4, y), (x0 + 20, y + 16), rgb, -1)
+            cv2.rectangle(band, (x0 + 4, y), (x0 + 20, y + 16), (0, 0, 0), 1)
+            cv2.putText(band, name, (x0 + 24, y + 13), font, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    return band.astype(np.float32) / 255.0
 
 
 def _write_views(cfg: SurfacingConfig, ctx, cache: ViewCache) -> None:
@@ -254,7 +353,16 @@ def run(cfg: SurfacingConfig, ctx) -> None:
         if cfg.mode == "views":
             return
     with ctx.stage("strokes"):
-        vertex_owner, face_owner = resolve_strokes(cfg, mesh, cache)
+        notes: dict = {}
+        vertex_owner, face_owner = resolve_strokes(cfg, mesh, cache, notes)
+    if cfg.images:
+        ctx.metrics.update(notes)
+        ignored = sum(c["ignored"] for c in notes["painted_pixels"])
+        if ignored:
+            log.warning("%d painted pixels match no stroke colour and were ignored (report.json "
+                        "metrics.painted_pixels)", ignored)
+        for note in notes["stroke_notes"]:
+            log.warning("%s", note)
     seg = _segment(cfg, ctx, mesh, vertex_owner, face_owner)
     for name, seconds in seg.timings.items():
         ctx.timings[name] = ctx.timings.get(name, 0.0) + seconds

@@ -29,6 +29,11 @@ from synthkit.methods.surfacing.strokes import assign_unstroked_components, grap
 __all__ = ["Options", "Segmentation", "segment", "region_costs", "cut_edges", "chain_edges"]
 
 
+WALL_COST = 1e9
+"""Node cost of a region walled off from the node (finite, so costs stay summable in the hierarchy,
+and beyond any cut: area-normalised edge costs are of order 1 per edge)."""
+
+
 @dataclass
 class Options:
     """Solver settings (see :mod:`synthkit.methods.surfacing.config` for their meaning)."""
@@ -38,7 +43,9 @@ class Options:
     gamma: float = 1.0
     region_model: str = "geodesic"
     region_weight: float = 0.5
-    concavity: float = 1000.0
+    concavity: float = 1e5
+    trust: float = 2.0
+    wall_deg: float = 30.0
     clusters: int = 64
     multires: bool = True
     coarsest_nodes: int = 8000
@@ -71,19 +78,28 @@ class Segmentation:
 
 
 def region_costs(graph: SegGraph, seeds, n_labels: int, opt: Options, *, colors=None, rng=None) -> np.ndarray:
-    """Node costs ``(n, L)`` of the region model (zeros for ``none``)."""
+    """Node costs ``(n, L)`` of the region model (zeros for ``none``, the paper's energy); the
+    geodesic model's are scaled per node by :func:`regions.trust_weights`; a label a node may not
+    take by :func:`regions.walled_off` (concave creases sharper than ``wall_deg``) costs
+    ``WALL_COST``."""
     if opt.region_model == "none" or opt.region_weight == 0:
         return np.zeros((graph.n, n_labels))
     if opt.region_model == "geodesic":
         extra = opt.concavity * graph.lengths.mean() * np.where(graph.bend < 0, 1 - np.cos(graph.bend), 0.0)
         d = regions.geodesic_distances(graph.points, graph.edges, seeds, n_labels, extra=extra)
+        weight = graph.areas * regions.trust_weights(d, opt.trust)
     elif opt.region_model == "color":
         if colors is None:
             raise ValueError("region model 'color' needs vertex colours or a texture, and the mesh has neither")
         d = regions.color_distances(colors, seeds, n_labels, clusters=opt.clusters, rng=rng)
+        weight = graph.areas
     else:
         raise ValueError(f"unknown region model {opt.region_model!r}")
-    return opt.region_weight * graph.areas[:, None] * regions.normalised_cost(d)
+    cost = opt.region_weight * weight[:, None] * regions.normalised_cost(d)
+    if opt.wall_deg < 180:
+        walls = graph.bend < -np.radians(opt.wall_deg)
+        cost[regions.walled_off(graph.n, graph.edges, walls, seeds, n_labels)] = WALL_COST
+    return cost
 
 
 def _node_colors(F, colors, kind: str):

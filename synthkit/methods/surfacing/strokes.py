@@ -1,8 +1,9 @@
 """Strokes of a batch user turned into fixed nodes of a graph, on ``V (#V, 3)``, ``F (#F, 3)``.
 
-A region's strokes are vertex indices, face indices and polylines in model units. A polyline is
-sampled every half mean edge length and each sample snapped to the closest surface point; the
-stroked vertex is the corner of the hit triangle nearest that point. A vertex stroked for two
+A region's strokes are vertex indices, face indices and polylines in model units. Each point of a
+polyline is snapped to the closest surface point (the stroked vertex is the corner of the hit
+triangle nearest to it) and consecutive points are joined by the shortest edge path between
+their vertices, traced on the surface. A vertex stroked for two
 regions, or a face stroked for two regions, is an error.
 
 Fixed nodes (``seeds (n,) int64``, -1 free): on the vertex graph, the stroked vertices and the
@@ -16,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 import trimesh
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 __all__ = ["check_indices", "snap_polyline", "stroke_sets", "graph_seeds", "assign_unstroked_components"]
@@ -31,29 +32,53 @@ def check_indices(idx, n: int, what: str) -> np.ndarray:
     return idx
 
 
-def snap_polyline(mesh: trimesh.Trimesh, points, *, step: float, tolerance: float) -> np.ndarray:
-    """Vertices ``(k,) int64`` under the polyline ``points (m, 3)`` sampled every ``step``.
+def snap_polyline(mesh: trimesh.Trimesh, points, *, tolerance: float) -> np.ndarray:
+    """Vertices ``(k,) int64`` of the stroke drawn by the polyline ``points (m, 3)``.
 
-    ValueError when a sample lies farther than ``tolerance`` from the surface (naming the sample's
-    position)."""
+    Each of the user's points is snapped to the closest surface point, and its stroked vertex is the
+    corner of the hit triangle nearest to it; ValueError names the first point (its index and
+    position) farther than ``tolerance`` from the surface. Only the user's points are held to the
+    tolerance, whatever their spacing: a chord between two of them may cut through the body or
+    float above a curved limb, so it is traced on the surface instead, as the shortest path over the
+    mesh's edges between the two stroked vertices (the chord's own straight line is never
+    snapped, so it cannot jump to a nearby part it passes). Two points on pieces that no edge
+    path joins are a ValueError."""
     P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(P) > 1:
-        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
-        parts = [P[:1]]
-        for a, b, length in zip(P[:-1], P[1:], seg, strict=True):
-            t = np.linspace(0.0, 1.0, max(int(np.ceil(length / step)), 1) + 1)[1:]
-            parts.append(a + t[:, None] * (b - a))
-        P = np.concatenate(parts)
     closest, dist, tri = trimesh.proximity.closest_point(mesh, P)
     far = np.flatnonzero(dist > tolerance)
     if len(far):
         k = int(far[0])
-        raise ValueError(
-            f"point {np.round(P[k], 6).tolist()} lies {dist[k]:.4g} from the surface (tolerance {tolerance:.4g})"
-        )
-    corners = np.asarray(mesh.faces)[tri]
-    d = np.linalg.norm(np.asarray(mesh.vertices)[corners] - closest[:, None, :], axis=2)
-    return np.unique(corners[np.arange(len(corners)), np.argmin(d, axis=1)])
+        raise ValueError(f"point {k} {np.round(P[k], 6).tolist()} lies {dist[k]:.4g} from the surface "
+                         f"(tolerance {tolerance:.4g})")
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    corners = F[tri]
+    d = np.linalg.norm(V[corners] - closest[:, None, :], axis=2)
+    ends = corners[np.arange(len(corners)), np.argmin(d, axis=1)]
+    if len(ends) < 2:
+        return np.unique(ends)
+    E = np.asarray(mesh.edges_unique, np.int64)
+    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1) + 1e-12
+    G = sp.csr_matrix((w, (E[:, 0], E[:, 1])), shape=(len(V), len(V)))
+    reach = 4.0 * np.linalg.norm(np.diff(P, axis=0), axis=1) + 10.0 * float(w.mean())
+    pairs = zip(ends[:-1], ends[1:], reach, strict=True)
+    return np.unique(np.concatenate([_edge_path(G, a, b, r, k) for k, (a, b, r) in enumerate(pairs)]))
+
+
+def _edge_path(G: sp.csr_matrix, a: int, b: int, reach: float, k: int) -> np.ndarray:
+    """Vertices ``(p,)`` of the shortest path from ``a`` to ``b`` over the graph ``G``, searched first
+    within ``reach`` of ``a`` (so that a short chord on a large mesh stays local), then everywhere;
+    ValueError when there is none (``k``: the chord's index, for the message)."""
+    if a == b:
+        return np.array([a], np.int64)
+    _, pred = dijkstra(G, directed=False, indices=int(a), return_predecessors=True, limit=reach)
+    if pred[b] < 0:
+        _, pred = dijkstra(G, directed=False, indices=int(a), return_predecessors=True)
+    if pred[b] < 0:
+        raise ValueError(f"points {k} and {k + 1} lie on pieces of the mesh that no surface path joins")
+    path = [int(b)]
+    while path[-1] != a:
+        path.append(int(pred[path[-1]]))
+    return np.asarray(path, np.int64)
 
 
 def _claim(n: int, sets: list[np.ndarray], what: str, names: list[str]) -> np.ndarray:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VIEWS", "Camera", "camera", "face_id_buffer", "render", "image_strokes"]
+__all__ = ["VIEWS", "Camera", "camera", "face_id_buffer", "render", "paint_regions", "image_strokes"]
 
 VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "right": (90.0, 0.0), "left": (-90.0, 0.0),
          "top": (0.0, 90.0), "bottom": (0.0, -90.0), "iso": (35.0, 25.0)}
@@ -110,37 +110,68 @@ def render(V, F, face_at: np.ndarray, cam: Camera) -> np.ndarray:
     return img
 
 
-def image_strokes(img, rendered, face_at, V, F, cam: Camera, colors, *, tolerance: float) -> list[np.ndarray]:
-    """Stroked vertices per region from a painted image.
+def paint_regions(img, rendered, colors, *, tolerance: float, opacity: float) -> np.ndarray:
+    """Region ``(H, W) int64`` of each pixel of a painted ``img (H, W, 3)`` over ``rendered (H, W, 3)``
+    (both in [0, 1]): -1 unpainted, -2 painted but near no stroke colour, else the index into
+    ``colors (L, 3)`` (NaN rows: regions without a colour here).
+
+    A pixel is painted when it differs from the render by more than ``tolerance`` in some channel.
+    Paint programs blend: an antialiased edge, a soft brush or semi-transparent paint leaves
+    ``render + alpha (colour - render)``, and JPEG adds noise. So each painted pixel is explained by
+    every stroke colour in turn: alpha is its least-squares opacity along the line from the render
+    to the colour (clipped to [0, 1]) and the residual the largest channel difference left; the pixel
+    takes the colour with the smallest residual among those with ``alpha >= opacity`` and residual
+    within ``tolerance`` (a hard brush: alpha 1, the nearest colour within the tolerance). Pixels
+    that no colour explains (the blend of two paints, a faint brush edge, a colour not listed) are
+    -2, for the caller to count."""
+    img, rendered = np.asarray(img, np.float64), np.asarray(rendered, np.float64)
+    out = np.full(img.shape[:2], -1, np.int64)
+    painted = np.abs(img - rendered).max(axis=2) > tolerance
+    delta = (img - rendered)[painted]
+    base = rendered[painted]
+    best = np.full(len(delta), np.inf)
+    region = np.full(len(delta), -2, np.int64)
+    for r, c in enumerate(np.asarray(colors, np.float64)):
+        if np.isnan(c).any():
+            continue
+        dc = c[None, :] - base
+        alpha = np.clip((delta * dc).sum(axis=1) / np.maximum((dc * dc).sum(axis=1), 1e-12), 0.0, 1.0)
+        resid = np.abs(delta - alpha[:, None] * dc).max(axis=1)
+        take = (alpha >= opacity) & (resid <= tolerance) & (resid < best)
+        best[take], region[take] = resid[take], r
+    out[painted] = region
+    return out
+
+
+def image_strokes(img, rendered, face_at, V, F, cam: Camera, colors, *, tolerance: float,
+                  opacity: float = 0.25) -> tuple[list[np.ndarray], dict]:
+    """Stroked vertices per region from a painted image, and counts of its painted pixels.
 
     ``img (H, W, 3)`` and ``rendered (H, W, 3)`` in [0, 1], ``face_at (H, W)`` of the same camera,
-    ``colors (L, 3)`` in [0, 1] (NaN rows for regions without a colour here). A pixel is painted when
-    it differs from the render by more than ``tolerance`` in some channel; it must then lie within
-    ``tolerance`` of one region colour (ValueError naming the pixel and colour otherwise). A painted
-    pixel over a face strokes the face's corner nearest to the pixel centre (of corners on one line
-    of sight, the nearer); over the background it is ignored."""
+    ``colors (L, 3)`` in [0, 1] (NaN rows for regions without a colour here); pixels are read by
+    :func:`paint_regions`. A stroke pixel over a face strokes the face's corner nearest to the pixel
+    centre (of corners on one line of sight, the nearer); over the background it is ignored. The
+    counts: ``read`` (stroke pixels over the model), ``ignored`` (painted pixels near no stroke
+    colour) and ``ignored_rgb`` (the commonest such colour, 0-255, or None)."""
     img = np.asarray(img, np.float64)
     if img.shape[:2] != face_at.shape:
         raise ValueError(f"image is {img.shape[1]}x{img.shape[0]} pixels, the view renders "
                          f"{face_at.shape[1]}x{face_at.shape[0]}")
-    painted = np.abs(img - rendered).max(axis=2) > tolerance
     colors = np.asarray(colors, np.float64)
-    diff = np.abs(img[painted][:, None, :] - colors[None, :, :]).max(axis=2)
-    diff = np.where(np.isnan(diff), np.inf, diff)
-    region = np.argmin(diff, axis=1)
-    bad = np.flatnonzero(diff[np.arange(len(region)), region] > tolerance)
-    ys, xs = np.nonzero(painted)
-    if len(bad):
-        k = int(bad[0])
-        rgb = np.round(img[ys[k], xs[k]] * 255).astype(int).tolist()
-        raise ValueError(f"colour {rgb} at pixel ({int(xs[k])}, {int(ys[k])}) maps to no region")
-    face = face_at[ys, xs]
-    on = face >= 0
-    corners = np.asarray(F, np.int64)[face[on]]
+    pixel_region = paint_regions(img, rendered, colors, tolerance=tolerance, opacity=opacity)
+    ys, xs = np.nonzero((pixel_region >= 0) & (face_at >= 0))
+    region = pixel_region[ys, xs]
+    corners = np.asarray(F, np.int64)[face_at[ys, xs]]
     pix, depth = cam.to_pixels(V)
-    centre = np.stack([xs[on], ys[on]], axis=1).astype(np.float64)
+    centre = np.stack([xs, ys], axis=1).astype(np.float64)
     dist = np.linalg.norm(pix[corners] - centre[:, None, :], axis=2)
     span = max(float(np.ptp(depth)), 1e-12)
     dist += 1e-6 * (depth.max() - depth[corners]) / span  # corners in line of sight: the nearer one
     nearest = corners[np.arange(len(corners)), np.argmin(dist, axis=1)]
-    return [np.unique(nearest[region[on] == r]) for r in range(len(colors))]
+    odd = np.round(img[pixel_region == -2] * 255).astype(np.int64)
+    common = None
+    if len(odd):
+        rgb, counts = np.unique(odd, axis=0, return_counts=True)
+        common = rgb[np.argmax(counts)].tolist()
+    counts = {"read": int(len(region)), "ignored": int(len(odd)), "ignored_rgb": common}
+    return [np.unique(nearest[region == r]) for r in range(len(colors))], counts

@@ -13,9 +13,19 @@ the global ``scale`` (target units per source unit). A face is accepted when its
 lie within the patch radius, its Jacobian (3-D triangle to domain, divided by the scale) has
 singular values ``s1 >= s2 > 0`` with ``max(s1, 1 / s2) <= bound`` and no flip, and it stays in the
 piece connected to the seed face; among overlapping accepted faces (a centroid strictly inside
-another accepted triangle) the one farther from the origin is dropped. A target face is accepted
+another accepted triangle) the one farther from the origin is dropped (not tested on a planar
+surface, whose map is the plane's own coordinates). A target face is accepted
 only when its corners and centroid lie inside the accepted source triangles (the containment test
 of the paper), so every target point maps into the source patch.
+
+With ``orientation: up`` (a surface with ``up`` set) the orientation is held on every face, not
+only at the seed: a log map (or an unfolding) turns directions away from its centre (holonomy on
+curved parts, the vector heat method's angular error on coarse meshes with large triangles), so a
+patch laid level at its seed can tilt 15-20 degrees at its rim and more across a corner. A face
+whose up direction (``up`` projected on the face) maps more than ``UP_TOLERANCE`` (10 degrees) away
+from the domain's +y is not accepted, on either surface; it is left to a later patch seeded nearer
+to it, which is level there by construction. Faces nearly perpendicular to ``up`` (less than half
+of it in their plane: floors, roofs flatter than 30 degrees) have no up direction and are not tested.
 """
 
 from __future__ import annotations
@@ -29,7 +39,11 @@ from scipy.spatial import cKDTree
 
 from synthkit.methods.surfacing.transfer.surface import Surface
 
-__all__ = ["Locator", "Patch", "distortion", "mutual_patch", "rotation"]
+__all__ = ["Locator", "Patch", "distortion", "jacobians", "mutual_patch", "rotation", "singular_values_2x2", "up_error",
+           "UP_TOLERANCE"]
+
+UP_TOLERANCE = 10.0
+"""Degrees: the largest turn of a face's up direction in the domain with ``orientation: up``."""
 
 
 def rotation(theta: float) -> np.ndarray:
@@ -38,10 +52,10 @@ def rotation(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distortion ``max(s1, 1 / s2)`` ``(n,)`` of the affine maps from triangles ``P (n, 3, 3)`` to
-    ``Q (n, 3, 2)`` and their Jacobian determinants ``(n,)`` (negative: flipped; the 3-D triangle's
-    own frame follows its right-hand normal). Degenerate triangles get ``inf``."""
+def jacobians(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians ``(n, 2, 2)`` of the affine maps from triangles ``P (n, 3, 3)`` (in the frame of
+    their first edge and right-hand normal) to ``Q (n, 3, 2)``, and the mask ``(n,)`` of
+    non-degenerate triangles (zeros elsewhere)."""
     e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     l1 = np.linalg.norm(e1, axis=1)
     t1 = e1 / np.maximum(l1, 1e-300)[:, None]
@@ -55,11 +69,47 @@ def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     J = np.empty((len(P), 2, 2))
     J[:, :, 0] = q1 * (y2 * inv_det)[:, None]
     J[:, :, 1] = (q2 * l1[:, None] - q1 * x2[:, None]) * inv_det[:, None]
-    s = np.linalg.svd(J, compute_uv=False)
-    det = np.linalg.det(J)
+    return J, ok
+
+
+def distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distortion ``max(s1, 1 / s2)`` ``(n,)`` of the affine maps from triangles ``P (n, 3, 3)`` to
+    ``Q (n, 3, 2)`` and their Jacobian determinants ``(n,)`` (negative: flipped; the 3-D triangle's
+    own frame follows its right-hand normal). Degenerate triangles get ``inf``."""
+    J, ok = jacobians(P, Q)
+    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+    s1, s2 = singular_values_2x2(a, b, c, d)
     with np.errstate(divide="ignore"):
-        dist = np.maximum(s[:, 0], 1.0 / s[:, 1])
-    return np.where(ok & np.isfinite(dist), dist, np.inf), det
+        dist = np.maximum(s1, 1.0 / s2)
+    return np.where(ok & np.isfinite(dist), dist, np.inf), a * d - b * c
+
+
+def singular_values_2x2(a, b, c, d) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values ``s1 >= s2 >= 0`` ``(n,)`` of the 2 x 2 matrices ``[[a, b], [c, d]]`` in closed
+    form (the similarity and anti-similarity parts: ``s = |q| +- |r|``), a vectorised replacement of
+    an SVD per triangle, which dominated the parameterization."""
+    q = np.hypot(0.5 * (a + d), 0.5 * (c - b))
+    r = np.hypot(0.5 * (a - d), 0.5 * (c + b))
+    return q + r, np.abs(q - r)
+
+
+def up_error(P: np.ndarray, Q: np.ndarray, up: np.ndarray, *, signed: bool = False) -> np.ndarray:
+    """Angle in degrees ``(n,)`` between the domain image of ``up (3,)`` projected on each triangle
+    ``P (n, 3, 3)`` (mapped affinely to ``Q (n, 3, 2)``) and the domain's +y (``signed``: positive
+    towards +x, else its absolute value); NaN where less than half of ``up`` lies in the triangle's
+    plane."""
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    n = np.cross(e1, e2)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    t = up[None, :] - (n @ up)[:, None] * n
+    # t in the triangle's edge basis (t = x e1 + y e2, in its plane), then mapped by the same combination
+    g11, g12, g22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    r1, r2 = (t * e1).sum(1), (t * e2).sum(1)
+    den = np.maximum(g11 * g22 - g12 * g12, 1e-300)
+    x, y = (g22 * r1 - g12 * r2) / den, (g11 * r2 - g12 * r1) / den
+    d = x[:, None] * (Q[:, 1] - Q[:, 0]) + y[:, None] * (Q[:, 2] - Q[:, 0])
+    angle = np.degrees(np.arctan2(d[:, 0] if signed else np.abs(d[:, 0]), d[:, 1]))
+    return np.where(np.linalg.norm(t, axis=1) >= 0.5, angle, np.nan)
 
 
 class Locator:
@@ -127,7 +177,12 @@ class Patch:
 def _centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
-    the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`)."""
+    the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
+    planar surface (an image's grid) the log map is the plane's coordinates in the face's frame,
+    exact, without a solve."""
+    if surface.planar:
+        c = surface.V[surface.F[face]].mean(axis=0)
+        return (surface.V - c) @ np.stack([surface.X[face], surface.Y[face]], axis=1)
     v = surface.F[face, 0]
     L = surface.log_map(v)
     bx, by = surface.vertex_frames[v, 0], surface.vertex_frames[v, 1]
@@ -229,9 +284,12 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
     dist, det = distortion(surface.V[F[cand]], U[F[cand]] / scale)
     ok = np.zeros(len(F), bool)
     ok[cand] = (dist <= bound) & (det > 0)
+    if surface.up is not None:
+        with np.errstate(invalid="ignore"):
+            ok[cand] &= ~(up_error(surface.V[F[cand]], U[F[cand]], surface.up) > UP_TOLERANCE)
     ok = _piece(surface.pairs, ok, seed)
     faces = np.flatnonzero(ok)
-    keep = _drop_overlaps(U[F[faces]], faces)
+    keep = np.ones(len(faces), bool) if surface.planar else _drop_overlaps(U[F[faces]], faces)
     if not keep.all():
         ok[faces[~keep]] = False
         ok = _piece(surface.pairs, ok, seed)
@@ -241,13 +299,24 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
     return faces, d[faces]
 
 
+def _level(surface: Surface, U: np.ndarray, face: int) -> np.ndarray:
+    """``U (#V, 2)`` turned about the origin so that ``face``'s up direction maps exactly to +y (the
+    log map's frame is the seed vertex's tangent plane, a few degrees off the face's at a crease);
+    unchanged without ``surface.up`` or where the face has no up direction."""
+    if surface.up is None:
+        return U
+    alpha = up_error(surface.V[surface.F[[face]]], U[surface.F[[face]]], surface.up, signed=True)[0]
+    return U if not np.isfinite(alpha) else U @ rotation(np.radians(alpha)).T
+
+
 def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, theta: float, *,
                  radius: float, bound: float, scale: float) -> Patch | None:
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
     the seed face itself cannot be placed within the bound inside the source patch."""
-    Ut = _centred_log_map(target, seed, radius=radius, bound=bound)
-    Us = scale * (_centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound) @ rotation(-theta).T)
+    Ut = _level(target, _centred_log_map(target, seed, radius=radius, bound=bound), seed)
+    Us = _level(source, _centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound), source_face)
+    Us = scale * (Us @ rotation(-theta).T)
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):
         return None

@@ -50,6 +50,7 @@ from synthkit.methods.surfacing.transfer.extract import (
     corner_sources,
     corner_values,
     displacement_field,
+    seam_visibility,
     transfer_displacement,
     vertex_values,
 )
@@ -260,13 +261,29 @@ def _consistent_winding(V, F) -> tuple[np.ndarray, np.ndarray]:
     return G, (G != F).any(axis=1)
 
 
+def _child_uvs(P: np.ndarray, uv: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Corner UVs ``(n, 3, 2)`` of child triangles ``C (n, 3, 3)`` lying in their parents ``P (n, 3, 3)``
+    whose corner UVs are ``uv (n, 3, 2)``: each corner's barycentric coordinates in its parent (exact
+    for midpoint subdivision), so a subdivided target keeps its texture (seams included, UVs are per
+    corner)."""
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    den = np.where(np.abs(d11 * d22 - d12 * d12) > 1e-300, d11 * d22 - d12 * d12, 1e-300)
+    r = C - P[:, :1]
+    r1, r2 = np.einsum("nkd,nd->nk", r, e1), np.einsum("nkd,nd->nk", r, e2)
+    b1 = (d22[:, None] * r1 - d12[:, None] * r2) / den[:, None]
+    b2 = (d11[:, None] * r2 - d12[:, None] * r1) / den[:, None]
+    bary = np.stack([1 - b1 - b2, b1, b2], axis=2)  # (n, 3 child corners, 3 parent corners)
+    return np.einsum("nkj,njd->nkd", bary, uv)
+
+
 def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     from synthkit.core.mesh import weld
     from synthkit.methods.surfacing.pipeline import mesh_colors
 
     colors = mesh_colors(mesh)
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-    tex = texture_of(mesh) if cfg.transfer.extraction.subdivide == 0 else None
+    tex = texture_of(mesh)
     original, texture = (tex[0][F], tex[1]) if tex is not None else (None, None)
     if mesh.visual.kind == "texture":
         _, _, o2n = weld(V, F, 1e-7 * float(np.linalg.norm(np.ptp(V, axis=0))), return_index=True)
@@ -280,11 +297,13 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     for _ in range(cfg.transfer.extraction.subdivide):
         if colors is not None:  # trimesh returns attributes or the face index, not both
             colors = trimesh.remesh.subdivide(V, F, vertex_attributes={"c": colors})[2]["c"]
-        V, F, children = trimesh.remesh.subdivide(V, F, return_index=True)
-        new_parent = np.empty(len(F), np.int64)
+        V2, F2, children = trimesh.remesh.subdivide(V, F, return_index=True)
+        step = np.empty(len(F2), np.int64)
         for old, new in children.items():
-            new_parent[new] = parent[old]
-        parent = new_parent
+            step[new] = old
+        if original is not None:
+            original = _child_uvs(V[F[step]], original[step], V2[F2])
+        V, F, parent = V2, F2, parent[step]
     return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors, original, texture)
 
 
@@ -471,7 +490,7 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
                                            scale=pair.scale)
         else:
             corner = corner_values(mine, prep.source, len(F), nearest=ex.sampling == "nearest")
-        vals = vertex_values(F, corner, areas, nV, blend=ex.blend)
+        vals = vertex_values(F, corner, areas, nV, blend=ex.blend, V=V)
         ids = np.flatnonzero(np.isfinite(vals[:, 0]))
         if pair.signal == "displacement":
             ext.positions[ids] += vals[ids]
@@ -479,11 +498,29 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
             ext.attributes.setdefault(pair.attribute, np.zeros((nV, vals.shape[1])))[ids] = vals[ids]
         else:
             new = np.clip(vals[ids], 0, 1)
-            if original is not None and ex.blend == "kernel":
+            if original is not None and ex.blend != "none":
                 border = _border_vertices(F, np.flatnonzero(layout.pair == k), nV)[ids]
                 new[border] = 0.5 * (new[border] + original[ids[border]])
             ext.colors[ids] = new
     return ext
+
+
+def _seam_figures(prep: Prepared, res: Result, base: Result | None, blend: str) -> dict:
+    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``blend``) and,
+    with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
+    colour, texture and attribute signals."""
+    if prep.source.signal.kind == "displacement":
+        return {}
+    t = prep.target
+    out = {}
+    for key, r in (("seam_visibility", res), ("baseline_seam_visibility", base)):
+        if r is None:
+            continue
+        corner = corner_values(r, prep.source, len(t.F))
+        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
+        figure = seam_visibility(t.V, t.F, r.patch_of, vals)
+        out[key] = None if not np.isfinite(figure) else figure
+    return out
 
 
 def _pair_metrics(prep: Prepared, res: Result, base: Result | None) -> dict:
@@ -509,7 +546,9 @@ def _pair_metrics(prep: Prepared, res: Result, base: Result | None) -> dict:
 
 
 def _metrics(cfg, ctx, preps, results) -> None:
-    pairs = [_pair_metrics(p, r, b) for p, (r, b) in zip(preps, results, strict=True)]
+    blend = cfg.transfer.extraction.blend
+    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, blend)} for p, (r, b) in zip(preps, results,
+                                                                                             strict=True)]
     n = sum(m["target_faces"] for m in pairs)
     m = {
         "pairs": pairs, "patches": sum(p["patches"] for p in pairs),

@@ -99,11 +99,27 @@ class Surface:
     vertex_frames: np.ndarray
     _solver: object = field(default=None, repr=False)
     _support_index: np.ndarray | None = field(default=None, repr=False)
+    up: np.ndarray | None = None
+    _planar: bool | None = field(default=None, repr=False)
+
+    @property
+    def planar(self) -> bool:
+        """Whether every face lies in one plane (normals within 1e-9 of the first face's, vertices
+        within 1e-9 of the size from its plane), as an image's grid does: its log maps are then the
+        plane's own coordinates, exact and without overlaps."""
+        if self._planar is None:
+            n0 = self.N[0]
+            size = max(float(np.ptp(self.V, axis=0).max()), 1e-300)
+            self._planar = bool(np.all(self.N @ n0 > 1 - 1e-9)
+                                and np.abs((self.V - self.V[0]) @ n0).max() <= 1e-9 * size)
+        return self._planar
 
     def orient(self, up) -> None:
         """Face frames with ``X = up x N`` (level, when ``up`` is the vertical) and ``Y = N x X``;
-        faces whose normal is parallel to ``up`` keep their frame."""
-        X = np.cross(np.asarray(up, np.float64)[None, :], self.N)
+        faces whose normal is parallel to ``up`` keep their frame. Sets ``up (3,)`` (unit), which the
+        patches then hold on every face (:func:`..param.mutual_patch`)."""
+        self.up = np.asarray(up, np.float64) / max(float(np.linalg.norm(up)), 1e-300)
+        X = np.cross(self.up[None, :], self.N)
         n = np.linalg.norm(X, axis=1)
         ok = n > 1e-6
         self.X[ok] = X[ok] / n[ok, None]

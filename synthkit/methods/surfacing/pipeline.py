@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from pathlib import Path
 
 import cv2
@@ -32,6 +31,7 @@ from trimesh.exchange.obj import export_obj
 
 from synthkit import preview
 from synthkit.errors import ConfigError
+from synthkit.io.atomic import write_text_atomic
 from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.io.segmentation import write_labels_ply, write_point_polylines_obj, write_polylines_obj, write_seg
@@ -268,9 +268,7 @@ def _write_obj_without_material(part: trimesh.Trimesh, path: Path) -> None:
     """Write ``part`` as OBJ with its UVs but no ``mtllib``/``usemtl`` and no material files."""
     text, _ = export_obj(part, include_texture=True, return_texture=True, write_texture=False)
     lines = [line for line in text.splitlines() if not line.startswith(("mtllib ", "usemtl "))]
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def _stroked_faces(F, seg: Segmentation) -> np.ndarray:

@@ -38,6 +38,7 @@ from synthkit.core.mesh import merge_vertices, normalize_unit
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.meshes import load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
+from synthkit.methods.retarget.corners import carry
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     VoxelGrid,
@@ -63,7 +64,8 @@ class Retargeted:
     """One synthesis result in normalised units: ``V (n, 3)``, ``F (m, 3)`` (the retargeted mesh,
     flat regions re-triangulated across seams), ``labelled_F (k, 3)`` with ``face_label (k,)`` (the
     same surface with every face inside one label's copy, for ``labels.ply``), the grid, the
-    problem (labels, shapes), the labeling ``(N,)`` and its energy."""
+    problem (labels, shapes), the labeling ``(N,)`` and its energy; ``attr (m, 3, k)`` the
+    corner values of ``F`` (:mod:`~synthkit.methods.retarget.corners`) when the input had them."""
 
     V: np.ndarray
     F: np.ndarray
@@ -74,6 +76,7 @@ class Retargeted:
     energy: float
     cycles: int
     labelled_F: np.ndarray | None = None
+    attr: np.ndarray | None = None
 
 
 def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float) -> list[np.ndarray]:
@@ -104,7 +107,8 @@ def _voxel_sets(an: Analysis, grid: VoxelGrid, *, descriptor: str, radius: float
 
 
 def synthesize(
-    Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "", allow_infinite: bool = False, step_keys=None
+    Vn, F, an: Analysis, basis, steps, *, cfg, ctx, prefix: str = "", allow_infinite: bool = False, step_keys=None,
+    attr=None,
 ) -> Retargeted:
     """Retarget the normalised mesh ``Vn``, ``F`` on the grid spanned by ``basis (3, 3)`` by
     ``steps (3,)`` voxels per axis; stages timed on ``ctx`` as ``<prefix>synthesis``,
@@ -146,28 +150,49 @@ def synthesize(
             "to a non-empty one (try other steps)"
         )
     with ctx.stage(f"{prefix}assemble"):
-        Vc, Fo, fl = assemble(grid.to_canonical(Vn), F, grid, problem, result.labels)
-        Vw, Fw, old_to_new = weld_seams(Vc, Fo, fl, grid, cfg.weld_tolerance)
-        Fm = old_to_new[Fo]
-        fl = fl[(Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])]
-        keep = unique_faces(Vw, Fw)
-        Fw, fl = Fw[keep], fl[keep]
-        Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=cfg.weld_tolerance)
-        fl = fl[src]
-        on_seam = _on_voxel_planes(Vw, grid, cfg.weld_tolerance)
-        Fw, src = collapse_short_seam_edges(Vw, Fw, on_seam, SEAM_COLLAPSE * a.dense_radius)
-        fl = fl[src]
-        Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=cfg.weld_tolerance)
-        fl = fl[src]
-        Fl = flip_sliver_edges(Vw, Fl, fl)
-        Fw, _ = merge_coplanar_faces(Vw, Fl, None, tol=cfg.weld_tolerance)
-        Fw = flip_sliver_edges(Vw, Fw)
-        used = np.unique(Fl)
-        remap = np.full(len(Vw), -1)
-        remap[used] = np.arange(len(used))
+        return _stitch(Vn, F, attr, grid, problem, result, weld_tol=cfg.weld_tolerance, dense_radius=a.dense_radius)
+
+
+def _stitch(Vn, F, attr, grid: VoxelGrid, problem: RetargetProblem, result, *, weld_tol: float, dense_radius: float):
+    """Assemble the labeling's copies, weld them along the seams, close T-junctions, collapse
+    short seam edges, re-triangulate flat regions and flip slivers (per label for ``labelled_F``,
+    across seams for ``F``), carrying the corner values ``attr (#F, 3, k)`` through every step."""
+    Vc, Fo, fl, A = assemble(grid.to_canonical(Vn), F, grid, problem, result.labels, attr)
+    Vw, Fw, old_to_new = weld_seams(Vc, Fo, fl, grid, weld_tol)
+    Fm = old_to_new[Fo]
+    alive = (Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 2] != Fm[:, 0])
+    fl, A = fl[alive], _take(A, alive)
+    keep = unique_faces(Vw, Fw)
+    Fw, fl, A = Fw[keep], fl[keep], _take(A, keep)
+    F0 = Fw
+    Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=weld_tol)
+    fl, A = fl[src], carry(Vw, Fw, F0, src, A)
+    on_seam = _on_voxel_planes(Vw, grid, weld_tol)
+    F0 = Fw
+    Fw, src = collapse_short_seam_edges(Vw, Fw, on_seam, SEAM_COLLAPSE * dense_radius)
+    fl, A = fl[src], carry(Vw, Fw, F0, src, A)
+    Fl, src = merge_coplanar_faces(Vw, Fw, fl, tol=weld_tol, attr=A)
+    fl, Al = fl[src], carry(Vw, Fl, Fw, src, A)
+    F0 = Fl
+    Fl = flip_sliver_edges(Vw, Fl, fl, attr=Al)
+    Al = carry(Vw, Fl, F0, np.arange(len(Fl)), Al)
+    Fw, src = merge_coplanar_faces(Vw, Fl, None, tol=weld_tol, attr=Al)
+    A = carry(Vw, Fw, Fl, src, Al)
+    F0 = Fw
+    Fw = flip_sliver_edges(Vw, Fw, attr=A)
+    A = carry(Vw, Fw, F0, np.arange(len(Fw)), A)
+    used = np.unique(Fl)
+    remap = np.full(len(Vw), -1)
+    remap[used] = np.arange(len(used))
     return Retargeted(
-        Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles, labelled_F=remap[Fl]
+        Vw[used], remap[Fw], fl, grid, problem, result.labels, result.energy, result.cycles,
+        labelled_F=remap[Fl], attr=A,
     )
+
+
+def _take(A, rows):
+    """``A[rows]``, None when ``A`` is None."""
+    return None if A is None else A[rows]
 
 
 SEAM_COLLAPSE = 0.5

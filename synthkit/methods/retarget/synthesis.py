@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 from synthkit.core.descriptors import descriptor_distances
 from synthkit.core.graphcut import ExpansionResult, alpha_expansion
 from synthkit.core.mesh import boundary_loops, triangulate_polygons, weld
+from synthkit.methods.retarget.corners import carry, same_map
 
 __all__ = [
     "VoxelGrid",
@@ -338,24 +339,27 @@ def _face_boxes(Vc, F, grid: VoxelGrid) -> tuple[np.ndarray, np.ndarray]:
     return lo, np.maximum(hi, lo)
 
 
-def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """The part of the faces ``F`` inside the region ``mask3 (X, Y, Z) bool``: ``(V2, F2)`` with
-    the vertices of ``Vc`` kept at their indices and cut points appended. Faces are cut plane by
-    plane, and after each cut only the pieces whose voxel box still straddles the region are cut
-    further, so a face is split only where the region's boundary passes through it."""
+def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The part of the faces ``F`` inside the region ``mask3 (X, Y, Z) bool``: ``(V2, F2, src (m2,))``
+    with the vertices of ``Vc`` kept at their indices, cut points appended and each piece's face of
+    ``F``. Faces are cut plane by plane, and after each cut only the pieces whose voxel box still
+    straddles the region are cut further, so a face is split only where the region's boundary
+    passes through it."""
     from synthkit.core.mesh import _plane_args, _split_one
 
     V, F, normals, offsets, src, eps = _plane_args(Vc, F, normals, offsets, None)
-    done = []
+    done, done_src = [], []
 
-    def sort_out(V, F):
+    def sort_out(V, F, src):
         lo, hi = _face_boxes(V, F, grid)
         count = _box_counts(mask3, lo, hi)
         volume = np.prod(hi - lo + 1, axis=1)
         done.append(F[count == volume])
-        return F[(count > 0) & (count < volume)]
+        done_src.append(src[count == volume])
+        part = (count > 0) & (count < volume)
+        return F[part], src[part]
 
-    F = sort_out(V, F)
+    F, src = sort_out(V, F, src)
     for n, d in zip(normals, offsets, strict=True):
         if len(F) == 0:
             break
@@ -364,16 +368,22 @@ def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.
         mixed = (sd > e)[F].any(axis=1) & (sd < -e)[F].any(axis=1)
         if not mixed.any():
             continue
-        V, Fi, _, Fo, _ = _split_one(V, F[mixed], np.zeros(int(mixed.sum()), np.int64), n, d, e)
-        F = sort_out(V, np.concatenate([F[~mixed], Fi, Fo]))
+        V, Fi, Si, Fo, So = _split_one(V, F[mixed], src[mixed], n, d, e)
+        F, src = sort_out(V, np.concatenate([F[~mixed], Fi, Fo]), np.concatenate([src[~mixed], Si, So]))
     if len(F):  # pieces crossing no plane but straddling by their box: keep by the centroid
         vox = np.clip(grid.voxel_of(V[F].mean(axis=1)), 0, np.asarray(grid.shape) - 1)
-        done.append(F[mask3[tuple(vox.T)]])
-    return V, np.concatenate(done) if done else np.zeros((0, 3), np.int64)
+        inside = mask3[tuple(vox.T)]
+        done.append(F[inside])
+        done_src.append(src[inside])
+    return V, np.concatenate(done), np.concatenate(done_src)
 
 
-def assemble(Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The output mesh: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int)``, not welded.
+def assemble(
+    Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling, attr=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The output mesh: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int, attr (m, 3, k) or
+    None)``, not welded; ``attr`` carries the input faces' corner values ``attr (#F, 3, k)``
+    (:mod:`~synthkit.methods.retarget.corners`) onto every copy and cut piece.
 
     Output voxel ``x`` with label ``l`` takes the input inside voxel ``x - l`` translated by ``l``
     (canonical units), so copies stay aligned with the grid. Done per label, cutting only what
@@ -392,22 +402,24 @@ def assemble(Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling) -> tupl
     regions = label_regions(problem, labeling)
     normals, offsets = seam_planes(regions, grid.shape)
     shape = tuple(int(n) for n in grid.shape)
-    Vs, Fs, Ls = [], [], []
+    Vs, Fs, Ls, As = [], [], [], []
     off = 0
     for lab, mask in regions.items():
         if len(F) == 0:
             break
-        V2, Fl = _cut_to_region(Vc, F, grid, mask.reshape(shape), normals, offsets + normals @ grid.origin)
+        V2, Fl, src = _cut_to_region(Vc, F, grid, mask.reshape(shape), normals, offsets + normals @ grid.origin)
         if len(Fl) == 0:
             continue
         used, inv = np.unique(Fl, return_inverse=True)
         Vs.append(V2[used] + problem.labels[lab])
         Fs.append(inv.reshape(-1, 3) + off)
         Ls.append(np.full(len(Fl), lab, dtype=np.int64))
+        As.append(carry(V2, Fl, F, src, attr))
         off += len(used)
     if not Vs:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
-    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls)
+        empty = None if attr is None else np.zeros((0, 3, attr.shape[2]))
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), empty
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls), None if attr is None else np.concatenate(As)
 
 
 SLIVER_DEG = 1.0
@@ -494,12 +506,15 @@ def _turns_less_than(V, before, after, min_cos: float) -> bool:
     return bool(np.all(dots >= min_cos * np.linalg.norm(n0, axis=1) * np.linalg.norm(n1, axis=1)))
 
 
-def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarray:
+def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None) -> np.ndarray:
     """``F2 (m, 3)``: ``F (m, 3)`` with the longest edge of each sliver (an angle below
     :data:`SLIVER_DEG`) flipped where the face across it is coplanar (normals within 1e-9), has the
-    same ``face_label`` (when given), the two form a convex quad and the flip raises the pair's
+    same ``face_label`` (when given) and appearance map (:func:`same_map` of the corner values
+    ``attr (m, 3, k)``, when given), the two form a convex quad and the flip raises the pair's
     smallest angle. The surface is unchanged (a coplanar pair covers the same quad either way) and
-    faces keep their rows, so labels stay valid. Rounds repeat until nothing flips.
+    faces keep their rows, so labels stay valid and each face's new corner values are its old
+    face's map at the new corners (``carry(V, F2, F, arange(m), attr)``). Rounds repeat until
+    nothing flips.
 
     Finding (issue 15): after the seam collapse, house1 shrunk by a floor kept 8 faces below one
     degree, caps of 176-178 degrees whose long edge splits a flat wall; ear clipping keeps every
@@ -512,7 +527,7 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarr
     for _ in range(max_rounds):
         changed: set[int] = set()
         for f in todo[_face_min_angles(V, F[todo]) < np.radians(SLIVER_DEG)]:
-            g = _flip_longest_edge(V, F, int(f), lab, incident)
+            g = _flip_longest_edge(V, F, int(f), lab, incident, attr)
             if g is not None:
                 for v in np.concatenate([F[f], F[g]]).tolist():
                     changed |= incident[v]
@@ -522,7 +537,7 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarr
     return F
 
 
-def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | None:
+def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]], attr=None) -> int | None:
     """Flip the longest edge of face ``f`` in place (see :func:`flip_sliver_edges`), keeping
     ``incident`` (:func:`_incidence`) up to date; the face across it when it did, else None."""
     tri = F[f]
@@ -534,6 +549,8 @@ def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | Non
         return None
     g = next(x for x in across if x != f)
     if lab is not None and lab[g] != lab[f]:
+        return None
+    if attr is not None and not same_map(V[F[[f]]], attr[[f]], V[F[[g]]], attr[[g]])[0]:
         return None
     d = int(F[g][~np.isin(F[g], [a, b])][0])
     if incident[c] & incident[d]:
@@ -679,14 +696,17 @@ def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
 
 
 def merge_coplanar_faces(
-    V, F, face_label=None, *, tol: float = 1e-7
+    V, F, face_label=None, *, tol: float = 1e-7, attr=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Re-triangulate each connected region of coplanar faces (of one label) with fewer faces.
 
-    ``V (n, 3)`` welded, ``F (m, 3)``, ``face_label (m,)`` or None. Faces are grouped when they
-    share an edge (used by exactly those two faces), have the same label (when labels are given)
-    and lie in one plane (unit normals
-    within ``1e-9`` of each other's direction and plane offsets within ``tol``). A region of three
+    ``V (n, 3)`` welded, ``F (m, 3)``, ``face_label (m,)`` or None, ``attr (m, 3, k)`` the faces'
+    corner values or None (:mod:`~synthkit.methods.retarget.corners`). Faces are grouped when they
+    share an edge (used by exactly those two faces), have the same label (when labels are given),
+    lie in one plane (unit normals within ``1e-9`` of each other's direction and plane offsets
+    within ``tol``) and show one affine appearance map (:func:`same_map`: same material, UVs and
+    colours continuous and affine across the pair); a region whose faces drift off its first
+    face's map is kept as it is. New faces take the map of their region (``src``). A region of three
     or more faces is replaced by the ear-clipping triangulation of its boundary loops
     (:func:`synthkit.core.mesh.triangulate_polygons`, holes included) when that uses fewer faces
     and covers the same area (relative ``1e-9``); otherwise it is kept. Every boundary vertex is
@@ -706,7 +726,7 @@ def merge_coplanar_faces(
     lab = np.zeros(m, np.int64) if face_label is None else np.asarray(face_label, dtype=np.int64).reshape(-1)
     if m == 0:
         return F, np.arange(0)
-    comp, area2, nrm = _coplanar_regions(V, F, lab, tol)
+    comp, area2, nrm = _coplanar_regions(V, F, lab, tol, attr)
     ncomp = int(comp.max()) + 1
     sizes = np.bincount(comp, minlength=ncomp)
     # vertices touching at most two regions: removable from those regions' loops where straight
@@ -715,8 +735,18 @@ def merge_coplanar_faces(
     members = np.argsort(comp, kind="stable")
     starts = np.r_[0, np.cumsum(sizes)]
     region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
-    region_loops = {c: boundary_loops(F[f]) for c, f in region_faces.items() if area2[f[0]] > 0}
     locked = n_regions > 2  # a vertex is dropped only where every loop through it runs straight
+    region_loops = {}
+    for c, f in region_faces.items():
+        if area2[f[0]] <= 0:
+            continue
+        loops = boundary_loops(F[f])
+        first = np.full(len(f), f[0])
+        if attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all():
+            for lp in loops:
+                locked[lp] = True  # a region of several maps stays as it is
+            continue
+        region_loops[c] = loops
     for _ in range(4):
         seen = np.zeros(len(V), np.int64)
         straight_in = np.zeros(len(V), np.int64)
@@ -752,11 +782,11 @@ def merge_coplanar_faces(
     return F2, src
 
 
-def _coplanar_regions(V, F, lab, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _coplanar_regions(V, F, lab, tol: float, attr=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Connected regions of coplanar faces of one label: ``(comp (m,), area2 (m,) twice the face
     areas, nrm (m, 3) unit normals)``. Two faces join when they share an edge used by exactly
-    those two, have the same label, non-zero areas, normals within ``1e-9`` and plane offsets
-    within ``tol``."""
+    those two, have the same label, non-zero areas, normals within ``1e-9``, plane offsets
+    within ``tol`` and one appearance map (:func:`same_map` of their corner values ``attr``)."""
     m = len(F)
     cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     area2 = np.linalg.norm(cr, axis=1)
@@ -776,6 +806,8 @@ def _coplanar_regions(V, F, lab, tol: float) -> tuple[np.ndarray, np.ndarray, np
         & (np.einsum("ij,ij->i", nrm[a], nrm[b]) >= 1 - 1e-9)
         & (np.abs(off[a] - off[b]) <= tol)
     )
+    if attr is not None and same.any():
+        same[same] = same_map(V[F[a[same]]], attr[a[same]], V[F[b[same]]], attr[b[same]])
     G = sp.coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
     _, comp = connected_components(G, directed=False)
     return comp, area2, nrm

@@ -165,9 +165,9 @@ def _stitch(Vn, F, attr, grid: VoxelGrid, problem: RetargetProblem, result, *, w
     keep = unique_faces(Vw, Fw)
     Fw, fl, A = Fw[keep], fl[keep], _take(A, keep)
     F0 = Fw
-    Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=weld_tol)
-    fl, A = fl[src], carry(Vw, Fw, F0, src, A)
     on_seam = _on_voxel_planes(Vw, grid, weld_tol)
+    Vw, Fw, src = repair_t_junctions(Vw, Fw, tol=weld_tol, split_at=on_seam)
+    fl, A = fl[src], carry(Vw, Fw, F0, src, A)
     F0 = Fw
     Fw, src = collapse_short_seam_edges(Vw, Fw, on_seam, SEAM_COLLAPSE * dense_radius)
     fl, A = fl[src], carry(Vw, Fw, F0, src, A)

@@ -574,14 +574,21 @@ def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]], attr=None) -
     return g
 
 
-def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8, split_at=None) -> tuple[np.ndarray, np.ndarray]:
     """Split boundary edges at boundary vertices lying on them (within ``tol``), so that two
     copies cut by the same seam plane but tessellated differently share their seam vertices.
 
-    ``V (n, 3)``, ``F (m, 3)`` welded. Each round splits, for every face with such an edge, that
+    ``V (n, 3)``, ``F (m, 3)`` welded; ``split_at (n,) bool`` (all when None) marks the vertices
+    that may split an edge. Each round splits, for every face with such an edge, that
     edge into a fan from the opposite corner; rounds repeat until nothing changes. Returns
     ``(V, F2 (m2, 3), src (m2,))`` with the new faces' source face. Vertices are not moved, so no
     geometry is invented.
+
+    Finding (issue 22): low-poly assets have T-junctions of their own (building-small-a: a wall's
+    top edge runs under the corners of the double-sided slab above it, 58 open edges). Splitting
+    those too made the wall's pieces meet both faces of the slab: 7 non-manifold edges in
+    building-small-a grown by one step (input 0). The pipeline passes the vertices on voxel
+    planes, where seams cut and copies meet, so the input's own junctions stay as they are.
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -595,6 +602,10 @@ def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.nda
         if not boundary.any():
             break
         bverts = np.unique(E[boundary])
+        if split_at is not None:
+            bverts = bverts[np.asarray(split_at, bool)[bverts]]
+        if len(bverts) == 0:
+            break
         tree = cKDTree(V[bverts])
         splits: dict[int, list[tuple[float, int]]] = {}
         for row in np.flatnonzero(boundary):
@@ -727,34 +738,16 @@ def merge_coplanar_faces(
     if m == 0:
         return F, np.arange(0)
     comp, area2, nrm = _coplanar_regions(V, F, lab, tol, attr)
-    ncomp = int(comp.max()) + 1
-    sizes = np.bincount(comp, minlength=ncomp)
-    # vertices touching at most two regions: removable from those regions' loops where straight
-    vc = np.unique(np.stack([F.reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
-    n_regions = np.bincount(vc[:, 0], minlength=len(V))
-    members = np.argsort(comp, kind="stable")
-    starts = np.r_[0, np.cumsum(sizes)]
-    region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
-    locked = n_regions > 2  # a vertex is dropped only where every loop through it runs straight
-    region_loops = {}
-    for c, f in region_faces.items():
-        if area2[f[0]] <= 0:
-            continue
-        loops = boundary_loops(F[f])
-        first = np.full(len(f), f[0])
-        if attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all():
-            for lp in loops:
-                locked[lp] = True  # a region of several maps stays as it is
-            continue
-        region_loops[c] = loops
+    pid = weld(V, np.zeros((0, 3), np.int64), POSITION_TOL, return_index=True)[2]
+    region_faces, region_loops, locked = _region_loops(V, F, comp, area2, attr, pid)
     for _ in range(4):
         seen = np.zeros(len(V), np.int64)
         straight_in = np.zeros(len(V), np.int64)
         for loops in region_loops.values():
             for lp in loops:
-                np.add.at(seen, lp, 1)
-                np.add.at(straight_in, lp[_collinear(V, lp, tol)], 1)
-        drop = (seen > 0) & (straight_in == seen) & ~locked
+                np.add.at(seen, pid[lp], 1)
+                np.add.at(straight_in, pid[lp[_collinear(V, lp, tol)]], 1)
+        drop = ((seen > 0) & (straight_in == seen) & ~locked)[pid]
         keep = np.ones(m, bool)
         new_faces, new_src = [], []
         failed = False
@@ -767,7 +760,7 @@ def merge_coplanar_faces(
             if tris is None:
                 if drops_here:
                     for lp in loops:
-                        locked[lp] = True
+                        locked[pid[lp]] = True
                     failed = True
                 continue
             keep[faces] = False
@@ -780,6 +773,31 @@ def merge_coplanar_faces(
     F2 = np.concatenate([F[keep]] + new_faces) if new_faces else F
     src = np.concatenate([np.flatnonzero(keep)] + new_src) if new_faces else np.arange(m)
     return F2, src
+
+
+def _region_loops(V, F, comp, area2, attr, pid) -> tuple[dict, dict, np.ndarray]:
+    """The faces ``{region: (k,)}`` and boundary loops ``{region: [loop, ...]}`` of the regions
+    :func:`merge_coplanar_faces` may re-triangulate, and ``locked (#positions,) bool``: the
+    positions (``pid (n,)``, vertices welded by position, so that an asset's UV-seam twins of a
+    vertex are dropped together or not at all) that no region may drop, those touching more than
+    two regions or lying on a region that stays as it is (zero area, or several appearance maps)."""
+    ncomp = int(comp.max()) + 1
+    sizes = np.bincount(comp, minlength=ncomp)
+    vc = np.unique(np.stack([pid[F].reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
+    locked = np.bincount(vc[:, 0], minlength=len(V)) > 2
+    members = np.argsort(comp, kind="stable")
+    starts = np.r_[0, np.cumsum(sizes)]
+    region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
+    region_loops = {}
+    for c, f in region_faces.items():
+        first = np.full(len(f), f[0])
+        if area2[f[0]] <= 0 or (
+            attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all()
+        ):
+            locked[pid[F[f]].reshape(-1)] = True
+            continue
+        region_loops[c] = boundary_loops(F[f])
+    return region_faces, region_loops, locked
 
 
 def _coplanar_regions(V, F, lab, tol: float, attr=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

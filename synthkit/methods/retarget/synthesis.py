@@ -739,15 +739,13 @@ def merge_coplanar_faces(
         return F, np.arange(0)
     comp, area2, nrm = _coplanar_regions(V, F, lab, tol, attr)
     pid = weld(V, np.zeros((0, 3), np.int64), POSITION_TOL, return_index=True)[2]
-    region_faces, region_loops, locked = _region_loops(V, F, comp, area2, attr, pid)
+    region_faces, region_loops, locked, n_touch = _region_loops(V, F, comp, area2, attr, pid)
     for _ in range(4):
-        seen = np.zeros(len(V), np.int64)
         straight_in = np.zeros(len(V), np.int64)
         for loops in region_loops.values():
             for lp in loops:
-                np.add.at(seen, pid[lp], 1)
                 np.add.at(straight_in, pid[lp[_collinear(V, lp, tol)]], 1)
-        drop = ((seen > 0) & (straight_in == seen) & ~locked)[pid]
+        drop = ((n_touch > 0) & (straight_in == n_touch) & ~locked)[pid]
         keep = np.ones(m, bool)
         new_faces, new_src = [], []
         failed = False
@@ -756,11 +754,10 @@ def merge_coplanar_faces(
             drops_here = any(drop[lp].any() for lp in loops)
             if len(faces) < 3 and not drops_here:
                 continue  # nothing to gain
-            tris = _retriangulate(V, F, faces, [lp[~drop[lp]] for lp in loops], nrm, area2)
+            tris = _retriangulate(V, F, faces, [lp[~drop[lp]] for lp in loops], nrm, area2, tol)
             if tris is None:
                 if drops_here:
-                    for lp in loops:
-                        locked[pid[lp]] = True
+                    locked[pid[F[faces]].reshape(-1)] = True
                     failed = True
                 continue
             keep[faces] = False
@@ -775,29 +772,39 @@ def merge_coplanar_faces(
     return F2, src
 
 
-def _region_loops(V, F, comp, area2, attr, pid) -> tuple[dict, dict, np.ndarray]:
+def _region_loops(V, F, comp, area2, attr, pid) -> tuple[dict, dict, np.ndarray, np.ndarray]:
     """The faces ``{region: (k,)}`` and boundary loops ``{region: [loop, ...]}`` of the regions
-    :func:`merge_coplanar_faces` may re-triangulate, and ``locked (#positions,) bool``: the
-    positions (``pid (n,)``, vertices welded by position, so that an asset's UV-seam twins of a
-    vertex are dropped together or not at all) that no region may drop, those touching more than
-    two regions or lying on a region that stays as it is (zero area, or several appearance maps)."""
+    :func:`merge_coplanar_faces` may re-triangulate, ``locked (n,) bool`` and ``n_touch (n,)``
+    over the positions ``pid (n,)`` (vertices welded by position, so that an asset's UV-seam twins
+    of a vertex are dropped together or not at all): locked are the positions touching more than
+    two regions or a region that stays as it is, ``n_touch`` counts the regions at each.
+
+    A region stays as it is when its faces have zero area, several appearance maps, or a vertex
+    inside it (on none of its loops) that another region uses: building-small-a's walls stand on
+    the inside of its floor slab, and re-triangulating the slab without the wall's foot vertices
+    left the wall's bottom edge hanging (T-junctions, open edges)."""
     ncomp = int(comp.max()) + 1
     sizes = np.bincount(comp, minlength=ncomp)
     vc = np.unique(np.stack([pid[F].reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
-    locked = np.bincount(vc[:, 0], minlength=len(V)) > 2
+    n_touch = np.bincount(vc[:, 0], minlength=len(V))
+    locked = n_touch > 2
     members = np.argsort(comp, kind="stable")
     starts = np.r_[0, np.cumsum(sizes)]
     region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
     region_loops = {}
     for c, f in region_faces.items():
         first = np.full(len(f), f[0])
-        if area2[f[0]] <= 0 or (
-            attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all()
+        loops = boundary_loops(F[f]) if area2[f[0]] > 0 else []
+        inner = np.setdiff1d(pid[F[f]], pid[np.concatenate(loops)] if loops else np.zeros(0, np.int64))
+        if (
+            not loops
+            or (n_touch[inner] > 1).any()
+            or (attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all())
         ):
             locked[pid[F[f]].reshape(-1)] = True
             continue
-        region_loops[c] = boundary_loops(F[f])
-    return region_faces, region_loops, locked
+        region_loops[c] = loops
+    return region_faces, region_loops, locked, n_touch
 
 
 def _coplanar_regions(V, F, lab, tol: float, attr=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -841,9 +848,12 @@ def _collinear(V, loop: np.ndarray, tol: float) -> np.ndarray:
     return (ln > 0) & (t > 0) & (t < ln) & (off_line <= tol)
 
 
-def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2) -> np.ndarray | None:
+def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2, tol: float) -> np.ndarray | None:
     """Ear-clipping triangulation ``(k, 3)`` of a flat region's boundary ``loops`` (its ``faces``),
-    or None unless it has at most as many faces, the region's orientation and the same area."""
+    or None unless it has at most as many faces, the region's orientation, the same area and no
+    flat triangle (a corner within ``tol`` of the line through the other two: a vertex kept on a
+    straight stretch of the loop, because the region across it needs it, can be clipped as a
+    sliver of float noise, which is a collapsed face and, by position, a T-junction)."""
     if not all(len(lp) >= 3 for lp in loops):
         return None
     n = nrm[faces[0]]
@@ -858,5 +868,8 @@ def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2)
         return None
     t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])
     total = area2[faces].sum()
-    same_area = abs(np.linalg.norm(t2, axis=1).sum() - total) <= 1e-9 * total
-    return tris if bool(np.all(t2 @ n > 0)) and same_area else None
+    double = np.linalg.norm(t2, axis=1)
+    same_area = abs(double.sum() - total) <= 1e-9 * total
+    longest = np.linalg.norm(V[tris] - V[np.roll(tris, 1, axis=1)], axis=2).max(axis=1)
+    flat = double <= tol * longest
+    return tris if bool(np.all(t2 @ n > 0)) and same_area and not flat.any() else None

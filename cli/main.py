@@ -84,18 +84,29 @@ class _Group(click.Group):
 @click.option("-v", "--verbose", count=True, help="More messages; -v also shows tracebacks.")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
 @click.option("--max-memory", type=click.FloatRange(min=0.01, max=1e6), default=None, metavar="GIB",
+              callback=lambda ctx, param, value: _finite(param, value),
               help="Memory one run may plan to use, in GiB (default: half of this machine's memory); "
                    "work estimated beyond it is refused before it starts.")
+@click.option("--strict", is_flag=True,
+              help="Exit 3 when an output mesh is over its method's quality limits (the run is written, "
+                   "its report says degraded).")
 @click.pass_context
-def cli(ctx: click.Context, verbose: int, quiet: bool, max_memory: float | None) -> None:
+def cli(ctx: click.Context, verbose: int, quiet: bool, max_memory: float | None, strict: bool) -> None:
     """Example-based 3D model and texture synthesis, driven by YAML configs.
 
-    Exit codes: 0 success, 2 usage or config error, 3 input data error, 1 anything else;
-    130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
+    Exit codes: 0 success, 2 usage or config error, 3 input data error (and, with --strict, an
+    output over its quality limits), 1 anything else; 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
     """
     level = -1 if quiet else min(verbose, 2)
-    ctx.obj = {"verbosity": level, "max_memory": max_memory}
+    ctx.obj = {"verbosity": level, "max_memory": max_memory, "strict": strict}
     configure_logging(level)
+
+
+def _finite(param: click.Parameter, value: float | None) -> float | None:
+    """``value`` unless it is NaN (which passes click's range check), as a usage error."""
+    if value is not None and value != value:
+        raise click.BadParameter(f"{value} is not a number", param=param)
+    return value
 
 
 def main() -> None:

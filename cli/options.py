@@ -45,6 +45,12 @@ def verbosity(ctx: click.Context) -> int:
     return int(root.obj.get("verbosity", 0)) if root.obj else 0
 
 
+def strict_mode(ctx: click.Context) -> bool:
+    """The group's ``--strict``: a degraded output exits 3."""
+    root = ctx.find_root()
+    return bool(root.obj.get("strict")) if root.obj else False
+
+
 def run_budget(ctx: click.Context):
     """The :class:`~synthkit.limits.Budget` of each run, from the group's ``--max-memory`` (GiB)."""
     from synthkit.limits import Budget
@@ -121,7 +127,9 @@ def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     headline = ", ".join(
         f"{k}={scalars[k]:.4g}" if isinstance(scalars[k], float) else f"{k}={scalars[k]}" for k in keys
     )
-    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline})", err=True)
+    status = "" if report.get("status", "ok") == "ok" else f" [{report['status']}]"
+    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline}){status}",
+               err=True)
 
 
 def method_command(
@@ -165,6 +173,7 @@ def method_command(
             show_progress=not no_progress and verbosity(ctx) >= 0,
             budget=run_budget(ctx),
             previews=previews,
+            strict=strict_mode(ctx),
         )
         if as_json:
             click.echo(json.dumps(report, indent=2))

@@ -28,6 +28,7 @@ from .options import (
     run_budget,
     seed_option,
     set_option,
+    strict_mode,
     verbosity,
 )
 
@@ -136,7 +137,7 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
         _write_batch(Path(out_root), rows)
     if as_json:
         click.echo(json.dumps([r | {"ok": r["status"] == "ok"} for r in rows], indent=2))
-    failed = [r for r in rows if r["status"] != "ok"]
+    failed = [r for r in rows if r["status"] not in ("ok", "degraded") or r["exit_code"]]
     if verbosity(ctx) >= 0:
         click.echo(f"run: {len(rows) - len(failed)} succeeded, {len(failed)} failed", err=True)
         for r in failed:
@@ -181,13 +182,19 @@ def _run_one(ctx, row: dict, out_dir: str, seed, overrides, overwrite: bool, no_
         failed["seconds"] = round(time.perf_counter() - start, 3)
         return failed
     print_summary(ctx, report, out_dir)
-    return _succeeded(row, report, out_dir, round(time.perf_counter() - start, 3))
+    return _succeeded(ctx, row, report, out_dir, round(time.perf_counter() - start, 3))
 
 
-def _succeeded(row: dict, report: dict, out_dir: str, seconds: float) -> dict:
+def _succeeded(ctx, row: dict, report: dict, out_dir: str, seconds: float) -> dict:
+    """The row of a run that wrote its outputs: ``ok``, or ``degraded`` (exit 3 with ``--strict``)."""
     metrics = {k: v for k, v in report.get("metrics", {}).items() if k in HEADLINE_METRICS}
-    return row | {"status": "ok", "exit_code": 0, "seconds": seconds, "out": out_dir, "metrics": metrics,
-                  "report": report}
+    row = row | {"status": "ok", "exit_code": 0, "seconds": seconds, "out": out_dir, "metrics": metrics,
+                 "report": report}
+    if report.get("status") == "degraded":
+        strict = strict_mode(ctx)
+        row |= {"status": "degraded", "exit_code": 3 if strict else 0,
+                "error": "output degraded" + (" (--strict)" if strict else "")}
+    return row
 
 
 def _failed(ctx, row: dict, exc: Exception) -> dict:
@@ -264,7 +271,7 @@ def _run_distributed(ctx, jobs, rows, bar, *, out_root, seed, overwrite, workers
         with _above(bar):
             if outcome["status"] == "ok":
                 print_summary(ctx, outcome["report"], jobs[i].out)
-                rows[i] = _succeeded(row, outcome["report"], jobs[i].out, outcome["seconds"])
+                rows[i] = _succeeded(ctx, row, outcome["report"], jobs[i].out, outcome["seconds"])
             else:
                 if outcome.get("traceback") and verbosity(ctx) > 0:
                     click.echo(outcome["traceback"].rstrip(), err=True)

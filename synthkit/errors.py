@@ -37,6 +37,13 @@ class InputError(SynthkitError):
     exit_code = 3
 
 
+class QualityError(SynthkitError):
+    """An output over its method's mesh-quality limits under ``--strict`` (exit code 3); the
+    output folder is written, with ``report.json`` saying ``"status": "degraded"``."""
+
+    exit_code = 3
+
+
 class Terminated(BaseException):
     """The process received SIGTERM (from ``timeout``, a batch scheduler or ``kill``): unwinds like
     KeyboardInterrupt, so staging folders are removed, and exits with 128 + 15 = 143."""

@@ -1,7 +1,11 @@
 """PNG previews of what a run made: meshes, scalar fields, images, curves.
 
 Meshes are drawn by a small software rasterizer (orthographic view, z-buffer, two-sided Lambert
-shading), so previews need no display and no OpenGL. Views: ``front`` looks along -Z with +Y up,
+shading), so previews need no display and no OpenGL. A mesh with an :class:`Appearance` is drawn
+as it will look in a DCC: each pixel's texture coordinates are interpolated in its face
+(barycentric in screen space: exact for an orthographic view) and its material's texture is
+sampled there (nearest texel, repeating outside [0, 1]), times the material's colour and any
+vertex colours. Views: ``front`` looks along -Z with +Y up,
 ``top`` looks down -Y with -Z up, ``side`` looks along -X with +Y up, ``iso`` is turned 35 degrees
 about +Y and tilted 25 degrees down.
 """
@@ -9,6 +13,7 @@ about +Y and tilted 25 degrees down.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -23,6 +28,48 @@ _VIEWS = {
     "iso": (35.0, 25.0),
 }
 _BASE_COLOR = np.array([0.72, 0.76, 0.84])
+
+
+@dataclass
+class Appearance:
+    """How a mesh's faces look (all arrays over its ``#F`` faces).
+
+    Attributes
+    ----------
+    corner_uv : (#F, 3, 2) texture coordinates per face corner, or None
+    face_image : (#F,) int64 index into ``images`` (-1: untextured)
+    images : base-colour textures, each (H, W, 3) float32 in [0, 1] (row 0 = top, v = 1)
+    face_tint : (#F, 3) material colour in [0, 1]
+    corner_color : (#F, 3, 3) vertex colours in [0, 1] per corner, or None
+    """
+
+    corner_uv: np.ndarray | None
+    face_image: np.ndarray
+    images: list
+    face_tint: np.ndarray
+    corner_color: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, asset, corner_uv=None, face_material=None, corner_color=None, *, like_input: bool = False):
+        """The appearance of faces that use ``asset``'s materials (an :class:`~synthkit.io.assets.Asset`):
+        with ``like_input`` the asset's own faces, else faces given by ``corner_uv (#F, 3, 2)``,
+        ``face_material (#F,)`` and ``corner_color (#F, 3, 4) uint8``."""
+        if like_input:
+            corner_uv, face_material, corner_color = asset.corner_uv, asset.face_material, asset.corner_color
+        n = len(face_material) if face_material is not None else (len(corner_uv) if corner_uv is not None else 0)
+        fm = np.zeros(n, np.int64) if face_material is None else np.asarray(face_material, np.int64)
+        mats = asset.materials
+        images = [None if m.image is None else m.image[..., :3].astype(np.float32) / 255.0 for m in mats]
+        tints = np.array([m.color[:3] for m in mats] + [[1.0, 1.0, 1.0]], np.float64)
+        face_image = np.where(fm >= 0, fm, -1)
+        if corner_uv is None:
+            face_image = np.full(n, -1, np.int64)
+        else:
+            has = np.array([img is not None for img in images] + [False])
+            face_image = np.where(has[np.where(fm >= 0, fm, len(mats))], face_image, -1)
+        colors = None if corner_color is None else np.asarray(corner_color, np.float64)[..., :3] / 255.0
+        return cls(corner_uv=corner_uv, face_image=face_image, images=images,
+                   face_tint=tints[np.where(fm >= 0, fm, len(mats))], corner_color=colors)
 
 
 def view_rotation(view: str) -> np.ndarray:
@@ -45,11 +92,13 @@ def rasterize_mesh(
     view: str = "iso",
     size: int = 512,
     lines: np.ndarray | None = None,
+    appearance: Appearance | None = None,
 ) -> np.ndarray:
     """Render ``V (#V, 3)``, ``F (#F, 3)`` to an ``(size, size, 3) float32`` image in [0, 1].
 
-    ``face_colors (#F, 3)`` in [0, 1] tint faces; ``lines (k, 2, 3)`` are segments drawn on top in
-    red. Each pixel shows the nearest face that holds its centre (:func:`_rasterize`).
+    ``face_colors (#F, 3)`` in [0, 1] tint faces; ``appearance`` draws them textured (module
+    docstring) instead; ``lines (k, 2, 3)`` are segments drawn on top in red. Each pixel shows the
+    nearest face that holds its centre (:func:`_rasterize`).
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -75,6 +124,9 @@ def rasterize_mesh(
     _rasterize(pix[F], P[F, 2], size, depth, face_at)
     covered = face_at >= 0
     img.reshape(-1, 3)[covered] = _shaded_colors(P, F, face_colors, face_at[covered])
+    if appearance is not None:
+        pixels = np.flatnonzero(covered)
+        img.reshape(-1, 3)[pixels] *= _surface_colors(appearance, pix[F], pixels, face_at[pixels], size)
     if lines is not None and len(lines):
         segs = np.asarray(lines, dtype=np.float64).reshape(-1, 3) @ R.T
         seg_pix = to_pixels(segs).reshape(-1, 2, 2)
@@ -110,6 +162,38 @@ def _shaded_colors(P: np.ndarray, F: np.ndarray, face_colors, faces: np.ndarray)
     colors = _BASE_COLOR if face_colors is None else np.asarray(face_colors, np.float64)
     base = np.broadcast_to(colors, (len(F), 3))[uniq]
     return (base * shade[:, None])[inv]
+
+
+def _surface_colors(app: Appearance, tri_pix: np.ndarray, pixels: np.ndarray, faces: np.ndarray,
+                    size: int) -> np.ndarray:
+    """``(k, 3)`` unshaded colours (over :data:`_BASE_COLOR`, which the shading applied) of the
+    pixels ``pixels (k,)`` showing faces ``faces (k,)``; ``tri_pix (#F, 3, 2)`` are the faces'
+    pixel coordinates."""
+    T = tri_pix[faces]
+    px = np.stack([pixels % size, pixels // size], axis=1).astype(np.float64)
+    e1, e2, d = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0], px - T[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w1 = np.where(det != 0, (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det, 1 / 3)
+        w2 = np.where(det != 0, (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det, 1 / 3)
+    W = np.clip(np.stack([1 - w1 - w2, w1, w2], axis=1), 0, 1)
+    W /= np.maximum(W.sum(axis=1, keepdims=True), 1e-12)
+    color = app.face_tint[faces].astype(np.float64)
+    if app.corner_color is not None:
+        color = color * np.einsum("kc,kcj->kj", W, app.corner_color[faces])
+    if app.corner_uv is not None:
+        uv = np.einsum("kc,kcj->kj", W, np.nan_to_num(app.corner_uv[faces]))
+        for index in np.unique(app.face_image[faces]):
+            if index < 0:
+                continue
+            at = np.flatnonzero(app.face_image[faces] == index)
+            image = app.images[index]
+            h, w = image.shape[:2]
+            u, v = (np.where((c >= 0) & (c <= 1), c, np.mod(c, 1.0)) for c in (uv[at, 0], uv[at, 1]))
+            col = np.minimum(np.floor(u * w), w - 1).astype(np.int64)
+            row = np.minimum(np.floor((1.0 - v) * h), h - 1).astype(np.int64)
+            color[at] *= image[row, col]
+    return (color / _BASE_COLOR).astype(np.float32)
 
 
 def _rasterize(pix, z, size, depth, face_at) -> None:
@@ -226,6 +310,27 @@ def render_mesh_png(path: Path | str | None, V: np.ndarray, F: np.ndarray, **kwa
     img = rasterize_mesh(V, F, **kwargs)
     _save(path, img)
     return img
+
+
+MeshLook = tuple
+"""``(V (#V, 3), F (#F, 3), Appearance or None)``: a mesh as :func:`before_after_png` draws it."""
+
+
+def before_after_png(
+    path: Path | str | None, before: MeshLook, after: MeshLook, *, views: Sequence[str] = ("front", "iso", "top"),
+    size: int = 256, titles: tuple[str, str] = ("input", "result"),
+) -> np.ndarray:
+    """Two rows of textured views (``views``), the input above the result, each framed alone;
+    write a PNG (``path`` None: only render) and return it."""
+    rows = []
+    for (V, F, app), title in zip((before, after), titles, strict=True):
+        tiles = [rasterize_mesh(V, F, view=v, size=size, appearance=app) for v in views]
+        rows.append(montage_png(None, tiles, titles=[f"{title}: {v}" for v in views], height=size))
+    width = max(r.shape[1] for r in rows)
+    rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]
+    out = np.concatenate([rows[0], np.ones((6, width, 3), np.float32), rows[1]], axis=0)
+    _save(path, out)
+    return out
 
 
 def colorize(field: np.ndarray, *, vmin: float | None = None, vmax: float | None = None) -> np.ndarray:

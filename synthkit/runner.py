@@ -23,7 +23,7 @@ import numpy as np
 
 from synthkit import __version__, outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
-from synthkit.errors import ConfigError, SynthkitError, raise_if_terminated
+from synthkit.errors import ConfigError, QualityError, SynthkitError, raise_if_terminated
 from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
 
@@ -49,8 +49,11 @@ class RunContext:
     outputs : dict[str, str]
         Output key -> file name relative to the output folder, registered by :meth:`path`.
     status : str
-        ``report.json``'s ``status`` of a run that succeeds: ``"ok"``, or ``"partial"`` when a method
-        wrote a documented partial result (reshape's ``solver.allow_partial``).
+        ``report.json``'s ``status`` of a run that succeeds: ``"ok"``, ``"partial"`` when a method
+        wrote a documented partial result (reshape's ``solver.allow_partial``), or ``"degraded"``
+        when an output mesh is over one of its method's quality limits (:meth:`check_quality`).
+    quality_warnings : list[str]
+        The lines :meth:`check_quality` warned with (``--strict`` names the first).
     previews : str
         ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
     budget : Budget
@@ -76,6 +79,7 @@ class RunContext:
         self.outputs: dict[str, str] = {}
         self.budget = budget if budget is not None else Budget()
         self.status = "ok"
+        self.quality_warnings: list[str] = []
         if previews not in PREVIEW_LEVELS:
             raise ValueError(f"previews must be one of {', '.join(PREVIEW_LEVELS)}, got {previews!r}")
         self.previews = previews
@@ -91,6 +95,20 @@ class RunContext:
         """:meth:`path` for a preview of ``level`` the run keeps, else None (the preview functions of
         :mod:`synthkit.preview` then render without writing)."""
         return self.path(key, filename) if self.wants_preview(level) else None
+
+    def check_quality(self, key: str, before: dict, after: dict, limits: dict) -> None:
+        """Record the mesh-quality figures (:func:`synthkit.core.quality.mesh_quality`) of output
+        ``key`` beside its input's in ``metrics["mesh_quality"][key]``, with the method's ``limits``
+        (figure -> largest allowed value). Each figure over its limit is one warning line naming the
+        figure and the limit, and makes the run ``degraded``."""
+        self.metrics.setdefault("mesh_quality", {})[key] = {"input": before, "output": after, "limits": limits}
+        for figure, limit in limits.items():
+            value = after.get(figure)
+            if value is not None and limit is not None and value > limit:
+                line = f"{key}: {figure} {value} over its limit {limit} (input: {before.get(figure)})"
+                log.warning("%s", line)
+                self.quality_warnings.append(line)
+                self.status = "degraded"
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
@@ -200,10 +218,13 @@ def run_config(
     show_progress: bool = True,
     budget: Budget | None = None,
     previews: str = "all",
+    strict: bool = False,
 ) -> dict[str, Any]:
     """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report.
 
-    See :mod:`synthkit.outdir` for what may be replaced, the lock and the staging folder.
+    See :mod:`synthkit.outdir` for what may be replaced, the lock and the staging folder. With
+    ``strict``, a run whose report says ``degraded`` is written, then raises :class:`QualityError`
+    (exit 3) naming its first figure over a limit.
     """
     named: list[Path] = []
     method, cfg, inputs = load_method_config(
@@ -234,6 +255,8 @@ def run_config(
             shutil.rmtree(staging, ignore_errors=True)
             raise
     log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
+    if strict and report["status"] == "degraded":
+        raise QualityError(f"{config_path}: output degraded (--strict): {ctx.quality_warnings[0]}")
     return report
 
 

@@ -123,3 +123,22 @@ def test_rasterizer_matches_a_per_pixel_reference_on_random_triangles():
     face_at = np.full(size * size, -1, dtype=np.int64)
     _rasterize(pix, z, size, depth, face_at)
     assert np.array_equal(face_at.reshape(size, size), _reference_raster(pix, z, size))
+
+
+def test_textured_quad_shows_its_texture_quadrants():
+    """A front-facing quad with a 2x2 texture: each quarter of the render shows its texel (times
+    the shading of a face turned to the light as the plain quad is)."""
+    from synthkit.preview import Appearance
+
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = V[:, :2][F]
+    texture = np.array([[[1, 0, 0], [0, 1, 0]], [[0, 0, 1], [1, 1, 1]]], np.float32)  # top row: red, green
+    app = Appearance(corner_uv=uv, face_image=np.zeros(2, np.int64), images=[texture], face_tint=np.ones((2, 3)))
+    plain = rasterize_mesh(V, F, view="front", size=64)
+    img = rasterize_mesh(V, F, view="front", size=64, appearance=app)
+    shade = plain[32, 32] / np.array([0.72, 0.76, 0.84], np.float32)
+    quarters = {(12, 12): [1, 0, 0], (12, 50): [0, 1, 0], (50, 12): [0, 0, 1], (50, 50): [1, 1, 1]}
+    for (row, col), texel in quarters.items():
+        assert np.allclose(img[row, col], np.array(texel) * shade, atol=1e-5)
+    assert np.allclose(img[0, 0], 1.0)  # background untouched

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +29,8 @@ import numpy as np
 import trimesh
 
 from synthkit.errors import InputError
+from synthkit.io.assets import map_file_name, resolve_named_file
+from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.meshes import check_mesh
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
 
 TEXTURED_SUFFIXES = (".obj", ".glb")
 _MAP_KEY = re.compile(r"^\s*(map_\w+|bump|disp|decal|norm)\s+", re.IGNORECASE)
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
 @dataclass
@@ -187,7 +189,7 @@ def _load_glb(path: Path) -> TexturedMesh:
 
 
 def _mtl_files(obj_path: Path) -> list[str]:
-    """The MTL files an OBJ names (relative names as written)."""
+    """The MTL files an OBJ names (as written)."""
     names = []
     for line in obj_path.read_text(encoding="utf-8", errors="replace").splitlines():
         if line.startswith("mtllib"):
@@ -195,35 +197,75 @@ def _mtl_files(obj_path: Path) -> list[str]:
     return names
 
 
-def companion_files(mesh: TexturedMesh) -> list[str]:
-    """Relative names of the files an OBJ needs beside it (its MTL files and the images they name
-    that exist); empty for a GLB (textures are embedded)."""
+@dataclass
+class _Companion:
+    """A file an OBJ needs beside it: where it is read from, the safe name it gets in the output
+    folder, and for an MTL the (texture name as written -> safe name) rewrites of its maps."""
+
+    source: Path
+    name: str
+    rewrites: dict = field(default_factory=dict)
+
+
+def _safe_name(name: str, taken: set[str]) -> str:
+    """``name``'s base name with unsafe characters replaced, unique among ``taken`` (added to it)."""
+    stem, suffix = Path(_UNSAFE.sub("_", Path(name.replace("\\", "/")).name)).stem, Path(name).suffix.lower()
+    safe, k = f"{stem}{suffix}", 2
+    while safe in taken:
+        safe, k = f"{stem}_{k}{suffix}", k + 1
+    taken.add(safe)
+    return safe
+
+
+def _companions(mesh: TexturedMesh) -> list[_Companion]:
+    """The MTL files and existing texture images an OBJ names, resolved as DCC tools do (relative to
+    the OBJ / MTL folder, in sibling or parent folders, or absolute), each with a safe output name.
+    Raises InputError naming the MTL when a texture it names is not an image file."""
+    import cv2
+
     if mesh.source.suffix.lower() != ".obj":
         return []
-    folder = mesh.source.parent
-    found = []
+    taken: set[str] = set()
+    found, images = [], {}
     for name in _mtl_files(mesh.source):
-        mtl = folder / name
+        mtl = resolve_named_file(name, mesh.source.parent)
         if not mtl.is_file():
             continue
-        found.append(name)
+        entry = _Companion(mtl, _safe_name(name, taken))
+        found.append(entry)
         for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
-            if _MAP_KEY.match(line):
-                image = line.split()[-1]
-                if (folder / image).is_file() and image not in found:
-                    found.append(image)
+            if not _MAP_KEY.match(line):
+                continue
+            written = map_file_name(line)
+            image = resolve_named_file(written, mtl.parent)
+            if not image.is_file():
+                continue
+            if not cv2.haveImageReader(str(image)):
+                raise InputError(f"{mtl}: texture {written} is not an image file")
+            if image not in images:
+                images[image] = _Companion(image, _safe_name(written, taken))
+                found.append(images[image])
+            entry.rewrites[written] = images[image].name
     return found
 
 
+def companion_files(mesh: TexturedMesh) -> list[str]:
+    """Names (plain file names, safe, unique) under which the files an OBJ needs -- its MTL files
+    and the images they name that exist -- are written beside the output; empty for a GLB
+    (textures are embedded)."""
+    return [c.name for c in _companions(mesh)]
+
+
 def material_textures(mesh: TexturedMesh) -> dict[str, Path]:
-    """Material name -> the ``map_Kd`` image path its OBJ's MTL names (whether or not the file
-    exists); materials without one are left out. Empty for a GLB (textures are embedded). Raises
-    InputError when an MTL the OBJ names is missing."""
+    """Material name -> the ``map_Kd`` image path its OBJ's MTL names (resolved as
+    :func:`resolve_named_file` does; whether or not the file exists); materials without one are
+    left out. Empty for a GLB (textures are embedded). Raises InputError when an MTL the OBJ names
+    is missing."""
     if mesh.source.suffix.lower() != ".obj":
         return {}
-    folder, found = mesh.source.parent, {}
+    found = {}
     for name in _mtl_files(mesh.source):
-        mtl = folder / name
+        mtl = resolve_named_file(name, mesh.source.parent)
         if not mtl.is_file():
             raise InputError(f"{mtl}: material library named by {mesh.source.name} not found")
         current = None
@@ -231,9 +273,24 @@ def material_textures(mesh: TexturedMesh) -> dict[str, Path]:
             parts = line.split()
             if parts and parts[0] == "newmtl":
                 current = parts[1] if len(parts) > 1 else ""
-            elif parts and parts[0].lower() == "map_kd" and current is not None and len(parts) > 1:
-                found[current] = (folder / parts[-1])
+            elif parts and parts[0].lower() == "map_kd" and current is not None and map_file_name(line):
+                found[current] = resolve_named_file(map_file_name(line), mtl.parent)
     return found
+
+
+def _copy_companions(mesh: TexturedMesh, folder: Path) -> None:
+    """Write the OBJ's companions into ``folder`` under their safe names, MTL texture names rewritten."""
+    for c in _companions(mesh):
+        if not c.rewrites and c.source.suffix.lower() != ".mtl":
+            write_bytes_atomic(folder / c.name, c.source.read_bytes())
+            continue
+        lines = []
+        for line in c.source.read_text(encoding="utf-8", errors="replace").splitlines():
+            if _MAP_KEY.match(line) and map_file_name(line) in c.rewrites:
+                head = line.rstrip()[: len(line.rstrip()) - len(map_file_name(line))]
+                line = head + c.rewrites[map_file_name(line)]
+            lines.append(line)
+        write_text_atomic(folder / c.name, "\n".join(lines) + "\n")
 
 
 def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *, retexture=()) -> None:
@@ -252,11 +309,11 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *
         raise ValueError("retextured surfaces can only be written to an OBJ")
     tmp = path.with_name(path.name + ".tmp" + suffix)
     if suffix == ".obj":
-        _write_obj(mesh.source, positions, tmp, _retexture_plan(mesh, list(retexture), path))
-        for name in companion_files(mesh):
-            target = path.parent / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(mesh.source.parent / name, target)
+        mtl_names = {c.source: c.name for c in _companions(mesh) if c.source.suffix.lower() == ".mtl"}
+        mtllibs = {name: mtl_names.get(resolve_named_file(name, mesh.source.parent), name)
+                   for name in _mtl_files(mesh.source)}
+        _write_obj(mesh.source, positions, tmp, _retexture_plan(mesh, list(retexture), path), mtllibs)
+        _copy_companions(mesh, path.parent)
     else:
         scene = trimesh.Scene()
         start = 0
@@ -324,9 +381,11 @@ def _face_line(parts, tri: int, plan: _Plan) -> str:
     return "f " + " ".join(tokens)
 
 
-def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | None = None) -> None:
+def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | None = None,
+               mtllibs: dict | None = None) -> None:
     """Copy ``source`` to ``target`` with the i-th ``v`` line holding ``positions[i]`` (17 digits:
-    exact) and, with a ``plan``, the retextured faces rewritten (see :func:`_retexture_plan`)."""
+    exact), ``mtllib`` names replaced by ``mtllibs`` (as written -> output name) and, with a
+    ``plan``, the retextured faces rewritten (see :func:`_retexture_plan`)."""
     out, i, tri, current, active = [], 0, 0, None, None
     retex = plan is not None and len(plan.materials) > 0
     for line in source.read_text(encoding="utf-8", errors="replace").splitlines():
@@ -336,9 +395,11 @@ def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | 
             extra = " ".join(parts[4:])
             out.append(f"v {x:.17g} {y:.17g} {z:.17g}" + (f" {extra}" if extra else ""))
             i += 1
-        elif retex and parts and parts[0] == "mtllib" and plan.mtllib:
-            out += [line, f"mtllib {plan.mtllib}"]
-            plan.mtllib = None
+        elif parts and parts[0] == "mtllib":
+            out.append("mtllib " + " ".join((mtllibs or {}).get(name, name) for name in parts[1:]))
+            if retex and plan.mtllib:
+                out.append(f"mtllib {plan.mtllib}")
+                plan.mtllib = None
         elif retex and parts and parts[0] == "usemtl":
             current = parts[1] if len(parts) > 1 else ""  # emitted before the next face that uses it
         elif retex and parts and parts[0] == "f":

@@ -151,3 +151,37 @@ def test_method_command_existing_output(runner, echo_command, echo_config, tmp_p
     again = runner.invoke(echo_command, [str(echo_config), "--out", str(out)])
     assert again.exit_code == 2 and "output folder exists; pass --overwrite" in again.stderr
     assert runner.invoke(echo_command, [str(echo_config), "--out", str(out), "--overwrite"]).exit_code == 0
+
+
+def test_degraded_output_warns_and_strict_exits_3(runner, echo_command, echo_config, tmp_path):
+    out = tmp_path / "o"
+    result = runner.invoke(cli, ["echo", str(echo_config), "--out", str(out), "--set", "fail=degrade"])
+    assert result.exit_code == 0
+    assert result.stderr.splitlines()[0] == "WARNING synthkit: mesh: open_edges 9 over its limit 8 (input: 4)"
+    assert result.stderr.splitlines()[1].endswith("[degraded]")
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "degraded"
+    assert report["metrics"]["mesh_quality"]["mesh"] == {"input": {"open_edges": 4}, "output": {"open_edges": 9},
+                                                         "limits": {"open_edges": 8}}
+    strict = runner.invoke(cli, ["--strict", "echo", str(echo_config), "--out", str(tmp_path / "s"),
+                                 "--set", "fail=degrade"])
+    assert strict.exit_code == 3
+    assert strict.stderr.strip().splitlines()[-1] == (
+        f"error: {echo_config}: output degraded (--strict): mesh: open_edges 9 over its limit 8 (input: 4)")
+    assert json.loads((tmp_path / "s" / "report.json").read_text())["status"] == "degraded"
+
+
+def test_batch_row_of_degraded_run(runner, echo_config, tmp_path):
+    for strict, code in (([], 0), (["--strict"], 3)):
+        root = tmp_path / f"root{len(strict)}"
+        args = [*strict, "run", str(echo_config), "--out-root", str(root), "--set", "fail=degrade"]
+        result = runner.invoke(cli, args)
+        assert result.exit_code == code
+        row = json.loads((root / "batch.json").read_text())["runs"][0]
+        assert (row["status"], row["exit_code"]) == ("degraded", code)
+
+
+def test_max_memory_nan_is_a_usage_error(runner, echo_config):
+    result = runner.invoke(cli, ["--max-memory", "nan", "run", str(echo_config)])
+    assert result.exit_code == 2
+    assert "nan is not a number" in result.stderr

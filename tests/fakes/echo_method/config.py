@@ -14,7 +14,7 @@ class EchoConfig(RunConfig):
     image: InputFile = Field(description="Input image.")
     mode: Literal["copy", "invert"] = Field("copy", description="What to do with the image.")
     gain: float = Field(1.0, gt=0.0, le=10.0, description="Multiplier.")
-    fail: Literal["none", "input", "refuse", "crash"] = Field("none", description="Fail on purpose (tests).")
+    fail: Literal["none", "input", "refuse", "crash", "degrade"] = Field("none", description="Fail on purpose (tests).")
     filter: Filter = Field(default_factory=Filter, description="Filter settings.")
 
 

@@ -21,5 +21,7 @@ def run(cfg, ctx):
         out = np.clip(out * cfg.gain, 0.0, 1.0)
         noise = ctx.rng.integers(0, 1000)
     save_image(ctx.path("image", "result.png"), out)
+    if cfg.fail == "degrade":
+        ctx.check_quality("mesh", {"open_edges": 4}, {"open_edges": 9}, {"open_edges": 8})
     ctx.metrics["mean"] = float(out.mean())
     ctx.metrics["noise"] = noise

@@ -39,7 +39,7 @@ __all__ = [
     "seam_planes",
     "assemble",
     "repair_t_junctions",
-    "mesh_quality",
+    "sliver_figures",
     "merge_coplanar_faces",
 ]
 
@@ -76,7 +76,7 @@ class VoxelGrid:
 
 POSITION_TOL = 1e-6
 """Normalised distance within which two vertices are one position when a mesh's cleanliness is
-judged (:func:`mesh_quality`, :func:`unique_faces`): the OBJ and glTF assets store 6-7 digits."""
+judged (:func:`unique_faces`): the OBJ and glTF assets store 6-7 digits."""
 
 
 def grid_phase(C, plane_distance, *, parallel=None, n_phases: int = 32) -> np.ndarray:
@@ -423,7 +423,7 @@ def assemble(
 
 
 SLIVER_DEG = 1.0
-"""A face with an interior angle below this many degrees is a sliver (:func:`mesh_quality`)."""
+"""A face with an interior angle below this many degrees is a sliver (:func:`sliver_figures`)."""
 
 
 def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -668,42 +668,16 @@ def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
     return keep
 
 
-def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
-    """Cleanliness figures of a triangle mesh ``V (n, 3)``, ``F (m, 3)`` (issue 15), after
-    welding by position within ``tol`` (so that the UV and normal seams of an asset, whose copies
-    of a vertex share a position, do not count as open):
-
-    - ``faces``: faces left after the weld (collapsed faces dropped);
-    - ``boundary_edges``: edges used by exactly one face (open edges);
-    - ``nonmanifold_edges``: edges used by more than two faces;
-    - ``duplicate_faces``: faces beyond the first over the same three welded vertices in the same
-      orientation, i.e. a surface present twice;
-    - ``back_to_back_faces``: faces over the same three vertices as another in the opposite
-      orientation (the double-sided walls of many assets; not an error of stitching);
-    - ``min_angle_deg``: the smallest interior angle over the faces (0 for a zero-area sliver;
-      clipping leaves slivers where a cut passes close to a vertex);
-    - ``sliver_faces``: faces with an angle below 1 degree.
-    """
-    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+def sliver_figures(V, F) -> dict:
+    """Retargeting's extra figures beside :func:`synthkit.core.quality.mesh_quality` for
+    ``V (n, 3)``, ``F (m, 3)``: ``min_angle_deg``, the smallest interior angle over the faces (0 for
+    a zero-area sliver, None without faces; clipping leaves slivers where a cut passes close to a
+    vertex), and ``sliver_faces``, the faces with an angle below :data:`SLIVER_DEG`."""
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    Vw, Fw = weld(V, F, tol) if len(V) else (V, F)
-    if len(Fw) == 0:
-        return {"faces": 0, "boundary_edges": 0, "nonmanifold_edges": 0, "duplicate_faces": 0,
-                "back_to_back_faces": 0, "min_angle_deg": None, "sliver_faces": 0}
-    E = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(E, axis=0, return_counts=True)
-    _, fcounts = np.unique(_smallest_first(Fw), axis=0, return_counts=True)
-    _, scounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
-    smallest = np.degrees(_face_min_angles(Vw, Fw))
-    return {
-        "faces": int(len(Fw)),
-        "boundary_edges": int((counts == 1).sum()),
-        "nonmanifold_edges": int((counts > 2).sum()),
-        "duplicate_faces": int((fcounts - 1).sum()),
-        "back_to_back_faces": int((scounts - 1).sum() - (fcounts - 1).sum()),
-        "min_angle_deg": float(smallest.min()),
-        "sliver_faces": int((smallest < SLIVER_DEG).sum()),
-    }
+    if len(F) == 0:
+        return {"min_angle_deg": None, "sliver_faces": 0}
+    smallest = np.degrees(_face_min_angles(np.asarray(V, dtype=np.float64), F))
+    return {"min_angle_deg": float(smallest.min()), "sliver_faces": int((smallest < SLIVER_DEG).sum())}
 
 
 def merge_coplanar_faces(

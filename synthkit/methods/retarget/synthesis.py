@@ -506,15 +506,20 @@ def _turns_less_than(V, before, after, min_cos: float) -> bool:
     return bool(np.all(dots >= min_cos * np.linalg.norm(n0, axis=1) * np.linalg.norm(n1, axis=1)))
 
 
-def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None) -> np.ndarray:
+def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None, active=None) -> np.ndarray:
     """``F2 (m, 3)``: ``F (m, 3)`` with the longest edge of each sliver (an angle below
     :data:`SLIVER_DEG`) flipped where the face across it is coplanar (normals within 1e-9), has the
     same ``face_label`` (when given) and appearance map (:func:`same_map` of the corner values
     ``attr (m, 3, k)``, when given), the two form a convex quad and the flip raises the pair's
     smallest angle. The surface is unchanged (a coplanar pair covers the same quad either way) and
     faces keep their rows, so labels stay valid and each face's new corner values are its old
-    face's map at the new corners (``carry(V, F2, F, arange(m), attr)``). Rounds repeat until
-    nothing flips.
+    face's map at the new corners (``carry(V, F2, F, arange(m), attr)``). Only the slivers among
+    ``active (m,) bool`` (all when None) are tried first; later rounds revisit the faces around a
+    flip. Rounds repeat until nothing flips.
+
+    Finding (issue 22): the generated 24k-triangle facade has 9,216 slivers of its own (thin
+    boxes), none flippable; trying them all took most of its 12-15 s pipeline. The pipeline passes
+    the faces touching a seam plane, so the pass grows with the seams, not with the mesh.
 
     Finding (issue 15): after the seam collapse, house1 shrunk by a floor kept 8 faces below one
     degree, caps of 176-178 degrees whose long edge splits a flat wall; ear clipping keeps every
@@ -523,7 +528,7 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None) 
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     lab = None if face_label is None else np.asarray(face_label).reshape(-1)
     incident = _incidence(F, len(V))
-    todo = np.arange(len(F))  # faces whose neighbourhood changed: all at first
+    todo = np.arange(len(F)) if active is None else np.flatnonzero(active)  # faces whose neighbourhood changed
     for _ in range(max_rounds):
         changed: set[int] = set()
         for f in todo[_face_min_angles(V, F[todo]) < np.radians(SLIVER_DEG)]:
@@ -681,7 +686,7 @@ def sliver_figures(V, F) -> dict:
 
 
 def merge_coplanar_faces(
-    V, F, face_label=None, *, tol: float = 1e-7, attr=None
+    V, F, face_label=None, *, tol: float = 1e-7, attr=None, active=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Re-triangulate each connected region of coplanar faces (of one label) with fewer faces.
 
@@ -691,7 +696,10 @@ def merge_coplanar_faces(
     lie in one plane (unit normals within ``1e-9`` of each other's direction and plane offsets
     within ``tol``) and show one affine appearance map (:func:`same_map`: same material, UVs and
     colours continuous and affine across the pair); a region whose faces drift off its first
-    face's map is kept as it is. New faces take the map of their region (``src``). A region of three
+    face's map is kept as it is, and so is a region without a face of ``active (m,) bool`` (all
+    when None; the pipeline passes the faces touching a seam plane: a region away from every seam
+    is the input's own, and re-triangulating it would cost time growing with the mesh). New faces
+    take the map of their region (``src``). A region of three
     or more faces is replaced by the ear-clipping triangulation of its boundary loops
     (:func:`synthkit.core.mesh.triangulate_polygons`, holes included) when that uses fewer faces
     and covers the same area (relative ``1e-9``); otherwise it is kept. Every boundary vertex is
@@ -713,7 +721,7 @@ def merge_coplanar_faces(
         return F, np.arange(0)
     comp, area2, nrm = _coplanar_regions(V, F, lab, tol, attr)
     pid = weld(V, np.zeros((0, 3), np.int64), POSITION_TOL, return_index=True)[2]
-    region_faces, region_loops, locked, n_touch = _region_loops(V, F, comp, area2, attr, pid)
+    region_faces, region_loops, locked, n_touch = _region_loops(V, F, comp, area2, attr, pid, active)
     for _ in range(4):
         straight_in = np.zeros(len(V), np.int64)
         for loops in region_loops.values():
@@ -746,14 +754,15 @@ def merge_coplanar_faces(
     return F2, src
 
 
-def _region_loops(V, F, comp, area2, attr, pid) -> tuple[dict, dict, np.ndarray, np.ndarray]:
+def _region_loops(V, F, comp, area2, attr, pid, active=None) -> tuple[dict, dict, np.ndarray, np.ndarray]:
     """The faces ``{region: (k,)}`` and boundary loops ``{region: [loop, ...]}`` of the regions
     :func:`merge_coplanar_faces` may re-triangulate, ``locked (n,) bool`` and ``n_touch (n,)``
     over the positions ``pid (n,)`` (vertices welded by position, so that an asset's UV-seam twins
     of a vertex are dropped together or not at all): locked are the positions touching more than
     two regions or a region that stays as it is, ``n_touch`` counts the regions at each.
 
-    A region stays as it is when its faces have zero area, several appearance maps, or a vertex
+    A region stays as it is when it has no ``active`` face, its faces have zero area, several
+    appearance maps, or a vertex
     inside it (on none of its loops) that another region uses: building-small-a's walls stand on
     the inside of its floor slab, and re-triangulating the slab without the wall's foot vertices
     left the wall's bottom edge hanging (T-junctions, open edges)."""
@@ -766,9 +775,10 @@ def _region_loops(V, F, comp, area2, attr, pid) -> tuple[dict, dict, np.ndarray,
     starts = np.r_[0, np.cumsum(sizes)]
     region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
     region_loops = {}
+    live = np.ones(ncomp, bool) if active is None else np.bincount(comp, weights=active, minlength=ncomp) > 0
     for c, f in region_faces.items():
         first = np.full(len(f), f[0])
-        loops = boundary_loops(F[f]) if area2[f[0]] > 0 else []
+        loops = boundary_loops(F[f]) if area2[f[0]] > 0 and live[c] else []
         inner = np.setdiff1d(pid[F[f]], pid[np.concatenate(loops)] if loops else np.zeros(0, np.int64))
         if (
             not loops

@@ -773,12 +773,14 @@ def _region_loops(V, F, comp, area2, attr, pid, active=None) -> tuple[dict, dict
     locked = n_touch > 2
     members = np.argsort(comp, kind="stable")
     starts = np.r_[0, np.cumsum(sizes)]
-    region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
-    region_loops = {}
     live = np.ones(ncomp, bool) if active is None else np.bincount(comp, weights=active, minlength=ncomp) > 0
+    live &= area2[members[starts[:-1]]] > 0
+    locked[pid[F[~live[comp]]].reshape(-1)] = True
+    region_faces = {c: members[starts[c] : starts[c + 1]] for c in np.flatnonzero(live).tolist()}
+    region_loops = {}
     for c, f in region_faces.items():
         first = np.full(len(f), f[0])
-        loops = boundary_loops(F[f]) if area2[f[0]] > 0 and live[c] else []
+        loops = boundary_loops(F[f])
         inner = np.setdiff1d(pid[F[f]], pid[np.concatenate(loops)] if loops else np.zeros(0, np.int64))
         if (
             not loops

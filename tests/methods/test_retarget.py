@@ -804,7 +804,7 @@ def test_cli_ply_without_faces_exit_3(tmp_path):
     text = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
             "element face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
     result, mesh, out = _cli(tmp_path, text, "no_faces", suffix=".ply")
-    _one_line_error(result, 3, mesh, "mesh has no faces (3 vertices, no triangles)")
+    _one_line_error(result, 3, mesh, "file holds no triangle mesh")
     assert not out.exists()
 
 

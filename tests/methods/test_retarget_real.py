@@ -184,7 +184,7 @@ def test_kenney_grown_keeps_its_look_and_closes_its_seams(tmp_path, steps):
     the colour the input shows at the same point of the copy it came from (texture sampled at the
     face's UV centroid against the input's texture at the input's UVs there); open edges within
     the input's times the copies, no non-manifold edge (the input has none), no degenerate face.
-    Measured (+1 / +2): open edges 61 / 117 (limits 116 / 174; before issue 22 76 / 110 with 7 / 7
+    Measured (+1 / +2): open edges 94 / 117 (limits 116 / 174; before issue 22 76 / 110 with 7 / 7
     non-manifold edges and flat faces of float noise, issue 22's report 225 against 126)."""
     name = "meshes/kenney-city/building-small-a.glb"
     _need(name)

@@ -15,9 +15,9 @@ from synthkit import __version__
 from synthkit.errors import TERMINATION_REQUESTED, Terminated
 from synthkit.methods import available_methods, package_module
 
-from .options import DEFAULT_SET_EXAMPLE, configure_logging, method_command
+from .options import DEFAULT_SET_EXAMPLE, configure_logging, method_command, nan_refused
 
-_TOOLS = ("init", "schema", "validate", "run")
+_TOOLS = ("init", "schema", "validate", "run", "report")
 """Subcommands that are not methods, after the methods in ``--help``."""
 
 
@@ -84,7 +84,7 @@ class _Group(click.Group):
 @click.option("-v", "--verbose", count=True, help="More messages; -v also shows tracebacks.")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
 @click.option("--max-memory", type=click.FloatRange(min=0.01, max=1e6), default=None, metavar="GIB",
-              callback=lambda ctx, param, value: _finite(param, value),
+              callback=lambda ctx, param, value: nan_refused(value),
               help="Memory one run may plan to use, in GiB (default: half of this machine's memory); "
                    "work estimated beyond it is refused before it starts.")
 @click.option("--strict", is_flag=True,
@@ -100,13 +100,6 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, max_memory: float | None,
     level = -1 if quiet else min(verbose, 2)
     ctx.obj = {"verbosity": level, "max_memory": max_memory, "strict": strict}
     configure_logging(level)
-
-
-def _finite(param: click.Parameter, value: float | None) -> float | None:
-    """``value`` unless it is NaN (which passes click's range check), as a usage error."""
-    if value is not None and value != value:
-        raise click.BadParameter(f"{value} is not a number", param=param)
-    return value
 
 
 def main() -> None:

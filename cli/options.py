@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import json
-import logging
 import sys
 import traceback
 from collections.abc import Callable
@@ -12,6 +11,8 @@ from collections.abc import Callable
 import click
 
 from synthkit.errors import Terminated
+from synthkit.logs import configure_logging, describe_exception
+from synthkit.summary import headline
 
 SET_HELP = "Override a config key (repeatable; values are YAML), e.g. --set {example}."
 DEFAULT_SET_EXAMPLE = "seed=7"
@@ -37,6 +38,48 @@ previews_option = click.option(
     "--previews", type=click.Choice(["all", "summary", "none"]), default="all", show_default=True,
     help="PNG previews to render: every one, the one summary image of each run, or none (results and "
          "report.json are written either way).")
+
+
+def _set_root(key: str, transform=None):
+    """A click callback storing an option given after the subcommand into the group's ``ctx.obj``
+    (so ``synthkit reshape cfg.yaml -q`` means what ``synthkit -q reshape cfg.yaml`` does)."""
+
+    def callback(ctx: click.Context, param: click.Parameter, value):
+        if value in (None, False, 0):
+            return value
+        root = ctx.find_root()
+        root.obj = root.obj or {}
+        root.obj[key] = transform(value) if transform else value
+        if key == "verbosity":
+            configure_logging(root.obj[key])
+        return value
+
+    return callback
+
+
+def nan_refused(value: float | None) -> float | None:
+    """``value`` unless it is NaN (which passes click's range checks), as a usage error."""
+    if value is not None and value != value:
+        raise click.BadParameter(f"{value} is not a number", param_hint="--max-memory")
+    return value
+
+
+def global_options(command: Callable) -> Callable:
+    """The group's -v/-q/--max-memory/--strict, accepted after a subcommand's name too."""
+    options = [
+        click.option("-v", "--verbose", count=True, expose_value=False, callback=_set_root("verbosity",
+                     lambda n: min(n, 2)), help="More messages; -v also shows tracebacks (also before the command)."),
+        click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_root("verbosity", lambda _: -1),
+                     help="Only errors on stderr (also before the command)."),
+        click.option("--max-memory", type=click.FloatRange(min=0.01, max=1e6), default=None, metavar="GIB",
+                     expose_value=False, callback=_set_root("max_memory", nan_refused),
+                     help="Memory one run may plan to use, in GiB (also before the command)."),
+        click.option("--strict", is_flag=True, expose_value=False, callback=_set_root("strict"),
+                     help="Exit 3 when an output is over its quality limits (also before the command)."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command
 
 
 def verbosity(ctx: click.Context) -> int:
@@ -88,47 +131,14 @@ def report_errors(fn: Callable) -> Callable:
     return wrapper
 
 
-def describe_exception(exc: BaseException) -> tuple[int, str]:
-    """(exit code, one-line message) for an exception raised by a run."""
-    from synthkit.errors import SynthkitError
-
-    if isinstance(exc, SynthkitError):
-        return exc.exit_code, str(exc)
-    if isinstance(exc, MemoryError):
-        return 1, "out of memory"
-    text = str(exc).splitlines()[0] if str(exc) else ""
-    return 1, f"internal error: {type(exc).__name__}: {text} (run with -v for the traceback)"
-
-
-HEADLINE_METRICS = (
-    "n_principal",
-    "sparsity_top7",
-    "graph_nodes",
-    "graph_labels",
-    "energy",
-    "cells",
-    "labels",
-    "adjacency_violations",
-    "normal_histogram_D",
-    "objective_start",
-    "objective_end",
-    "baseline_objective",
-)
-"""Metrics shown in the one-line run summary, when a method reports them."""
-
-
 def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     """One line per run on stderr (unless -q): method, folder, seconds, headline metrics."""
     if verbosity(ctx) < 0:
         return
-    metrics = report.get("metrics", {})
-    scalars = {k: v for k, v in metrics.items() if isinstance(v, int | float | str) and not isinstance(v, bool)}
-    keys = [k for k in HEADLINE_METRICS if k in scalars] or list(scalars)[:4]
-    headline = ", ".join(
-        f"{k}={scalars[k]:.4g}" if isinstance(scalars[k], float) else f"{k}={scalars[k]}" for k in keys
-    )
+    shown = headline(report.get("metrics", {}))
+    text = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in shown.items())
     status = "" if report.get("status", "ok") == "ok" else f" [{report['status']}]"
-    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({headline}){status}",
+    click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({text}){status}",
                err=True)
 
 
@@ -156,6 +166,7 @@ def method_command(
     @progress_option
     @previews_option
     @json_option
+    @global_options
     @report_errors
     def command(config, out_dir, seed, overrides, overwrite, no_progress, previews, as_json, **extra):
         from synthkit.runner import default_out_dir, run_config
@@ -186,14 +197,3 @@ def method_command(
 
 def _flag_name(param: str) -> str:
     return "--" + param.replace("_", "-")
-
-
-def configure_logging(verbosity_level: int) -> None:
-    """Log to stderr: warnings by default, info with -v, errors only with -q."""
-    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(verbosity_level, logging.DEBUG)
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
-    root = logging.getLogger("synthkit")
-    root.handlers[:] = [handler]
-    root.setLevel(level)
-    root.propagate = False

@@ -16,13 +16,14 @@ import difflib
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
 import socket
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -109,10 +110,71 @@ def sweep_axes(specs: Iterable[str]) -> list[tuple[str, list[str]]]:
     return axes
 
 
-def combinations(axes: Sequence[tuple[str, Sequence[str]]]) -> list[dict[str, str]]:
-    """The Cartesian product of the axes, the first axis varying slowest; ``[{}]`` without axes."""
+MAX_BATCH_RUNS = 100_000
+"""Most runs one ``synthkit run`` may plan (configs times sweep combinations); counted before any
+combination is built."""
+
+
+def config_method(path: str) -> str | None:
+    """The ``method:`` a config file declares, or None when it cannot be read (the run reports why)."""
+    from synthkit.config import load_yaml
+    from synthkit.errors import SynthkitError
+
+    try:
+        method = load_yaml(Path(path)).get("method")
+    except SynthkitError:
+        return None
+    return method if isinstance(method, str) else None
+
+
+def axes_for(method: str | None, axes: Sequence[tuple[str, Sequence[str]]]):
+    """Split sweep ``axes`` into those whose key ``method``'s schema has and those it lacks (a
+    batch may mix methods: a sweep key applies where it means something). An unknown method keeps
+    every axis, so that its run reports the problem."""
+    from synthkit.config import schema_has_key
+    from synthkit.methods import METHODS, config_module
+
+    if method not in METHODS:
+        return list(axes), []
+    model = config_module(method).CONFIG
+    kept = [(k, v) for k, v in axes if schema_has_key(model, k)]
+    return kept, [k for k, _ in axes if not schema_has_key(model, k)]
+
+
+def _folder_digest(folder: Path) -> str:
+    """SHA-1 over the names and bytes of every file in ``folder`` but ``report.json``."""
+    digest = hashlib.sha1()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "report.json"):
+        digest.update(path.relative_to(folder).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def seed_independent(rows: Sequence[dict]) -> list[str]:
+    """The configs of a batch whose runs that differ only by a swept seed wrote byte-identical
+    outputs (``report.json`` aside): their method's result does not depend on the seed."""
+    groups: dict[tuple, list[dict]] = {}
+    for row in rows:
+        sweep = dict(row.get("sweep") or {})
+        if "seed" in sweep and row.get("status") == "ok" and row.get("out"):
+            sweep.pop("seed")
+            groups.setdefault((row["config"], tuple(sorted(sweep.items()))), []).append(row)
+    found = []
+    for (config, _), members in groups.items():
+        if len(members) > 1 and len({_folder_digest(Path(r["out"])) for r in members}) == 1 and config not in found:
+            found.append(config)
+    return found
+
+
+def count_runs(axes: Sequence[tuple[str, Sequence[str]]]) -> int:
+    """How many combinations :func:`combinations` yields (1 without axes)."""
+    return math.prod(len(v) for _, v in axes)
+
+
+def combinations(axes: Sequence[tuple[str, Sequence[str]]]) -> Iterator[dict[str, str]]:
+    """The Cartesian product of the axes, lazily, the first axis varying slowest; one ``{}`` without axes."""
     keys = [k for k, _ in axes]
-    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(v for _, v in axes))]
+    return (dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(v for _, v in axes)))
 
 
 def sanitise(text: str) -> str:
@@ -202,7 +264,7 @@ def read_batch_file(path: str) -> BatchFile | None:
         if isinstance(values, str):
             values = split_values(values)
         elif isinstance(values, list) and values:
-            values = [_yaml_text(v) for v in values]
+            values = [v if isinstance(v, str) else _yaml_text(v) for v in values]  # strings as on the command line
         else:
             raise ConfigError(f"{path}: sweep.{key}: expected a list of values or a range such as 0..9")
         try:
@@ -246,8 +308,8 @@ def execute(config: str, out_dir: str, *, seed: int | None, overrides: Sequence[
 
     Returns ``{"status", "exit_code", "error", "traceback", "seconds", "report", "worker"}``.
     """
-    from synthkit.cli.options import configure_logging, describe_exception
     from synthkit.limits import Budget
+    from synthkit.logs import configure_logging, describe_exception
     from synthkit.runner import run_config
 
     configure_logging(verbosity)
@@ -417,6 +479,17 @@ class _Slots:
         return self.value
 
 
+def _worker_of(client, future) -> str:
+    """The address of the worker that last held ``future`` as the scheduler remembers it, or
+    ``"unknown"`` when the scheduler no longer knows (the task is gone with its worker)."""
+    try:
+        who = client.who_has([future])
+    except Exception:  # the scheduler may be gone too; the row still gets a worker field
+        return "unknown"
+    holders = who.get(future.key) or ()
+    return str(next(iter(holders), "unknown"))
+
+
 def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
                 on_done: Callable[[int, dict[str, Any]], None]) -> dict[str, float]:
     """Run :func:`execute` with each of ``tasks`` (its keyword arguments) on ``client``'s workers.
@@ -452,12 +525,13 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
             overheads.append(max(latency - outcome["seconds"], 0.0))
         else:
             exc = future.exception() if future.status == "error" else None
+            worker = None
             if isinstance(exc, KilledWorker):
                 if attempt < retries:
                     future.release()
                     submit(i, attempt + 1)
                     continue
-                worker = getattr(getattr(exc, "last_worker", None), "address", "?")
+                worker = getattr(getattr(exc, "last_worker", None), "address", None)
                 line = (f"the worker running it died ({worker}); tried {attempt + 1} time"
                         f"{'s' if attempt else ''}" + ("" if retries else " (--retries resubmits it)"))
             elif exc is not None:
@@ -465,7 +539,8 @@ def run_on_dask(client, tasks: Sequence[dict[str, Any]], *, retries: int,
             else:
                 line = f"the run was {future.status} by the cluster"
             outcome = {"status": "failed", "exit_code": 1, "error": line, "traceback": None, "report": None,
-                       "seconds": round(latency, 3), "worker": None, "died": isinstance(exc, KilledWorker)}
+                       "seconds": round(latency, 3), "worker": worker or _worker_of(client, future),
+                       "died": isinstance(exc, KilledWorker)}
         future.release()
         outcome |= {"attempts": attempt + 1, "latency": latency}
         on_done(i, outcome)

@@ -58,6 +58,9 @@ def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
     inputs = context.get("inputs")
     if inputs is not None:
         inputs.append(path)
+    input_fields = context.get("input_fields")
+    if input_fields is not None:
+        input_fields.append(info.field_name)
     named_inputs = context.get("named_inputs")
     if named_inputs is not None:
         named_inputs.append(named)
@@ -76,8 +79,12 @@ class RunConfig(StrictModel):
 
 
 YAML_NODE_BUDGET = 100_000
-"""Most YAML nodes a config may expand to once aliases are followed (a real config has hundreds;
-an alias bomb of 1 KB expands to billions)."""
+"""Most YAML nodes a config may hold, and expand to once aliases are followed (a real config has
+hundreds; an alias bomb of 1 KB expands to billions)."""
+
+CONFIG_MAX_BYTES = 1 << 20
+"""Largest config or batch file read (1 MiB; real configs are a few KB). Checked before parsing, so
+a 50 MB file is refused at once instead of after minutes of YAML parsing."""
 
 
 class _DuplicateKey(yaml.constructor.ConstructorError):
@@ -98,6 +105,22 @@ class _ConfigLoader(yaml.SafeLoader):
             if isinstance(key, typing.Hashable):
                 seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
+
+
+def _distinct_nodes(root: yaml.Node, budget: int) -> int:
+    """Distinct nodes of the YAML graph under ``root`` (an alias counted once), stopping past ``budget``."""
+    seen: set[int] = set()
+    stack = [root]
+    while stack and len(seen) <= budget:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            stack.extend(item for pair in node.value for item in pair)
+    return len(seen)
 
 
 def _expanded_size(root: yaml.Node, budget: int) -> int:
@@ -138,6 +161,9 @@ def _parse_yaml(text: str, path: Path) -> Any:
         root = loader.get_single_node()
         if root is None:
             return None
+        if _distinct_nodes(root, YAML_NODE_BUDGET) > YAML_NODE_BUDGET:
+            raise ConfigError(f"{path}: config holds more than {YAML_NODE_BUDGET} YAML values; "
+                              "large data (strokes, labels) belongs in the files a config names")
         if _expanded_size(root, YAML_NODE_BUDGET) > YAML_NODE_BUDGET:
             raise ConfigError(
                 f"{path}: YAML aliases expand past {YAML_NODE_BUDGET} nodes; refusing to expand them"
@@ -156,6 +182,11 @@ def load_yaml(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ConfigError(f"{path}: config file not found")
     try:
+        size = path.stat().st_size
+        if size > CONFIG_MAX_BYTES:
+            raise ConfigError(f"{path}: config file is {size / 2**20:.1f} MiB; the limit is "
+                              f"{CONFIG_MAX_BYTES / 2**20:.0f} MiB (large data such as strokes or labels "
+                              "belongs in the files a config names)")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read config file: {exc}") from None
@@ -225,6 +256,7 @@ def validate_config(
     check_files: bool = True,
     inputs: list[Path] | None = None,
     named_inputs: list[Path] | None = None,
+    input_fields: list[str] | None = None,
 ) -> RunConfig:
     """Validate ``data`` into ``model``; raise one ConfigError line naming ``source`` and the key.
 
@@ -233,7 +265,8 @@ def validate_config(
     resolved paths of every :data:`InputFile` field; ``named_inputs`` their absolute paths as the
     config names them (symbolic links not followed).
     """
-    context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs, "named_inputs": named_inputs}
+    context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs, "named_inputs": named_inputs,
+               "input_fields": input_fields}
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
@@ -298,6 +331,21 @@ def _unwrap(annotation: Any) -> list[Any]:
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return [annotation]
     return []
+
+
+def schema_has_key(model: type[BaseModel], dotted: str) -> bool:
+    """Whether ``dotted`` (``key.path``, aliases allowed) names a key of ``model``'s schema: every
+    part but the last a section (a sub-model, possibly optional or in a list), the last a field."""
+    candidates: list[type[BaseModel]] = [model]
+    parts = dotted.split(".")
+    for i, part in enumerate(parts):
+        fields = [f for cls in candidates for name, f in cls.model_fields.items() if part in (name, f.alias)]
+        if not fields:
+            return False
+        if i == len(parts) - 1:
+            return True
+        candidates = [m for f in fields for m in _unwrap(f.annotation)]
+    return False
 
 
 def _field_names(model: type[BaseModel], loc: tuple) -> list[str]:

@@ -1,11 +1,15 @@
 """A commented YAML config holding every key of a method's schema (``synthkit init``).
 
 Each key is written with its default and a comment giving its description and its range or
-choices. Sub-sections are nested mappings. Keys without a default, and keys a method needs one of
-(such as petri-synth's ``lattice.unit`` or ``construction.points``), take the method's
-``INIT_VALUES`` (dotted key -> value, from the method package) marked ``example value``; input
-files left to the user (required ones, and the package's ``INIT_REQUIRED``) are ``null`` marked
-``REQUIRED``.
+choices. Sub-sections are nested mappings (their comment is the section's description, or its
+class docstring). An optional section that is off by default (``null``) is followed by its keys
+commented out, ready to uncomment; a list of sections (such as painted views or pairs) that is
+empty by default is followed by one commented example item with every key.
+
+Keys without a default, and keys a method needs one of (such as petri-synth's ``lattice.unit``
+or ``construction.points``), take the method's ``INIT_VALUES`` (dotted key -> value, from the
+method package) marked ``example value``; input files left to the user (required ones, and the
+package's ``INIT_REQUIRED``) are ``null`` marked ``REQUIRED``.
 """
 
 from __future__ import annotations
@@ -50,14 +54,25 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
             lines.append(f"{pad}method: {method}")
             continue
         sub = _sub_model(field.annotation)
+        item = _list_item_model(field.annotation)
         if values.get(dotted) is _REQUIRED:
             lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
         elif dotted in values:
             lines.append(f"{pad}{key}: {_flow(values[dotted])}  # example value; {_comment(field)}")
         elif sub is not None and (field.is_required() or field.default_factory is not None
                                   or any(k.startswith(dotted + ".") for k in values)):
-            lines.append(f"{pad}{key}:  # {_comment(field)}")
+            lines.append(f"{pad}{key}:  # {_comment(field, sub)}")
             lines += _model_lines(sub, values, prefix=dotted + ".", depth=depth + 1, method=method)
+        elif sub is not None:
+            lines.append(f"{pad}{key}: null  # {_comment(field, sub)}; null: off. Its keys, to uncomment:")
+            lines.append(f"{pad}# {key}:")
+            body = _model_lines(sub, values, prefix=dotted + ".", depth=depth + 1, method=method)
+            lines += [f"{pad}# {line[len(pad):]}" for line in body]
+        elif item is not None and not field.is_required() and field.get_default(call_default_factory=True) == []:
+            lines.append(f"{pad}{key}: []  # {_comment(field)}; an item, to uncomment:")
+            body = _model_lines(item, values, prefix=dotted + ".", depth=depth + 1, method=method)
+            lines += [f"{pad}#   - {body[0].strip()}"] + [f"{pad}#     {line[len(pad) + len(INDENT):]}"
+                                                      for line in body[1:]]
         elif field.is_required():
             lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
         else:
@@ -66,6 +81,15 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
                 default = default.model_dump(mode="json")
             lines.append(f"{pad}{key}: {_flow(default)}  # {_comment(field)}")
     return lines
+
+
+def _list_item_model(annotation: Any) -> type[BaseModel] | None:
+    """The StrictModel class of a field that is a list of sections (``list[Model]``)."""
+    if typing.get_origin(annotation) is list:
+        args = typing.get_args(annotation)
+        if len(args) == 1:
+            return _sub_model(args[0])
+    return None
 
 
 def _sub_model(annotation: Any) -> type[BaseModel] | None:
@@ -85,9 +109,13 @@ def _flow(value: Any) -> str:
     return json.dumps(value, default=str)
 
 
-def _comment(field: FieldInfo) -> str:
-    """Description, then range and choices, on one line."""
-    parts = [(field.description or "").replace("\n", " ").rstrip(".")]
+def _comment(field: FieldInfo, section: type[BaseModel] | None = None) -> str:
+    """Description (a section without one: its class docstring's first line), then range and
+    choices, on one line."""
+    text = field.description
+    if not text and section is not None:
+        text = ((section.__doc__ or "").strip().splitlines() or [""])[0]
+    parts = [(text or "").replace("\n", " ").rstrip(".")]
     bounds = []
     for meta in field.metadata:
         for attr, sign in (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<")):

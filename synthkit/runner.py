@@ -24,8 +24,10 @@ import numpy as np
 from synthkit import __version__, outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
 from synthkit.errors import ConfigError, QualityError, SynthkitError, raise_if_terminated
+from synthkit.io.atomic import write_text_atomic
 from synthkit.limits import Budget
 from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
+from synthkit.summary import summary_preview
 
 log = logging.getLogger("synthkit")
 
@@ -54,6 +56,8 @@ class RunContext:
         when an output mesh is over one of its method's quality limits (:meth:`check_quality`).
     quality_warnings : list[str]
         The lines :meth:`check_quality` warned with (``--strict`` names the first).
+    label : str
+        What the stage line on a terminal starts with (``<method> <output folder name>``).
     previews : str
         ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
     budget : Budget
@@ -80,6 +84,7 @@ class RunContext:
         self.budget = budget if budget is not None else Budget()
         self.status = "ok"
         self.quality_warnings: list[str] = []
+        self.label = "run"
         if previews not in PREVIEW_LEVELS:
             raise ValueError(f"previews must be one of {', '.join(PREVIEW_LEVELS)}, got {previews!r}")
         self.previews = previews
@@ -112,25 +117,35 @@ class RunContext:
 
     @contextlib.contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        """Time the enclosed block; seconds are added to ``timings[name]``. A SIGTERM that a
-        library swallowed is raised again on entry and on a normal exit (:func:`raise_if_terminated`)."""
+        """Time the enclosed block; seconds are added to ``timings[name]``. On a terminal a stage
+        that takes over 2 s says so on stderr (:class:`~synthkit.progress.StageTicker`). A SIGTERM
+        that a library swallowed is raised again on entry and on a normal exit
+        (:func:`raise_if_terminated`)."""
+        from synthkit.progress import StageTicker
+
         raise_if_terminated()
         log.info("stage %s ...", name)
         start = time.perf_counter()
+        ticker = (StageTicker(sys.stderr, f"{self.label}: {name}", busy=_bar_open)
+                  if self._progress_on() else contextlib.nullcontext())
         try:
-            yield
+            with ticker:
+                yield
             raise_if_terminated()
         finally:
             elapsed = time.perf_counter() - start
             self.timings[name] = self.timings.get(name, 0.0) + elapsed
             log.info("stage %s done in %.3f s", name, elapsed)
 
+    def _progress_on(self) -> bool:
+        return self.show_progress and sys.stderr.isatty()
+
     def progress(self, iterable: Iterable | None = None, *, total: int | None = None, desc: str = ""):
-        """A tqdm progress bar on stderr, silent with --no-progress or when stderr is no TTY."""
+        """A tqdm progress bar on stderr, silent with --no-progress or when stderr is no TTY (the
+        stage line of :meth:`stage` waits while a bar is open)."""
         from tqdm import tqdm
 
-        enabled = self.show_progress and sys.stderr.isatty()
-        return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not enabled, leave=False)
+        return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not self._progress_on(), leave=False)
 
     def path(self, key: str, filename: str) -> Path:
         """Register output ``key`` as ``filename`` and return the path to write it to."""
@@ -142,6 +157,13 @@ class RunContext:
         return target
 
 
+def _bar_open() -> bool:
+    """Whether a tqdm progress bar is on screen (tqdm tracks its open, enabled bars)."""
+    from tqdm import tqdm
+
+    return len(getattr(tqdm, "_instances", ())) > 0
+
+
 def load_method_config(
     config_path: Path,
     *,
@@ -150,6 +172,7 @@ def load_method_config(
     seed: int | None = None,
     check_files: bool = True,
     named_inputs: list[Path] | None = None,
+    input_fields: list[str] | None = None,
 ) -> tuple[str, RunConfig, list[Path]]:
     """Load and validate a config file; return (method name, config, resolved input files).
 
@@ -185,8 +208,39 @@ def load_method_config(
         check_files=check_files,
         inputs=inputs,
         named_inputs=named_inputs,
+        input_fields=input_fields,
     )
     return method, cfg, inputs
+
+
+IMAGE_BYTES_PER_PIXEL = 32
+"""Bytes an input image costs per pixel before any method works on it: the decoded 8-bit file,
+its float32 RGB copy and one working copy."""
+
+MESH_BYTES_PER_FACE = 256
+"""Bytes an input mesh costs per triangle once loaded: float64 positions and int64 faces with the
+adjacency and per-face caches trimesh builds."""
+
+
+def check_input_sizes(inputs: list[Path], fields: list[str], budget: Budget) -> None:
+    """Refuse (ConfigError naming the config key and the file, exit 2) an input image or mesh whose
+    header says it cannot fit the run's budget, before anything is decoded (:mod:`synthkit.io.probe`).
+    ``fields`` names the key of each of ``inputs``."""
+    from synthkit.io.images import IMAGE_SUFFIXES
+    from synthkit.io.meshes import MESH_SUFFIXES
+    from synthkit.io.probe import image_shape, mesh_face_count
+
+    for path, key in zip(inputs, fields, strict=True):
+        suffix = path.suffix.lower()
+        if suffix in IMAGE_SUFFIXES:
+            shape = image_shape(path)
+            if shape is not None:
+                budget.require(key, f"{path} ({shape[1]}x{shape[0]})", float(shape[0]) * shape[1], "pixels",
+                               bytes_each=IMAGE_BYTES_PER_PIXEL)
+        elif suffix in MESH_SUFFIXES:
+            faces = mesh_face_count(path)
+            if faces is not None:
+                budget.require(key, f"{path} ({faces} faces)", faces, "faces", bytes_each=MESH_BYTES_PER_FACE)
 
 
 def default_out_dir(config_path: Path, out_root: Path | str = "out") -> Path:
@@ -227,9 +281,11 @@ def run_config(
     (exit 3) naming its first figure over a limit.
     """
     named: list[Path] = []
+    fields: list[str] = []
     method, cfg, inputs = load_method_config(
-        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named
+        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named, input_fields=fields
     )
+    check_input_sizes(inputs, fields, budget if budget is not None else Budget())
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
     config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
     target = outdir.check_target(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite)
@@ -243,6 +299,7 @@ def run_config(
         try:
             outdir.make_staging(staging)
             ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
+            ctx.label = f"{method} {target.name}"
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:
@@ -307,6 +364,7 @@ def _write_report(
         "timings": ctx.timings,
         "metrics": ctx.metrics,
         "outputs": {**ctx.outputs, "report": "report.json"},
+        "preview": summary_preview(ctx.outputs),
     }
     if error is not None:
         report["error"] = error
@@ -344,10 +402,7 @@ def _finite_or_none(obj: Any) -> Any:
 def write_json(path: Path, obj: Any) -> None:
     """Write ``obj`` as indented JSON, atomically; numpy values become plain values and non-finite
     floats become null."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
 
 
 __all__ = ["RunContext", "run_config", "load_method_config", "default_out_dir", "write_json", "SynthkitError"]

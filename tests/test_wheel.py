@@ -147,7 +147,7 @@ def test_installed_wheel_is_the_whole_tool(installed, tmp_path):
     listed = [line.split()[0] for line in commands.splitlines() if line.strip()]
     methods = available_methods()
     assert {"retarget", "petri-synth", "symmetry-texture"} <= set(methods)
-    assert listed == [*methods, "init", "schema", "validate", "run"]
+    assert listed == [*methods, "init", "schema", "validate", "run", "report"]
 
     runs = [(method, _config_for(method)) for method in methods] + EXTRA_CONFIGS
     for method, config in runs:
@@ -166,20 +166,25 @@ def test_installed_wheel_is_the_whole_tool(installed, tmp_path):
 
 def test_read_only_install_and_home_still_cache_the_kernels(installed, tmp_path):
     """Neither site-packages nor ~/.cache writable: numba alone would refuse to import the kernels
-    (RuntimeError, exit 1); synthkit points its cache at a private folder in TMPDIR."""
+    (RuntimeError, exit 1); synthkit points its cache at a private folder in TMPDIR. Every method
+    (and surface-by-numbers' transfer mode) runs that way."""
     venv, site, work = installed
     home = tmp_path / "home"
     env = _env(home, tmp_path / "tmp")
+    runs = [(method, _config_for(method)) for method in available_methods()] + EXTRA_CONFIGS
     home.chmod(0o555)
     try:
-        out = work / "out" / "read-only"
-        proc = _run(_as_unprivileged([venv / "bin" / "synthkit", "retarget", f"configs/{FASTEST_CONFIG['retarget']}",
-                                      "--out", out, "--no-progress"]), env=env, cwd=work)
+        procs = []
+        for method, config in runs:
+            out = work / "out" / f"read-only-{Path(config).stem}"
+            cmd = [venv / "bin" / "synthkit", method, f"configs/{config}", "--out", out, "--no-progress"]
+            procs.append((method, out, _run(_as_unprivileged(cmd), env=env, cwd=work)))
     finally:
         home.chmod(0o755)
-    assert proc.returncode == 0, proc.stderr
-    assert re.fullmatch(rf"retarget: wrote {re.escape(str(out))} in [0-9.]+ s \(.*\)\n", proc.stderr), proc.stderr
-    assert json.loads((out / "report.json").read_text())["status"] == "ok"
+    for method, out, proc in procs:
+        assert proc.returncode == 0, (method, proc.stderr)
+        assert re.search(rf"{method}: wrote {re.escape(str(out))} in [0-9.]+ s", proc.stderr), proc.stderr
+        assert json.loads((out / "report.json").read_text())["status"] == "ok"
     assert not list(home.iterdir())
     private = tmp_path / "tmp" / f"synthkit-numba-{os.getuid()}"
     assert private.stat().st_mode & 0o777 == 0o700

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -44,10 +43,16 @@ import numpy as np
 
 from synthkit.errors import InputError
 from synthkit.io._capture import captured_stderr, check_readable
+from synthkit.io.atomic import write_bytes_atomic
+from synthkit.io.probe import image_shape
 
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+
+IMAGE_MAX_PIXELS = 1 << 28
+"""Largest image :func:`load_image` decodes (16384 x 16384): its header is read first, and a larger
+image is refused before any pixel is decoded (a 2.6 MB PNG can declare 30000 x 30000 pixels)."""
 
 
 def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb") -> np.ndarray:
@@ -68,6 +73,10 @@ def load_image(path: Path | str, *, mode: Literal["rgb", "gray", "any"] = "rgb")
     path = Path(path)
     if check_readable(path, "image") == 0:
         raise InputError(f"{path}: image file is empty (0 bytes)")
+    shape = image_shape(path)
+    if shape is not None and shape[0] * shape[1] > IMAGE_MAX_PIXELS:
+        raise InputError(f"{path}: image is {shape[1]}x{shape[0]} ({shape[0] * shape[1]:.2g} pixels); "
+                         f"images over {IMAGE_MAX_PIXELS:.2g} pixels are refused")
     with _opencv_captured() as lines:
         raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     problem = _decoder_problem(lines, path)
@@ -126,20 +135,20 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
             arr = arr[..., [2, 1, 0, 3]]
         else:
             raise ValueError(f"image must have 1, 3 or 4 channels, got {arr.shape[2]}")
-    tmp = path.with_name(path.name + ".tmp" + suffix)
     with _opencv_captured() as lines:
         try:
-            ok = cv2.imwrite(str(tmp), np.ascontiguousarray(arr))
+            ok, encoded = cv2.imencode(suffix, np.ascontiguousarray(arr))
         except cv2.error as exc:
             ok, lines = False, [*lines, str(exc).strip().splitlines()[-1]]
     if not ok:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
         said = [_strip_prefix(line) for line in lines]
         raise OSError(f"cannot write image {path}" + (f": {said[0]}" if said else ""))
     for line in lines:
         log.debug("%s: encoder said: %s", path, line)
-    os.replace(tmp, path)
+    try:
+        write_bytes_atomic(path, encoded.tobytes())
+    except OSError as exc:
+        raise OSError(f"cannot write image {path}: {exc.strerror or exc}") from None
 
 
 def _over_white(img: np.ndarray, path: Path) -> np.ndarray:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,6 +26,7 @@ import trimesh
 
 from synthkit.errors import InputError
 from synthkit.io._capture import check_readable
+from synthkit.io.atomic import write_bytes_atomic
 
 log = logging.getLogger(__name__)
 
@@ -139,7 +139,9 @@ def _report_trimesh_records(records: list[logging.LogRecord], path: Path) -> Non
 
 
 def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> None:
-    """Raise InputError unless ``V (#V, 3)`` is finite and ``F (#F, 3)`` indexes it with >= 1 face."""
+    """Raise InputError unless ``V (#V, 3)`` is finite and ``F (#F, 3)`` indexes it with >= 1 face,
+    no face names a vertex twice (a self-loop: malformed topology) and some face has an area
+    (zero-area faces among others are kept: real assets have a few)."""
     V = np.asarray(V)
     F = np.asarray(F)
     if F.ndim != 2 or F.shape[0] == 0:
@@ -153,6 +155,15 @@ def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> 
         raise InputError(f"{source}: {bad} vertices have NaN or infinite coordinates")
     if F.min() < 0 or F.max() >= V.shape[0]:
         raise InputError(f"{source}: face indices out of range [0, {V.shape[0]})")
+    looped = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    if looped.any():
+        k = int(np.flatnonzero(looped)[0])
+        raise InputError(f"{source}: {int(looped.sum())} of {len(F)} faces name one vertex twice "
+                         f"(first: face {k}, vertices {F[k].tolist()})")
+    T = V[F].astype(np.float64)
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    if not (area > 0).any():
+        raise InputError(f"{source}: every triangle has zero area ({len(F)} faces)")
 
 
 def save_mesh(
@@ -172,7 +183,6 @@ def save_mesh(
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"unsupported mesh format {suffix!r}")
-    tmp = path.with_name(path.name + ".tmp" + suffix)
     if face_colors is not None and face_labels is None:
         raise ValueError("face colours are stored beside face labels only")
     if face_labels is not None:
@@ -188,10 +198,9 @@ def save_mesh(
                 raise ValueError(f"face_colors has shape {colors.shape}, expected ({len(mesh.faces)}, 3)")
             colors = colors.astype(np.uint8)
         data = _ply_with_face_labels(mesh, labels.astype(np.int32), colors)
-        tmp.write_bytes(data)
     else:
-        mesh.export(tmp, file_type=suffix.lstrip("."))
-    os.replace(tmp, path)
+        data = mesh.export(file_type=suffix.lstrip("."))
+    write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
 
 
 _FACE_RECORDS = {

@@ -5,21 +5,14 @@ All writes are atomic (a temporary file beside the target, then renamed).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from synthkit.errors import InputError
+from synthkit.io.atomic import write_bytes_atomic
 
 __all__ = ["write_labels_ply", "write_seg", "read_seg", "write_polylines_obj", "write_point_polylines_obj"]
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 def write_labels_ply(path, V, F, face_labels, vertex_labels, face_colors, vertex_colors) -> None:
@@ -38,13 +31,13 @@ def write_labels_ply(path, V, F, face_labels, vertex_labels, face_colors, vertex
         f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\nproperty int label\n{rgb}"
         f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int label\n{rgb}end_header\n"
     )
-    _atomic_write(Path(path), header.encode("ascii") + vrec.tobytes() + frec.tobytes())
+    write_bytes_atomic(Path(path), header.encode("ascii") + vrec.tobytes() + frec.tobytes())
 
 
 def write_seg(path, face_labels) -> None:
     """One integer face label per line (the Princeton Segmentation Benchmark's ``.seg``)."""
     labels = np.asarray(face_labels, np.int64).reshape(-1)
-    _atomic_write(Path(path), "".join(f"{v}\n" for v in labels.tolist()).encode("ascii"))
+    write_bytes_atomic(Path(path), "".join(f"{v}\n" for v in labels.tolist()).encode("ascii"))
 
 
 def read_seg(path, n_faces: int | None = None) -> np.ndarray:
@@ -67,7 +60,7 @@ def write_polylines_obj(path, V, polylines) -> None:
     remap[used] = np.arange(1, len(used) + 1)
     lines = [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V[used].tolist()]
     lines += ["l " + " ".join(map(str, remap[p].tolist())) + "\n" for p in polylines]
-    _atomic_write(Path(path), "".join(lines).encode("ascii"))
+    write_bytes_atomic(Path(path), "".join(lines).encode("ascii"))
 
 
 def write_point_polylines_obj(path, curves) -> None:
@@ -82,4 +75,4 @@ def write_point_polylines_obj(path, curves) -> None:
         idx = list(range(start, start + len(pts))) + ([start] if closed else [])
         lines.append("l " + " ".join(map(str, idx)) + "\n")
         start += len(pts)
-    _atomic_write(Path(path), "".join(lines).encode("ascii"))
+    write_bytes_atomic(Path(path), "".join(lines).encode("ascii"))

@@ -6,11 +6,12 @@ Writes are atomic (a temporary file beside the target, then renamed).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 
 __all__ = [
     "vertex_colors", "vertex_attribute", "texture_of", "image_grid", "write_signal_ply", "read_face_labels",
@@ -101,10 +102,7 @@ def write_signal_ply(path, V, F, colors, attributes: dict[str, np.ndarray] | Non
               f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
               "property uchar red\nproperty uchar green\nproperty uchar blue\n" + "".join(props)
               + f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(header.encode("ascii") + rec.tobytes() + frec.tobytes())
-    os.replace(tmp, path)
+    write_bytes_atomic(path, header.encode("ascii") + rec.tobytes() + frec.tobytes())
 
 
 def read_face_labels(path, n_faces: int) -> np.ndarray:
@@ -154,6 +152,4 @@ def write_textured_obj(path, V, F, corner_uv, face_material, materials) -> None:
     for name, texture in materials:
         mlines.append(f"newmtl {name}\nKd 1 1 1\n" + (f"map_Kd {texture}\n" if texture else ""))
     for target, text in ((path, "".join(lines)), (mtl, "\n".join(mlines))):
-        tmp = target.with_name(target.name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, target)
+        write_text_atomic(target, text)

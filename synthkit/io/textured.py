@@ -20,7 +20,7 @@ vertices are its render vertices (geometries concatenated in scene order, in wor
 
 from __future__ import annotations
 
-import os
+import logging
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +37,8 @@ __all__ = [
     "TexturedMesh", "Retexture", "load_textured", "save_textured", "companion_files", "material_textures",
     "TEXTURED_SUFFIXES",
 ]
+
+log = logging.getLogger(__name__)
 
 TEXTURED_SUFFIXES = (".obj", ".glb")
 _MAP_KEY = re.compile(r"^\s*(map_\w+|bump|disp|decal|norm)\s+", re.IGNORECASE)
@@ -97,7 +99,22 @@ def load_textured(path: Path | str) -> TexturedMesh:
         raise InputError(f"{path}: unsupported textured mesh format {suffix!r} (use .obj or .glb)")
     mesh = _load_obj(path) if suffix == ".obj" else _load_glb(path)
     check_mesh(mesh.V, mesh.F, source=path)
+    if suffix == ".obj":
+        _warn_missing_companions(path)
     return mesh
+
+
+def _warn_missing_companions(obj: Path) -> None:
+    """One warning line per MTL or texture image the OBJ names that is missing (the mesh is read
+    and written without it)."""
+    for name in _mtl_files(obj):
+        mtl = resolve_named_file(name, obj.parent)
+        if not mtl.is_file():
+            log.warning("%s: material file %s named by the mesh is missing; written without it", obj, name)
+            continue
+        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+            if _MAP_KEY.match(line) and not resolve_named_file(map_file_name(line), mtl.parent).is_file():
+                log.warning("%s: texture file %s is missing; written without it", mtl, map_file_name(line))
 
 
 def _parse_index(token: str, count: int) -> int:
@@ -307,12 +324,11 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *
         raise ValueError(f"output {path.name} must keep the input's format {suffix}")
     if retexture and suffix != ".obj":
         raise ValueError("retextured surfaces can only be written to an OBJ")
-    tmp = path.with_name(path.name + ".tmp" + suffix)
     if suffix == ".obj":
         mtl_names = {c.source: c.name for c in _companions(mesh) if c.source.suffix.lower() == ".mtl"}
         mtllibs = {name: mtl_names.get(resolve_named_file(name, mesh.source.parent), name)
                    for name in _mtl_files(mesh.source)}
-        _write_obj(mesh.source, positions, tmp, _retexture_plan(mesh, list(retexture), path), mtllibs)
+        _write_obj(mesh.source, positions, path, _retexture_plan(mesh, list(retexture), path), mtllibs)
         _copy_companions(mesh, path.parent)
     else:
         scene = trimesh.Scene()
@@ -322,8 +338,7 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *
             copy.vertices = positions[start:start + len(g.vertices)]
             start += len(g.vertices)
             scene.add_geometry(copy, geom_name=f"geometry_{i}")
-        tmp.write_bytes(scene.export(file_type="glb"))
-    os.replace(tmp, path)
+        write_bytes_atomic(path, scene.export(file_type="glb"))
 
 
 @dataclass
@@ -360,9 +375,7 @@ def _retexture_plan(mesh: TexturedMesh, entries: list, path: Path) -> _Plan:
         for entry in entries:
             save_image(path.parent / entry.image_name, entry.image)
             lines += [f"newmtl {entry.material}", "Ka 1 1 1", "Kd 1 1 1", f"map_Kd {entry.image_name}"]
-        tmp = path.parent / (mtllib + ".tmp")
-        tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-        os.replace(tmp, path.parent / mtllib)
+        write_text_atomic(path.parent / mtllib, "\n".join(lines) + "\n")
     return _Plan(mesh.F, entry_of_face, vt_index, vt_lines, [e.material for e in entries], mtllib)
 
 
@@ -416,4 +429,4 @@ def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | 
         if plan.mtllib:
             out.insert(0, f"mtllib {plan.mtllib}")
         out += plan.vt_lines
-    target.write_text("\n".join(out) + "\n", encoding="utf-8")
+    write_text_atomic(target, "\n".join(out) + "\n")

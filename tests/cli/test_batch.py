@@ -63,11 +63,11 @@ def test_sweep_axes_refuse_a_key_twice_and_product_order():
     with pytest.raises(ValueError, match="seed is swept twice"):
         batch.sweep_axes(["seed=1,2", "seed=3"])
     axes = batch.sweep_axes(["seed=1..3", "gain=0.5,2"])
-    combos = batch.combinations(axes)
-    assert len(combos) == 6
+    combos = list(batch.combinations(axes))
+    assert len(combos) == 6 == batch.count_runs(axes)
     assert combos[0] == {"seed": "1", "gain": "0.5"} and combos[1] == {"seed": "1", "gain": "2"}
     assert combos[-1] == {"seed": "3", "gain": "2"}
-    assert batch.combinations([]) == [{}]
+    assert list(batch.combinations([])) == [{}] and batch.count_runs([]) == 1
 
 
 def test_folder_names_are_sanitised_and_bounded():
@@ -109,7 +109,7 @@ def test_sweep_in_process_3x2_folders_and_rows(runner, echo_config, tmp_path):
                                  "--sweep", "gain=0.5,2", "--set", "mode=copy"])
     assert result.exit_code == 0, result.stderr
     assert "run: 6 succeeded, 0 failed" in result.stderr
-    names = sorted(p.name for p in root.iterdir() if p.is_dir())
+    names = sorted(p.name for p in root.iterdir() if p.is_dir() and p.name != "review")
     assert names == sorted(f"echo__seed-{s}__gain-{g}" for s in (1, 2, 3) for g in ("0.5", "2"))
     rows = json.loads((root / "batch.json").read_text())["runs"]
     assert [r["sweep"] for r in rows] == [{"seed": s, "gain": g} for s in "123" for g in ("0.5", "2")]
@@ -357,6 +357,7 @@ def test_worker_killed_during_a_run(runner, tmp_path, retries):
     else:
         assert result.exit_code == 1
         assert rows[0]["status"] == "failed" and "worker running it died" in rows[0]["error"]
+        assert rows[0]["worker"].startswith("tcp://") and rows[0]["worker"] in rows[0]["error"]
         assert "--retries resubmits it" in result.stderr
         assert not (root / victim.stem).exists()
     assert _hidden(root) == []
@@ -471,3 +472,19 @@ def test_sigterm_during_a_local_cluster_batch_leaves_no_half_folder(tmp_path):
         # a run may finish on its worker after the client stopped listening: skipped, yet complete
         assert (folder / "report.json").is_file() and (folder / ".synthkit-output").is_file() or (
             row["status"] == "skipped" and not folder.exists())
+
+
+def test_a_seed_sweep_that_changes_nothing_is_named_once(tmp_path):
+    rows = []
+    for seed, content in (("0", b"same"), ("1", b"same"), ("2", b"same")):
+        out = tmp_path / f"a{seed}"
+        out.mkdir()
+        (out / "result.bin").write_bytes(content)
+        (out / "report.json").write_text(seed)  # reports differ (seed, timings): not compared
+        rows.append({"config": "a.yaml", "sweep": {"seed": seed}, "status": "ok", "out": str(out)})
+    for seed in ("0", "1"):
+        out = tmp_path / f"b{seed}"
+        out.mkdir()
+        (out / "result.bin").write_bytes(seed.encode())
+        rows.append({"config": "b.yaml", "sweep": {"seed": seed}, "status": "ok", "out": str(out)})
+    assert batch.seed_independent(rows) == ["a.yaml"]

@@ -1,6 +1,7 @@
 """The click layer: help, version, exit codes, messages on stderr, JSON on stdout."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -185,3 +186,61 @@ def test_max_memory_nan_is_a_usage_error(runner, echo_config):
     result = runner.invoke(cli, ["--max-memory", "nan", "run", str(echo_config)])
     assert result.exit_code == 2
     assert "nan is not a number" in result.stderr
+
+
+def test_run_writes_the_review_page_and_rows_name_folders_and_previews(runner, echo_config, tmp_path):
+    root = tmp_path / "o"
+    refused = _config(tmp_path, "refused", "fail: refuse\n")
+    result = runner.invoke(cli, ["run", str(echo_config), refused, "--out-root", str(root)])
+    assert result.exit_code == 3
+    assert f"review: {root / 'index.html'}" in result.stderr
+    rows = json.loads((root / "batch.json").read_text())["runs"]
+    assert [(r["status"], Path(r["out"]).name, r["preview"]) for r in rows] == [
+        ("ok", "echo", "result.png"), ("failed", "refused", "diagnostic.png")]
+    page = (root / "index.html").read_text()
+    assert page.count('class="card"') == 2 and "refused after writing diagnostics" in page
+    again = runner.invoke(cli, ["report", str(root)])
+    assert again.exit_code == 0 and again.stderr.strip() == f"review: {root / 'index.html'}"
+
+
+def test_global_options_after_the_method_name(runner, echo_config, tmp_path):
+    quiet = runner.invoke(cli, ["echo", str(echo_config), "--out", str(tmp_path / "a"), "-q"])
+    assert quiet.exit_code == 0 and quiet.stderr == ""
+    strict = runner.invoke(cli, ["echo", str(echo_config), "--out", str(tmp_path / "b"), "--strict",
+                                 "--set", "fail=degrade"])
+    assert strict.exit_code == 3
+    small = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(tmp_path / "c"), "--max-memory", "nan"])
+    assert small.exit_code == 2 and "nan is not a number" in small.stderr
+
+
+def test_a_sweep_key_applies_only_to_configs_whose_method_has_it(runner, echo_config, tmp_path):
+    from synthkit import batch
+
+    kept, dropped = batch.axes_for("retarget", [("gain", ["1"]), ("seed", ["1", "2"]), ("analysis.tau", ["0.1"])])
+    assert ([k for k, _ in kept], dropped) == (["seed", "analysis.tau"], ["gain"])
+    root = tmp_path / "o"
+    result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(root), "--sweep", "gain=1,2",
+                                 "--sweep", "analysis.tau=0.1"])
+    assert result.exit_code == 0, result.stderr
+    assert f"note: {echo_config} has no key analysis.tau; it runs once for that sweep" in result.stderr
+    assert sorted(p.name for p in root.iterdir() if p.name.startswith("echo")) == ["echo__gain-1", "echo__gain-2"]
+
+
+def test_batch_file_sweep_values_parse_as_on_the_command_line(tmp_path):
+    from synthkit import batch
+
+    spec = tmp_path / "study.yaml"
+    spec.write_text("configs: [a.yaml]\nsweep:\n  target.axis_steps: ['{y: 1}', {z: 2}]\n")
+    axes = batch.read_batch_file(str(spec)).axes
+    assert axes == [("target.axis_steps", ["{y: 1}", '{"z": 2}'])]
+    assert batch.parse_sweep("target.axis_steps={y: 1}")[1] == ["{y: 1}"]
+
+
+def test_validate_accepts_a_batch_file_and_checks_its_sweeps(runner, echo_config, tmp_path):
+    spec = tmp_path / "study.yaml"
+    spec.write_text(f"configs: [{echo_config.name}]\nset: {{mode: copy}}\nsweep: {{gain: [0.5, 2]}}\n")
+    ok = runner.invoke(cli, ["validate", str(spec)])
+    assert ok.exit_code == 0 and f"ok: {spec} (batch file, 1 configs, 3 checks)" in ok.stderr
+    spec.write_text(f"configs: [{echo_config.name}]\nsweep: {{gain: [0.5, 20]}}\n")
+    bad = runner.invoke(cli, ["validate", str(spec)])
+    assert bad.exit_code == 2 and "gain: Input should be less than or equal to 10" in bad.stderr

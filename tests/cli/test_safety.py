@@ -415,7 +415,7 @@ def test_run_summary_names_each_failure_and_writes_batch_json(runner, tmp_path, 
     assert [rows[n]["exit_code"] for n in ("echo.yaml", "bad.yaml", "crash.yaml")] == [0, 2, 3]
     assert rows["echo.yaml"]["out"] == str(root / "echo") and rows["echo.yaml"]["seconds"] > 0
     assert "gain: Input should be greater than 0" in rows["bad.yaml"]["error"]
-    assert sorted(p.name for p in root.iterdir()) == ["batch.json", "echo"]
+    assert sorted(p.name for p in root.iterdir()) == ["batch.json", "echo", "index.html", "review"]
 
 
 def test_foreign_batch_json_is_not_replaced(runner, tmp_path, echo_config):
@@ -503,3 +503,99 @@ def test_symtex_stage_modules_do_not_import_the_pipeline():
             "print('synthkit.methods.symtex.pipeline' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+# ---- round 3 (issue 28): refused before the work, with the right reason
+
+
+def _huge_png(path: Path, width: int, height: int) -> Path:
+    """A PNG of a few hundred bytes whose header declares ``width`` x ``height`` pixels."""
+    import struct
+    import zlib
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\x00" * 64))
+                     + chunk(b"IEND", b""))
+    return path
+
+
+def test_huge_image_input_refused_from_its_header(runner, tmp_path):
+    png = _huge_png(tmp_path / "huge.png", 30000, 30000)
+    cfg = tmp_path / "q.yaml"
+    cfg.write_text(f"method: symmetry-texture\nmode: quilt\nsource: {png}\noutput_size: [64, 64]\n")
+    before = snapshot(tmp_path)
+    start = time.perf_counter()
+    result = runner.invoke(cli, ["symmetry-texture", str(cfg), "--out", str(tmp_path / "o")])
+    assert time.perf_counter() - start < 5
+    assert result.exit_code == 2
+    assert re.search(r"source: \S+huge.png \(30000x30000\) needs about 9e\+08 pixels \(limit ", one_error_line(result))
+    assert snapshot(tmp_path) == before
+
+
+def test_huge_image_refused_by_the_loader(tmp_path):
+    from synthkit.errors import InputError
+    from synthkit.io.images import load_image
+
+    png = _huge_png(tmp_path / "t.png", 30000, 30000)
+    with pytest.raises(InputError, match=r"t.png: image is 30000x30000 \(9e\+08 pixels\); images over 2.7e\+08"):
+        load_image(png)
+
+
+TWO_REGIONS = "regions: [{name: a, vertices: [0]}, {name: b, vertices: [1]}]\n"
+
+
+def test_big_mesh_refused_from_its_header_under_max_memory(runner, tmp_path):
+    ply = tmp_path / "big.ply"
+    ply.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                    b"property float z\nelement face 2000000\nproperty list uchar int vertex_indices\nend_header\n")
+    cfg = tmp_path / "s.yaml"
+    cfg.write_text(f"method: surface-by-numbers\ninput: {ply}\n{TWO_REGIONS}")
+    start = time.perf_counter()
+    result = runner.invoke(cli, ["--max-memory", "0.1", "surface-by-numbers", str(cfg), "--out", str(tmp_path / "o")])
+    assert time.perf_counter() - start < 5
+    assert result.exit_code == 2
+    assert re.search(r"input: \S+big.ply \(2000000 faces\) needs about 2e\+06 faces \(limit ", one_error_line(result))
+
+
+def test_config_file_too_large_refused_before_parsing(runner, tmp_path):
+    cfg = tmp_path / "big.yaml"
+    cfg.write_text("method: echo\nimage: in.png\n# " + "x" * (1 << 20) + "\n")
+    result = runner.invoke(cli, ["validate", str(cfg)])
+    assert result.exit_code == 2
+    assert one_error_line(result) == (f"error: {cfg}: config file is 1.0 MiB; the limit is 1 MiB (large data such "
+                                      "as strokes or labels belongs in the files a config names)")
+
+
+def test_config_with_too_many_values_has_its_own_reason(runner, tmp_path, echo_config):
+    cfg = tmp_path / "many.yaml"
+    values = ",".join(["1"] * (YAML_NODE_BUDGET + 1))
+    cfg.write_text(f"method: echo\nimage: in.png\nextra: [{values}]\n")
+    result = runner.invoke(cli, ["validate", str(cfg)])
+    assert result.exit_code == 2
+    assert f"config holds more than {YAML_NODE_BUDGET} YAML values" in one_error_line(result)
+
+
+def test_sweeps_counted_before_expansion(runner, tmp_path, echo_config):
+    start = time.perf_counter()
+    result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(tmp_path / "o"), "--sweep", "seed=0..9999",
+                                 "--sweep", "gain=1..1024", "--sweep", "filter.sigma=1..10"])
+    assert time.perf_counter() - start < 5
+    assert result.exit_code == 2
+    assert "the configs and sweeps make 102400000 runs; the limit is 100000" in one_error_line(result)
+
+
+@pytest.mark.parametrize(("faces", "expected"), [
+    ("f 1 1 2\nf 1 2 3\n", r"1 of 2 faces name one vertex twice \(first: face 0, vertices \[0, 0, 1\]\)"),
+    ("f 1 2 4\n", r"every triangle has zero area \(1 faces\)"),
+])
+def test_self_looped_or_flat_meshes_refused_naming_the_file(runner, tmp_path, faces, expected):
+    obj = tmp_path / "bad.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\n" + faces)
+    cfg = tmp_path / "s.yaml"
+    cfg.write_text(f"method: surface-by-numbers\ninput: {obj}\n{TWO_REGIONS}")
+    result = runner.invoke(cli, ["surface-by-numbers", str(cfg), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 3
+    assert re.search(str(obj) + ": " + expected, one_error_line(result))

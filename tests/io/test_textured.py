@@ -46,3 +46,12 @@ def test_a_texture_that_is_not_an_image_is_refused(tmp_path):
     obj = _studio_layout(tmp_path, map_kd=str(tmp_path / "secret"))
     with pytest.raises(InputError, match=r"wall.mtl: texture .*secret is not an image file"):
         companion_files(load_textured(obj))
+
+
+def test_missing_texture_is_one_warning(tmp_path, caplog):
+    obj = _studio_layout(tmp_path, map_kd="../textures/gone.png")
+    with caplog.at_level("WARNING", logger="synthkit"):
+        mesh = load_textured(obj)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{tmp_path / 'materials' / 'wall.mtl'}: texture file ../textures/gone.png is missing; written without it"]
+    assert companion_files(mesh) == ["wall.mtl"]

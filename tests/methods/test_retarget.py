@@ -791,8 +791,9 @@ def _one_line_error(result, code, mesh, *needles):
         # vertices and no faces at all: trimesh reads it as a point cloud
         ("vertices_only", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", ["mesh has no faces (3 vertices, no triangles)"]),
         ("two_corner_faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 2 3\n", ["mesh has no faces"]),
-        ("zero_area", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n", ["degenerate", "2 triangles"]),
-        ("one_point", "v 0.5 0.5 0.5\nv 0.5 0.5 0.5\nv 0.5 0.5 0.5\nf 1 2 3\n", ["zero extent"]),
+        ("zero_area", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n",
+         ["every triangle has zero area (2 faces)"]),
+        ("one_point", "v 0.5 0.5 0.5\nv 0.5 0.5 0.5\nv 0.5 0.5 0.5\nf 1 2 3\n", ["every triangle has zero area"]),
         ("nan", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", ["1 vertices have NaN"]),
     ],
 )

@@ -18,7 +18,7 @@ from synthkit.core.mesh import normalize_unit, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.assets import load_asset
-from synthkit.io.images import load_image
+from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_face_labels, load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import (
     analyze,
@@ -628,6 +628,41 @@ def test_railing_copies_join_watertight(tmp_path, sample_dir, steps):
     grow = np.ptp(res.vertices, axis=0)[0] - np.ptp(inp.vertices, axis=0)[0]
     assert grow == pytest.approx(steps * truth["lattice"][0][0], abs=1e-9)
     assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
+
+
+@pytest.mark.slow
+def test_textured_railing_keeps_its_uvs_material_and_texture(tmp_path, sample_dir):
+    """The railing as an OBJ + MTL + PNG with a planar map (uv = (x, y) + (0.5, 0.5), a UV seam
+    between its two halves by material): the output OBJ names an MTL beside it with the texture
+    copied in, every face keeps its material, and its UVs are the input's map moved with its copy
+    (uv - xy is one label shift per face, the same at its three corners)."""
+    mesh = load_mesh(sample_dir / "retarget-railing.obj")
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    half = (V[F].mean(axis=1)[:, 2] > np.median(V[:, 2])).astype(int)
+    lines = ["mtllib rail.mtl"] + [f"v {x!r} {y!r} {z!r}" for x, y, z in V.tolist()]
+    lines += [f"vt {x + 0.5!r} {y + 0.5!r}" for x, y, _ in V.tolist()]
+    for m in (0, 1):
+        lines.append(f"usemtl paint{m}")
+        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in (F[half == m] + 1).tolist()]
+    (tmp_path / "rail.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "rail.mtl").write_text("newmtl paint0\nKd 1 1 1\nmap_Kd wood.png\nnewmtl paint1\nKd 0.5 0.5 0.5\n")
+    save_image(tmp_path / "wood.png", np.random.default_rng(0).random((8, 8, 3)).astype(np.float32))
+    cfg = tmp_path / "rail.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": str(tmp_path / "rail.obj"), "seed": 0,
+                               "target": {"steps": [2]}}))
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    res = load_asset(tmp_path / "out" / "retargeted.obj")
+    assert rep["status"] == "ok" and (tmp_path / "out" / "retargeted.mtl").is_file()
+    assert [m.name for m in res.materials] == ["paint0", "paint1"] and res.materials[0].image is not None
+    assert res.materials[1].image is None
+    shift = res.corner_uv - 0.5 - res.V[res.F][:, :, :2]  # (k, 3, 2): minus the label's shift
+    assert np.abs(shift - shift[:, :1]).max() <= 1e-5
+    shifts = np.asarray(rep["metrics"]["label_shifts"]) @ np.asarray(rep["metrics"]["grid_basis_normalised"])
+    shifts = shifts * rep["metrics"]["normalisation"]["scale"]
+    gap = np.linalg.norm(-shift[:, 0, None, :] - shifts[None, :, :2], axis=2).min(axis=1)
+    assert gap.max() <= 1e-5, gap.max()
+    z_half = (res.V[res.F].mean(axis=1)[:, 2] > np.median(V[:, 2])).astype(int)
+    assert np.all(res.face_material == z_half)
 
 
 @pytest.mark.slow

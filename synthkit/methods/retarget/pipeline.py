@@ -3,18 +3,20 @@
 Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (grid, voxel descriptor
 sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), and the
 same three prefixed ``baseline_`` when the regular-offset baseline runs. Outputs: the retargeted mesh
-in the input's format, ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
+in the input's format (glTF as GLB) with the input's materials, textures, UVs and colours carried
+onto every face (:mod:`~synthkit.methods.retarget.corners`; OBJ with its MTL and textures beside
+it), ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
 int32 labels and their colours, :func:`label_colours`), PNG previews (sparsity curve, offset
 histogram, offsets over the model, before / after / labels renders) and metrics.
 
-Each result's metrics include the stitching figures of :func:`_stitch_metrics` (open edges,
-duplicate faces, smallest angle, face and volume ratios with their limits, issue 15).
+Each result's mesh is checked with the shared mesh-quality figures against retargeting's limits
+(:func:`_check_result`, ``metrics.mesh_quality``); degenerate faces are never written.
 
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
 seams in ``infinite_terms``), as the paper's conventional MRF shows its artifacts.
 
-A file holding several meshes (a scene) is merged into one by ``load_mesh``; the number merged is
+A GLB/glTF scene of several meshes is merged into one; the number merged is
 ``metrics.merged_meshes`` (1 for a single mesh) and a merge logs the warning "merged N meshes of
 <file>" on the ``synthkit`` logger.
 
@@ -548,8 +550,8 @@ def check_analysis_budget(budget, a, area: float, n_vertices: int) -> None:
 def _load(cfg, ctx):
     """Read the input with its appearance: ``(asset, Vn (#V, 3) normalised, center (3,), scale,
     (Va, Fa) the mesh the analysis samples, normalised, suffix of the output mesh)``. A scene of
-    several meshes becomes one mesh (materials kept per face; ``metrics.merged_meshes`` and one
-    warning).
+    several meshes (a GLB/glTF scene) becomes one mesh (materials kept per face; the nodes are not:
+    ``metrics.merged_meshes`` and one warning). An OBJ's material groups are one mesh already.
 
     The analysis samples the surface as :func:`~synthkit.io.meshes.load_mesh` gives it (the
     figures of the README's table). Finding (issue 22): :func:`~synthkit.io.assets.load_asset`
@@ -561,7 +563,7 @@ def _load(cfg, ctx):
     V, F = asset.V, asset.F
     suffix = Path(cfg.input).suffix.lower()
     mesh = load_mesh(cfg.input)
-    merged = int(mesh.metadata.get("merged_geometries", 1))
+    merged = int(mesh.metadata.get("merged_geometries", 1)) if suffix in (".glb", ".gltf") else 1
     ctx.metrics["merged_meshes"] = merged
     if merged > 1:
         log.warning("merged %d meshes of %s", merged, cfg.input)

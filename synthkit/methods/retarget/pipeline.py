@@ -440,8 +440,10 @@ def _input_quality(V, F) -> dict:
     close each other's edges: house1_baked's 528 faces show 74 open edges, its 422 distinct faces
     128."""
     diag = float(np.linalg.norm(np.ptp(V[np.unique(F)], axis=0)))
-    q = mesh_quality(V, F[unique_faces(V, F, tol=WELD_REL_TOL * diag)])
-    q["duplicate_faces"] = mesh_quality(V, F)["duplicate_faces"]
+    keep = unique_faces(V, F, tol=WELD_REL_TOL * diag)
+    q = mesh_quality(V, F[keep])
+    if not keep.all():
+        q["duplicate_faces"] = mesh_quality(V, F)["duplicate_faces"]
     return q
 
 

@@ -472,11 +472,10 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
 
 def _incidence(F: np.ndarray, n: int) -> list[set[int]]:
     """The faces of ``F (m, 3)`` around each of the ``n`` vertices."""
-    incident: list[set[int]] = [set() for _ in range(n)]
-    for f, tri in enumerate(F.tolist()):
-        for v in tri:
-            incident[v].add(f)
-    return incident
+    flat = np.asarray(F, dtype=np.int64).reshape(-1)
+    faces = (np.argsort(flat, kind="stable") // 3).tolist()
+    bounds = np.r_[0, np.cumsum(np.bincount(flat, minlength=n))].tolist()
+    return [set(faces[bounds[v] : bounds[v + 1]]) for v in range(n)]
 
 
 def _face_min_angles(V, F) -> np.ndarray:

@@ -225,6 +225,48 @@ def test_solver_eliminates_known_nodes_and_reuses_its_factor():
     assert len(solver.solve_ms) == 2
 
 
+def test_closest_points_on_a_triangle_exact():
+    from synthkit.methods.reshape.parts import closest_points
+
+    tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[5, 5, 5], [5, 5, 5], [5, 5, 5]]], float)  # one degenerate
+    P = np.array([[0.2, 0.2, 1.0], [2.0, 0.0, 0.0], [0.5, -1.0, 0.0], [-1.0, -1.0, 0.0]])
+    d, t, lam = closest_points(P, tri)
+    np.testing.assert_allclose(d, [1.0, 1.0, 1.0, np.sqrt(2.0)])
+    np.testing.assert_array_equal(t, [0, 0, 0, 0])
+    np.testing.assert_allclose(lam, [[0.6, 0.2, 0.2], [0, 1, 0], [0.5, 0.5, 0], [1, 0, 0]], atol=1e-12)
+
+
+def test_attach_clusters_hang_each_free_part_on_the_nearest_held_one():
+    from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
+
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    X = np.vstack([square, square + [0, 0, 0.1], square + [0, 0, 0.15], square + [0, 0, 5.0]])
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    Fn = np.vstack([quad + 4 * k for k in range(4)])
+    part = mesh_parts(Fn, len(X))
+    np.testing.assert_array_equal(part, np.repeat([0, 1, 2, 3], 4))
+    np.testing.assert_allclose(part_distances(X, Fn, part), [0.1, 0.05, 0.05, 4.85])
+    pairs = np.vstack([Fn[:, :2], Fn[:, 1:]])
+    att = attach_clusters(X, Fn, pairs, known=[0])
+    hosts = [int(part[Fn[t, 0]]) for t in att.tri]
+    assert [int(part[n[0]]) for n in att.nodes] == [1, 2, 3] and hosts == [0, 1, 2]
+    np.testing.assert_allclose(att.gap, [0.1, 0.05, 4.85])
+
+
+def test_wall_doubled_in_one_line_keeps_door_and_window_widths(tmp_path):
+    t = truth("reshape-wall")
+    report, out = reshape(tmp_path, "wide", input=str(SAMPLES / "reshape-wall.obj"),
+                          stiffness={"l_min": t["l_min"]}, scale={"x": 2.0})
+    m = report["metrics"]
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], [2, 1, 1], atol=1e-9)
+    assert m["status"] == "ok" and m["handles"] > 0 and m["fixed"] > 0 and m["free_parts"] == []
+    (x0, y0, x1, _), (wx0, wy0, wx1, _) = t["door"], t["window"]
+    src = SAMPLES / "reshape-wall.obj"
+    door = node_positions(out / src.name, src, [[x0, y0, 0], [x1, y0, 0]])
+    window = node_positions(out / src.name, src, [[wx0, wy0, 0], [wx1, wy0, 0]])
+    assert abs(door[1, 0] - door[0, 0] - (x1 - x0)) < 0.02 and abs(window[1, 0] - window[0, 0] - (wx1 - wx0)) < 0.02
+
+
 def test_selections_and_handle_targets():
     from synthkit.methods.reshape.config import Handle, Selection
     from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, select_nodes
@@ -392,18 +434,20 @@ def house_config(**extra) -> dict:
     }
 
 
-def test_roof_frame_moves_together_only_with_a_link(tmp_path):
+def test_roof_frame_free_post_is_carried_and_a_link_ties_it(tmp_path):
     tie, post = truth("reshape-house")["link"]
     src = SAMPLES / "reshape-house.obj"
     rest = node_positions(src, src, [tie, post])
     moved = {}
     for name, links in (("free", []), ("linked", [{"nearest": [tie, post]}])):
-        report, out = reshape(tmp_path, name, **house_config(links=links))
+        report, out = reshape(tmp_path, name, **house_config(links=links, parts={"attach_distance": 1e-3}))
         moved[name] = node_positions(out / "reshape-house.obj", src, [tie, post]) - rest
         m = report["metrics"]
         assert m["links"] == len(links) and m["contacts"] == truth("reshape-house")["contacts"]
         assert all(v < STRICT_TOL for v in m["strict_residuals"].values()), m["strict_residuals"]
-    assert moved["free"][0, 1] > 0.3 and np.abs(moved["free"][1]).max() < 1e-6  # parts separate
+        assert [f["nodes"] for f in m["free_parts"]] == ([8] if not links else [])
+    # without the link the post (0.008 of the model size from the roof) is still carried, never left behind
+    assert moved["free"][0, 1] > 0.3 and moved["free"][1, 1] > 0.3
     np.testing.assert_allclose(moved["linked"][1], moved["linked"][0], atol=1e-8)  # they move together
 
 
@@ -554,6 +598,91 @@ def test_real_houses(tmp_path, name, mode):
     assert again.materials == mesh.materials
 
 
+def _nodes_of(path):
+    """Graph nodes ``(n, 3)``, triangles over nodes and part labels of a house (the file's vertex
+    order, so input and output nodes correspond)."""
+    from synthkit.methods.reshape.parts import mesh_parts
+
+    mesh = load_textured(path)
+    size = float(np.linalg.norm(mesh.V.max(axis=0) - mesh.V.min(axis=0)))
+    g = build_graph(mesh.V, mesh.F, mesh.face_material, weld_tol=1e-6 * size)
+    return g, mesh_parts(g.Fn, g.n_nodes), size
+
+
+def _attachment_error(X0, X1, Fn, part) -> float:
+    """Largest, over the parts but the root, of the smallest mismatch between the motion of the
+    part's centroid or of one of its nodes and the motion of the host point beneath it (the nearest
+    point of another part's triangles, same barycentric coordinates after)."""
+    from synthkit.methods.reshape.parts import closest_points
+
+    root = np.argmax(np.bincount(part[part >= 0]))
+    worst = 0.0
+    for k in set(np.unique(part[part >= 0]).tolist()) - {int(root)}:
+        nodes = np.flatnonzero(part == k)
+        other = np.flatnonzero(part[Fn[:, 0]] != k)
+        P0 = np.vstack([X0[nodes].mean(axis=0), X0[nodes]])
+        P1 = np.vstack([X1[nodes].mean(axis=0), X1[nodes]])
+        _, t, lam = closest_points(P0, X0[Fn[other]])
+        host0 = np.einsum("kj,kjc->kc", lam, X0[Fn[other[t]]])
+        host1 = np.einsum("kj,kjc->kc", lam, X1[Fn[other[t]]])
+        worst = max(worst, float(np.linalg.norm((P1 - P0) - (host1 - host0), axis=1).min()))
+    return worst
+
+
+def _storey_ratios(X0, X1, part, size, axis=1) -> np.ndarray:
+    """After / before height of each band (> 10 % of the height) between the levels of the root's
+    nodes along ``axis``, leaving out nodes inside another part's box (the rim of a window's hole)."""
+    root = np.argmax(np.bincount(part[part >= 0]))
+    keep = part == root
+    for k in set(np.unique(part[part >= 0]).tolist()) - {int(root)}:
+        lo, hi = X0[part == k].min(axis=0) - 2e-3 * size, X0[part == k].max(axis=0) + 2e-3 * size
+        keep &= ~np.all((X0 >= lo) & (X0 <= hi), axis=1)
+    y0, y1 = X0[keep, axis], X1[keep, axis]
+    order = np.argsort(y0)
+    height = y0.max() - y0.min()
+    cuts = np.flatnonzero(np.diff(y0[order]) > 0.02 * height) + 1
+    levels = [(y0[order][g].mean(), y1[order][g].mean()) for g in np.split(np.arange(len(y0)), cuts)]
+    bands = [(b[0] - a[0], b[1] - a[1]) for a, b in zip(levels[:-1], levels[1:], strict=True)]
+    return np.array([after / before for before, after in bands if before > 0.1 * height])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
+@pytest.mark.parametrize("name", ["house1", "house2", "house4"])
+@pytest.mark.parametrize("axis, factor", [("x", 1.3), ("y", 1.5)])
+def test_real_houses_resized_in_one_line(tmp_path, name, axis, factor):
+    src = HOUSES / "houses" / f"{name}_baked.obj"
+    report, out = reshape(tmp_path, name, input=str(src), scale={axis: factor})
+    m = report["metrics"]
+    a = "xyz".index(axis)
+    assert m["status"] == "ok" and m["free_parts"] == [] and m["attached_parts"] > 10
+    want = np.where(np.arange(3) == a, factor, 1.0)
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], want, rtol=0.02)
+    g, part, size = _nodes_of(src)
+    X1 = np.zeros_like(g.X0)
+    X1[g.node_of_vertex] = load_textured(out / src.name).V
+    assert _attachment_error(g.X0, X1, g.Fn, part) < 0.005 * size
+    root = np.argmax(np.bincount(part[part >= 0]))
+    top, extent = g.X0.max(axis=0)[a], np.ptp(g.X0, axis=0)[a]
+    for k in set(np.unique(part).tolist()) - {int(root), -1}:  # doors, windows, frames keep their size
+        e0, e1 = np.ptp(g.X0[part == k], axis=0), np.ptp(X1[part == k], axis=0)
+        if e0[a] < 0.45 * extent and g.X0[part == k, a].max() < top - 1e-3 * extent:  # not the chimney
+            assert abs(e1[a] / e0[a] - 1) < 0.03, (k, e0, e1)
+    if axis == "y":
+        ratios = _storey_ratios(g.X0, X1, part, size)
+        assert len(ratios) >= 2 and np.all(np.abs(ratios / factor - 1) < 0.05), ratios
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
+def test_tudor_house_resized_in_one_line(tmp_path):
+    report, _ = reshape(tmp_path, "tudor", input=str(HOUSES / "tudorhouse" / "tudorhouse.obj"),
+                        size={"x": 862.0}, scale=None)
+    m = report["metrics"]
+    assert m["status"] == "ok" and m["free_parts"] == []
+    np.testing.assert_allclose(m["resize"]["extent_ratio"], [862.0 / 662.72998, 1, 1], rtol=0.02)
+
+
 # ---------------------------------------------------------------- bad input through the CLI
 
 
@@ -573,11 +702,19 @@ def _invoke(runner, tmp_path, cfg: dict):
          "handles[0].index: vertex 999 is out of range (piece reshape-wall has 72 vertices)"),
         ({"handles": [above("y", 50.0, displacement=[0, 1, 0])]}, 2, "handles[0]: selects no vertex"),
         ({"fixed": [below("y", 10.0)]}, 2, "fixed[0]: 4 vertices are also handles"),
-        ({"handles": []}, 2, "handles: List should have at least 1 item"),
+        ({"handles": []}, 2, "give exactly one of handles, scale, size (got none)"),
+        ({"scale": {"x": 1.3}}, 2, "give exactly one of handles, scale, size (got handles, scale)"),
+        ({"handles": [], "fixed": [], "scale": {}}, 2, "scale: give at least one of x, y, z"),
+        ({"handles": [above("y", -1.0, displacement=[0, 1, 0])], "fixed": []}, 2,
+         "handles: the recipe stretches nothing (every edge keeps its length within 1e-6"),
+        ({"handles": [above("y", 2.0, displacement=[0, 1, 0])], "fixed": []}, 2,
+         "handles: the recipe stretches nothing (every edge keeps its length within 1e-6"),
+        ({"handles": [], "fixed": [], "scale": {"x": 1.0}}, 2, "scale: the recipe stretches nothing"),
         ({"stiffness": {"l_min": 0}}, 2, "stiffness.l_min: Input should be greater than 0"),
         ({"stiffness": {"l_min": -1.0}}, 2, "stiffness.l_min: Input should be greater than 0"),
     ],
-    ids=["index-out-of-range", "selects-nothing", "handle-also-fixed", "no-handle", "l_min-zero", "l_min-negative"],
+    ids=["index-out-of-range", "selects-nothing", "handle-also-fixed", "no-handle", "handles-and-scale", "empty-scale",
+         "selects-everything", "translates-only", "scale-one", "l_min-zero", "l_min-negative"],
 )
 def test_bad_input_exit_codes(runner, tmp_path, change, code, message):
     got, line = _invoke(runner, tmp_path, {**wall_config(), **change})
@@ -615,7 +752,7 @@ def test_missing_handles_key_exit_2(runner, tmp_path):
     cfg = wall_config()
     del cfg["handles"]
     code, line = _invoke(runner, tmp_path, cfg)
-    assert code == 2 and "missing required key 'handles'" in line
+    assert code == 2 and "give exactly one of handles, scale, size (got none)" in line
 
 
 @pytest.mark.parametrize(

@@ -27,6 +27,8 @@ __all__ = [
     "GroupSection",
     "SolverSection",
     "TextureSection",
+    "AxisValues",
+    "PartsSection",
 ]
 
 Vec3 = list[float]
@@ -80,6 +82,45 @@ class Selection(StrictModel):
         if self.nearest is not None and any(len(p) != 3 for p in self.nearest):
             raise ValueError("nearest points must have 3 coordinates")
         return self
+
+
+class AxisValues(StrictModel):
+    """One positive value per axis; axes left out keep their size."""
+
+    x: float | None = Field(None, gt=0, le=1e6, description="Along x.")
+    y: float | None = Field(None, gt=0, le=1e6, description="Along y.")
+    z: float | None = Field(None, gt=0, le=1e6, description="Along z.")
+
+    @model_validator(mode="after")
+    def _some(self):
+        if self.x is None and self.y is None and self.z is None:
+            raise ValueError("give at least one of x, y, z")
+        return self
+
+    def values(self) -> list[float | None]:
+        """``[x, y, z]`` with None for an axis not given."""
+        return [self.x, self.y, self.z]
+
+
+class PartsSection(StrictModel):
+    """How parts (face-connected pieces: walls, windows, doors, frames, railings) stay attached."""
+
+    attach_distance: float = Field(
+        0.05, gt=0, le=1,
+        description="A part within this distance of another part's surface is attached to it (relative); "
+        "farther parts are still carried by the nearest surface and listed in metrics.free_parts. 0.05 covers "
+        "the chimneys of the real houses (up to 0.034 above their roofs).",
+    )
+    rigid_share: float = Field(
+        0.45, ge=0, le=1,
+        description="With scale/size: a part shorter than this share of the model along an axis keeps its "
+        "size along it (doors, windows: up to 0.39 on the real houses); longer parts (drainpipes, 0.51) stretch.",
+    )
+    end_tol: float = Field(
+        1e-3, gt=0, le=0.1,
+        description="With scale/size: vertices within this share of the extent of either end of a scaled axis "
+        "become the handles and fixed vertices.",
+    )
 
 
 class Handle(Selection):
@@ -278,7 +319,14 @@ class ReshapeConfig(RunConfig):
     input: InputFile | None = Field(None, description="Textured mesh (OBJ+MTL or GLB); or give pieces.")
     pieces: list[PieceSpec] = Field(default_factory=list, description="Pieces of a chain (instead of input).")
     chain: list[Join] = Field(default_factory=list, description="Joins placing each later piece at a portal.")
-    handles: list[Handle] = Field(min_length=1, description="Moved vertices (at least one).")
+    scale: AxisValues | None = Field(
+        None, description="Resize in one line: factor per axis, e.g. {x: 1.3}; handles and fixed vertices are "
+        "chosen at the two ends of the model along each axis.",
+    )
+    size: AxisValues | None = Field(None, description="Like scale, as the new extent per axis (model units).")
+    handles: list[Handle] = Field(
+        default_factory=list, description="Moved vertices (at least one), when neither scale nor size is given."
+    )
     fixed: list[Selection] = Field(default_factory=list, description="Vertices that keep their position.")
     links: list[Link] = Field(default_factory=list, description="User links between two vertices (Fig. 6).")
     graph: GraphSection = Field(default_factory=GraphSection)
@@ -286,10 +334,12 @@ class ReshapeConfig(RunConfig):
     strict: StrictSection = Field(default_factory=StrictSection)
     contacts: ContactSection = Field(default_factory=ContactSection)
     groups: GroupSection = Field(default_factory=GroupSection)
+    parts: PartsSection = Field(default_factory=PartsSection)
     solver: SolverSection = Field(default_factory=SolverSection)
     baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
-    texture: Literal["reshape", "stretch"] = Field(
-        "reshape", description="reshape: each changed textured surface gets a reshaped, baked texture (section 4); "
+    texture: Literal["continue", "reshape", "stretch"] = Field(
+        "continue", description="continue: brick, siding and roof tiles keep their texel scale, the patch continued "
+        "by whole periods (surfaces whose map is not affine take reshape); reshape: the paper's section 4; "
         "stretch: UVs kept, the texture follows the geometry (the naive baseline).",
     )
     texture_reshape: TextureSection = Field(default_factory=TextureSection)
@@ -303,6 +353,9 @@ class ReshapeConfig(RunConfig):
         names = [p.name for p in self.pieces]
         if len(set(names)) != len(names):
             raise ValueError(f"piece names must be unique (got {names})")
+        given = [k for k in ("handles", "scale", "size") if getattr(self, k)]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of handles, scale, size (got {', '.join(given) or 'none'})")
         return self
 
 

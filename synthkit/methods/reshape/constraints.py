@@ -35,6 +35,7 @@ __all__ = [
     "edge_groups",
     "group_rows",
     "link_rows",
+    "attach_rows",
     "stack_rows",
 ]
 
@@ -250,6 +251,26 @@ def link_rows(X0, links, *, strict_weight: float) -> Rows:
     if not len(links):
         return Rows.empty()
     return _offset_rows(X0, links[:, 0], links[:, 1], strict_weight)
+
+
+def attach_rows(X0, Fn, attachment, *, strict_weight: float) -> Rows:
+    """Parts carried by a host surface (issue 23, beyond the paper): for each attached cluster of
+    nodes N with host triangle T and barycentric coordinates lam (a :class:`parts.Attachment`),
+    three strict rows ``mean_{i in N} x_i - sum_k lam_k x_Tk = (the same on X0)``: the cluster's
+    centroid keeps its offset to the host point beneath it, so a window goes where its wall takes
+    it (eq. 1 on its own edges keeps it from turning)."""
+    if not len(attachment.nodes):
+        return Rows.empty()
+    rows, cols, vals, b = [], [], [], []
+    for k, (nodes, t, lam) in enumerate(zip(attachment.nodes, attachment.tri, attachment.bary, strict=True)):
+        ids = np.concatenate([nodes, Fn[t]])
+        w = strict_weight * np.concatenate([np.full(len(nodes), 1.0 / len(nodes)), -lam])
+        for c in range(3):
+            rows.append(np.full(len(ids), 3 * k + c))
+            cols.append(3 * ids + c)
+            vals.append(w)
+        b.append(w @ X0[ids])
+    return Rows(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), np.concatenate(b))
 
 
 def stack_rows(blocks: dict[str, Rows], n_nodes: int) -> tuple[sp.csr_matrix, np.ndarray, dict[str, slice]]:

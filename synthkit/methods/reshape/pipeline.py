@@ -35,7 +35,9 @@ from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, 
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.outputs import edge_colours, reshape_image
+from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
 from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
 from synthkit.preview import montage_png
 
@@ -53,7 +55,8 @@ _BYTES_PER_TEXEL = 160.0
 @dataclass
 class System:
     """The weighted rows of one reshape: ``A (m, 3 n)``, ``b (m,)``, each block's row slice, the
-    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups and l_min."""
+    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups, l_min,
+    the stress targets ``lengths (E,)`` and the parts carried by a host (``attachment``)."""
 
     A: object
     b: np.ndarray
@@ -63,6 +66,8 @@ class System:
     contacts: np.ndarray
     groups: list
     l_min: float
+    lengths: np.ndarray
+    attachment: object
 
 
 def _pieces(cfg) -> list[tuple[str, object, dict]]:
@@ -161,41 +166,56 @@ def _assemble(names, meshes, offsets):
     return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
 
 
-def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float) -> System:
+def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float, known=(), rest=None,
+                 factors=None) -> System:
     """All weighted rows of section 3.2 for ``graph`` (lengths relative to ``size`` resolved).
 
     The paper's weights weight squared residuals (weighted least squares, ``A^T W A`` as in
     :class:`synthkit.core.lsq.LeastSquares`), so each row is scaled by the square root of its weight:
-    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``.
+    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``. ``rest (n, 3)`` (a
+    resize's rest shape, :mod:`resize`; default the model) is what the rows keep, except the rest
+    lengths of rigid edges, measured on the model like ``l_min``, contacts and groups, and hole-plane
+    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape (plane rows keep the
+    rest shape's offset along the normal: a hole's rim may move with its window). Clusters that hold
+    none of the ``known`` nodes and no contact are carried by the nearest surface
+    (:func:`parts.attach_clusters`, strict rows).
     """
     X0, edges = graph.X0, graph.edges
+    R = X0 if rest is None else np.asarray(rest, np.float64)
     _, length = C.edge_frames(X0, edges)
     st = cfg.stiffness
     l_min = st.l_min if st.l_min is not None else float(np.quantile(length, st.l_min_quantile))
     w = np.sqrt(C.stiffness(length, l_min=l_min, w_small=st.w_small, w_long=st.w_long))
+    targets = np.where(length < l_min, length, C.edge_frames(R, edges)[1])
     W = float(np.sqrt(cfg.strict.weight))
     w_c = float(np.sqrt(cfg.contacts.w_c))
     blocks = {
-        "direction": C.direction_rows(X0, edges, weight=W, form=cfg.strict.direction_form),
-        "stress": C.stress_rows(X0, edges, w),
+        "direction": C.direction_rows(R, edges, weight=W, form=cfg.strict.direction_form),
+        "stress": C.stress_rows(R, edges, w, targets),
     }
     contacts = np.zeros((0, 2), np.int64)
     if cfg.contacts.enabled:
         contacts = C.find_contacts(X0, graph.Fn, graph.component, tol=cfg.contacts.tol * size)
         blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
-            X0, graph.Fn, contacts, strict_weight=W, w_c=w_c
+            R, graph.Fn, contacts, strict_weight=W, w_c=w_c
         )
-    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(
-        X0, graph.bridges, graph.bridge_normals, strict_weight=W, w_c=w_c
-    )
+    normals = graph.bridge_normals / (1.0 if factors is None else np.asarray(factors)[graph.bridges[:, 0]])
+    normals = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(R, graph.bridges, normals, strict_weight=W, w_c=w_c)
     groups = []
     if cfg.groups.enabled:
         g = cfg.groups
         groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance)
-        blocks["groups"] = C.group_rows(X0, edges, groups, w_g=float(np.sqrt(g.w_g)))
-    blocks["links"] = C.link_rows(X0, links, strict_weight=W)
+        blocks["groups"] = C.group_rows(R, edges, groups, w_g=float(np.sqrt(g.w_g)))
+    blocks["links"] = C.link_rows(R, links, strict_weight=W)
+    pairs = np.vstack([edges, links, graph.bridges, np.column_stack([contacts[:, 0], graph.Fn[contacts[:, 1], 0]])])
+    attachment = attach_clusters(X0, graph.Fn, pairs, np.asarray(known, np.int64))
+    blocks["attach"] = C.attach_rows(R, graph.Fn, attachment, strict_weight=W)
     A, b, slices = C.stack_rows(blocks, graph.n_nodes)
-    return System(A, b, slices, w, length < l_min, contacts, groups, l_min)
+    if rest is not None:
+        for name in ("coplanarity", "hole_plane"):
+            b[slices[name]] = A[slices[name]] @ R.ravel()
+    return System(A, b, slices, w, length < l_min, contacts, groups, l_min, targets, attachment)
 
 
 def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
@@ -205,25 +225,41 @@ def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) ->
     return f"vertex {int(p.position_index[r - p.start])} of {p.name}"
 
 
-def _selections(cfg, graph, V, ranges):
-    """Handles ``(k,)`` with targets ``(k, 3)``, fixed ``(f,)`` and link pairs, as ConfigErrors."""
+def _selections(cfg, graph, V, ranges, resize=None):
+    """Handles ``(k,)`` with targets ``(k, 3)``, fixed ``(f,)`` and link pairs, as ConfigErrors. A
+    resize's end nodes are handles where its rest shape moves them and fixed elsewhere."""
     try:
+        links = resolve_links(cfg.links, ranges, V, graph.node_of_vertex)
+        if resize is not None:
+            moved = np.linalg.norm(resize.R[resize.known] - graph.X0[resize.known], axis=1) > 1e-12 * np.ptp(graph.X0)
+            handles = resize.known[moved]
+            return handles, resize.R[handles], resize.known[~moved], links
         handles, targets = resolve_handles(cfg.handles, ranges, V, graph.node_of_vertex, graph.X0)
         fixed = resolve_fixed(cfg.fixed, handles, ranges, V, graph.node_of_vertex)
-        links = resolve_links(cfg.links, ranges, V, graph.node_of_vertex)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
     return handles, targets, fixed, links
 
 
-def _known(graph, system_pairs, handles, fixed) -> tuple[np.ndarray, np.ndarray]:
-    """Known nodes (handles, fixed, then one anchor per floating cluster) and the anchors."""
+def _resize(cfg, graph, sc) -> Resize | None:
+    """The resize of a ``scale`` or ``size`` config (None for explicit handles)."""
+    if cfg.scale is None and cfg.size is None:
+        return None
+    used = np.unique(graph.Fn)
+    extent = graph.X0[used].max(axis=0) - graph.X0[used].min(axis=0)
+    try:
+        factors, asked = axis_factors(cfg.scale, cfg.size, extent)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    p = cfg.parts
+    return plan_resize(graph.X0, graph.Fn, factors, asked, rigid_share=p.rigid_share, end_tol=p.end_tol)
+
+
+def _known(graph, handles, fixed) -> np.ndarray:
+    """Known nodes: handles, fixed, then the nodes no triangle uses (they keep their place)."""
     used = np.zeros(graph.n_nodes, bool)
     used[graph.Fn.reshape(-1)] = True
-    given = np.concatenate([handles, fixed])
-    anchors = floating_anchors(graph.n_nodes, system_pairs, given, used)
-    unused = np.flatnonzero(~used)
-    return np.concatenate([given, anchors, unused]), anchors
+    return np.concatenate([handles, fixed, np.flatnonzero(~used)])
 
 
 def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
@@ -247,11 +283,12 @@ def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
     return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
 
 
-def _quality(graph, system, X, known, targets_all, size) -> dict:
-    """Angle, rigid-length, handle and contact figures of node positions ``X (n, 3)``."""
+def _quality(graph, system, X, known, targets_all, size, rest=None) -> dict:
+    """Angle (against ``rest (n, 3)``, default the model), rigid-length, handle, contact and stretch
+    (against the model) figures of node positions ``X (n, 3)``."""
     X0, edges = graph.X0, graph.edges
-    ang = angle_errors_deg(X0, X, edges)
-    _, rest = C.edge_frames(X0, edges)
+    ang = angle_errors_deg(X0 if rest is None else rest, X, edges)
+    _, rest_len = C.edge_frames(X0, edges)
     new = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
     rigid = system.rigid
     contact = 0.0
@@ -264,11 +301,11 @@ def _quality(graph, system, X, known, targets_all, size) -> dict:
     return {
         "max_angle_error_deg": float(ang.max()) if len(ang) else 0.0,
         "mean_angle_error_deg": float(ang.mean()) if len(ang) else 0.0,
-        "rigid_length_error": float(np.abs(new[rigid] / rest[rigid] - 1).max()) if rigid.any() else 0.0,
+        "rigid_length_error": float(np.abs(new[rigid] / rest_len[rigid] - 1).max()) if rigid.any() else 0.0,
         "handle_residual": float(np.linalg.norm(X[known] - targets_all, axis=1).max() / size),
         "contact_residual": contact,
-        "max_stretch": float((new / rest).max()),
-        "min_stretch": float((new / rest).min()),
+        "max_stretch": float((new / rest_len).max()),
+        "min_stretch": float((new / rest_len).min()),
     }
 
 
@@ -276,7 +313,7 @@ def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float)
     """Largest residual of each strict block, unweighted and relative to the model size."""
     r = system.A @ X.ravel() - system.b
     out = {}
-    for name in ("direction", "coplanarity", "hole_plane", "links"):
+    for name in ("direction", "coplanarity", "hole_plane", "links", "attach"):
         sl = system.slices.get(name)
         if sl is not None and sl.stop > sl.start:
             out[name] = float(np.abs(r[sl]).max() / np.sqrt(weight) / size)
@@ -339,10 +376,11 @@ def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
         save_textured(m, P, target, retexture=entries)
 
 
-def _refuse(cfg, result: DragResult, graph, ranges) -> None:
+def _refuse(cfg, result: DragResult, graph, ranges, steps: int) -> None:
     a, b = (_vertex_name(n, graph, ranges) for n in result.edge)
+    key = "handles" if cfg.handles else ("scale" if cfg.scale is not None else "size")
     msg = (
-        f"handles: the edge between {a} and {b} would flip at step {result.step} of {cfg.solver.steps}; "
+        f"{key}: the edge between {a} and {b} would flip at step {result.step} of {steps}; "
         f"motion refused, last valid step {result.steps_done} (solver.allow_partial: true writes it)"
     )
     raise InputError(msg)
@@ -429,7 +467,7 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
     """The texture stage (``texture: reshape``): per piece index the Retexture entries; metrics
     ``surfaces`` and their worst case go into the report; previews of the largest surfaces."""
     ctx.metrics["texture"] = cfg.texture
-    if cfg.texture != "reshape":
+    if cfg.texture == "stretch":
         return {}
     with ctx.stage("texture"):
         images, skipped = {}, {}
@@ -437,8 +475,10 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
         texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
         ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
                            bytes_each=_BYTES_PER_TEXEL)
-        entries, results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
-        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped))
+        results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
+        entries, boxes = RT.atlas_entries(sc, results, images)
+        ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
+        ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
     with ctx.stage("texture_previews"):
         _texture_previews(ctx, cfg, results)
     return entries
@@ -454,7 +494,8 @@ def _texture_previews(ctx, cfg, results) -> None:
         res = item[1][1]
         return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
 
-    order = sorted(results.items(), key=distortion)[: cfg.texture_reshape.previews]
+    paper = {k: v for k, v in results.items() if v[2] is not None}
+    order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
     for name, (job, res, tex) in order:
         rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
         stem = f"texture/{RT._safe(name)}"
@@ -472,23 +513,53 @@ def _texture_previews(ctx, cfg, results) -> None:
                     titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)
 
 
-def run(cfg, ctx) -> None:
-    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
-    sc = _load(cfg, ctx)
-    graph = _graph(cfg, ctx, sc)
-    with ctx.stage("constraints"):
-        handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges)
-        ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
-                           60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
-                           "matrix entries", bytes_each=_BYTES_PER_NNZ)
-        system = build_system(cfg, graph, links, size=sc.size)
-        pairs = np.vstack([graph.edges, links, graph.bridges,
-                           np.column_stack([system.contacts[:, 0], graph.Fn[system.contacts[:, 1], 0]])])
-        known, anchors = _known(graph, pairs, handles, fixed)
-    T = graph.X0.copy()
+def _free_parts(cfg, graph, sc, links) -> list[dict]:
+    """Parts (face-connected components; the one with most nodes is the root) farther than
+    ``parts.attach_distance`` from every other part and not linked to one (``links (k, 2)``):
+    carried by the nearest surface all the same, listed in ``metrics.free_parts`` and named in
+    one warning line."""
+    part = mesh_parts(graph.Fn, graph.n_nodes)
+    if part.max() < 1:
+        return []
+    dist = part_distances(graph.X0, graph.Fn, part) / sc.size
+    dist[np.argmax(np.bincount(part[part >= 0]))] = 0.0
+    pl = part[np.asarray(links, np.int64).reshape(-1, 2)]
+    linked = np.unique(pl[pl[:, 0] != pl[:, 1]])
+    free = []
+    for k in np.setdiff1d(np.flatnonzero(dist > cfg.parts.attach_distance), linked):
+        nodes = np.flatnonzero(part == k)
+        free.append({"part": int(k), "first": _vertex_name(int(nodes[0]), graph, sc.ranges),
+                     "nodes": int(len(nodes)), "centre": graph.X0[nodes].mean(axis=0).round(6).tolist(),
+                     "distance": float(dist[k])})
+    if free:
+        names = "; ".join(f"part {f['part']} ({f['nodes']} nodes from {f['first']}, {f['distance']:.3g})"
+                          for f in free)
+        log.warning("%s: %d parts lie farther than parts.attach_distance (%g of the model size) from any other "
+                    "part and are carried by the nearest surface: %s", sc.source, len(free),
+                    cfg.parts.attach_distance, names)
+    return free
+
+
+def _stretches_nothing(cfg, quality) -> None:
+    """Item 6 of issue 23: a recipe whose result only moves the model rigidly (handles that select
+    everything, or nothing fixed) is refused in one line (ConfigError) instead of writing a
+    translated model with perfect metrics."""
+    key = "handles" if cfg.handles else ("scale" if cfg.scale is not None else "size")
+    if quality["max_stretch"] - 1 < 1e-6 and 1 - quality["min_stretch"] < 1e-6:
+        raise ConfigError(
+            f"{key}: the recipe stretches nothing (every edge keeps its length within 1e-6; the handles move the "
+            "model rigidly): select handles and fixed vertices on different sides of what should stretch"
+        )
+
+
+def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
+    """Factor and drag (one step for a resize: its rest shape is the target); returns the drag
+    result, the positions the known nodes reached, the solver, the cache and the frozen nodes."""
+    T = rest.copy()
     T[handles] = targets
     frozen = _frozen_nodes(cfg, sc, graph, handles)
     sv = cfg.solver
+    steps = 1 if cfg.handles == [] else sv.steps
     with ctx.stage("factor"):
         cache = FactorCache(system.A, backend=sv.backend)
         try:
@@ -498,26 +569,60 @@ def run(cfg, ctx) -> None:
             raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
     with ctx.stage("solve"):
         result = drag(
-            lambda step: full if step == sv.steps else limited, system.b, X0=graph.X0, T=T, steps=sv.steps,
+            lambda step: full if step == steps else limited, system.b, X0=rest, T=T, steps=steps,
             edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
             short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
-            progress=lambda steps: ctx.progress(steps, total=sv.steps, desc="reshape steps"),
+            progress=lambda s: ctx.progress(s, total=steps, desc="reshape steps"), lengths=system.lengths,
         )
     if result.status == "partial" and not sv.allow_partial:
-        _refuse(cfg, result, graph, sc.ranges)
-    reached = graph.X0[known] + (result.steps_done / sv.steps) * (T[known] - graph.X0[known])
+        _refuse(cfg, result, graph, sc.ranges, steps)
+    reached = rest[known] + (result.steps_done / steps) * (T[known] - rest[known])
+    return result, reached, full, cache, frozen
+
+
+def _resize_metrics(resize, graph, X) -> dict:
+    """Factors applied, extent ratios reached (after / before, per axis) and rigid parts of a resize."""
+    used = np.unique(graph.Fn)
+    before = graph.X0[used].max(axis=0) - graph.X0[used].min(axis=0)
+    after = X[used].max(axis=0) - X[used].min(axis=0)
+    return {"resize": {"factors": resize.factors.tolist(), "asked_extent": [None if np.isnan(a) else float(a)
+                                                                          for a in resize.asked],
+                       "extent_ratio": (after / np.maximum(before, 1e-300)).tolist(),
+                       "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    sc = _load(cfg, ctx)
+    graph = _graph(cfg, ctx, sc)
+    with ctx.stage("constraints"):
+        resize = _resize(cfg, graph, sc)
+        handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges, resize)
+        ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
+                           60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
+                           "matrix entries", bytes_each=_BYTES_PER_NNZ)
+        rest = graph.X0 if resize is None else resize.R
+        system = build_system(cfg, graph, links, size=sc.size, known=np.concatenate([handles, fixed]),
+                              rest=None if resize is None else rest,
+                              factors=None if resize is None else resize.node_factors())
+        known = _known(graph, handles, fixed)
+        free = _free_parts(cfg, graph, sc, links)
+    result, reached, full, cache, frozen = _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest)
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
-                  anchored_components=int(len(anchors)), frozen_nodes=int(len(frozen)),
+                  attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
-    quality = _quality(graph, system, result.X, known, reached, sc.size)
+    quality = _quality(graph, system, result.X, known, reached, sc.size, rest)
+    _stretches_nothing(cfg, quality)
+    if resize is not None:
+        counts.update(_resize_metrics(resize, graph, result.X))
     ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
     if result.status == "partial":
         ctx.status = "partial"
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):
-            Xb = _baseline(graph, known, reached, sv.backend)
-        base = _quality(graph, system, Xb, known, reached, sc.size)
+            Xb = _baseline(graph, known, reached, cfg.solver.backend)
+        base = _quality(graph, system, Xb, known, reached, sc.size, rest)
         ctx.metrics["baseline"] = base
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12

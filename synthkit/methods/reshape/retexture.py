@@ -9,8 +9,8 @@ comes back unchanged. Each texture is analysed once
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
-Errors name the file, the surface and the key: a textured surface without UVs, UVs outside [0, 1]
-on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
+Errors name the file, the surface and the key: a textured surface without UVs, UVs spanning a
+whole tile on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
 below one texel (ConfigError on ``texture_reshape.spacing``). GLB inputs keep the naive stretch
 (their textures are embedded; the writer only retextures OBJ files) and say so in the report.
 """
@@ -26,9 +26,12 @@ import numpy as np
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
+from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
+from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
-__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "texture_metrics", "params_of", "UNCHANGED_TOL", "WORST"]
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
+           "UNCHANGED_TOL", "WORST"]
 
 log = logging.getLogger("synthkit")
 
@@ -37,6 +40,9 @@ UNCHANGED_TOL = 1e-9
 
 MIN_UV_AREA = 16.0
 """Texels a surface's UVs must cover to get a deformation grid."""
+
+WHOLE_TILE_SLACK = 1e-2
+"""UVs spanning a tile plus at most this (share of a tile) still read as one tile, clamped."""
 
 WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max, "bake_ms": max,
          "rigid_scale_error": max, "stochastic_stretch": max, "detail_energy_ratio": min, "tiles": min,
@@ -48,7 +54,8 @@ WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max,
 class SurfaceJob:
     """One changed textured surface: its name, piece, faces ``(k,)`` (piece-local), render vertices
     ``(c,)`` (piece-local), material, texture path, corners ``C (c, 2)`` texels, triangles ``F (k, 3)``
-    and contour ``segments (S, 2)`` over them, edge length ratios (callable) and toroidal flag."""
+    and contour ``segments (S, 2)`` over them, edge length ratios (callable), toroidal flag and the
+    corners' world positions before ``P0 (c, 3)`` and after ``P1 (c, 3)``."""
 
     name: str
     piece: int
@@ -61,6 +68,8 @@ class SurfaceJob:
     segments: np.ndarray
     ratio: object
     toroidal: bool
+    P0: np.ndarray
+    P1: np.ndarray
 
 
 def params_of(cfg) -> TextureParams:
@@ -80,21 +89,31 @@ def _contour(F: np.ndarray) -> np.ndarray:
     return he[counts[inv.reshape(-1)] == 1]
 
 
-def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> bool:
-    """Whether the surface is toroidal; InputError for missing UVs or UVs outside [0, 1] on a
-    texture that does not repeat."""
+def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> tuple[bool, np.ndarray]:
+    """Whether the surface is toroidal, and its UVs ``(c, 2)`` as read. With ``toroidal: auto`` a
+    surface is toroidal only when its UVs leave [0, 1] and span more than a whole tile (plus
+    :data:`WHOLE_TILE_SLACK`) along an axis; otherwise they
+    are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small excursion
+    past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A listed material is
+    toroidal whatever its UVs. InputError for missing UVs, or for UVs spanning a whole tile when
+    ``toroidal`` lists other materials only."""
     if np.isnan(UV).any():
         raise InputError(f"{mesh.source}: surface {name} (material {material}) has no UVs, but its texture "
                          f"{path.name} needs them")
     outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
-    toroidal = outside if toroidal_cfg == "auto" else material in toroidal_cfg
-    if outside and not toroidal:
+    whole = outside and bool((np.ptp(UV, axis=0) > 1 + WHOLE_TILE_SLACK).any())
+    toroidal = whole if toroidal_cfg == "auto" else material in toroidal_cfg
+    if toroidal:
+        return True, UV
+    if whole:
         lo, hi = UV.min(axis=0), UV.max(axis=0)
         raise InputError(
-            f"{mesh.source}: surface {name} (material {material}) has UVs outside [0, 1] (u {lo[0]:.4g}..{hi[0]:.4g}, "
-            f"v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal (texture_reshape.toroidal)"
+            f"{mesh.source}: surface {name} (material {material}) has UVs spanning a whole tile "
+            f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal "
+            "(texture_reshape.toroidal)"
         )
-    return toroidal
+    shift = np.floor(0.5 * (UV.min(axis=0) + UV.max(axis=0)))
+    return False, np.clip(UV - shift, 0.0, 1.0)
 
 
 def _ratio(a, b, i, j) -> np.ndarray:
@@ -155,9 +174,8 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             untouched += 1
             continue
         name = f"{r.name}.{material}.{k}"
-        toroidal = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
+        toroidal, UV = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
         W, H = _texture(cfg, path, images)
-        UV = mesh.UV[verts]
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
         if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
             untouched += 1
@@ -170,7 +188,7 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
         seg = _contour(Fl)
         seg = seg[np.linalg.norm(C[seg[:, 1]] - C[seg[:, 0]], axis=1) > 1e-9]  # duplicated corners
         jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, seg,
-                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal))
+                               lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal, a, b))
     return jobs, untouched
 
 
@@ -197,10 +215,25 @@ def _safe(name: str) -> str:
 
 
 def reshape_jobs(cfg, jobs, images, rng):
-    """Run every job: per piece the :class:`Retexture` entries, per surface its result and metrics.
-    A stage ValueError becomes an InputError naming the surface."""
-    params, analyses, entries, results = params_of(cfg), {}, {}, {}
+    """Run every job: per surface name ``(job, result, analysis)``. With ``texture: continue`` a
+    non-toroidal surface whose map is affine is extended (:func:`texture.extend.extend_surface`,
+    analysis None), the others take the paper's reshape. A surface mapping the same
+    texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
+    patch), shares its result. A stage ValueError becomes an InputError naming the surface."""
+    params, analyses, results, done = params_of(cfg), {}, {}, {}
     for job in jobs:
+        same = _job_key(job)
+        if same in done:
+            results[job.name] = (job, *results[done[same]][1:])
+            continue
+        done[same] = job.name
+        if cfg.texture == "continue":
+            img = images[job.texture]
+            ext = (extend_tiled(job.C, job.F, job.P0, job.P1, img.shape) if job.toroidal
+                   else extend_surface(img, job.C, job.F, job.P0, job.P1))
+            if ext is not None:
+                results[job.name] = (job, ext, None)
+                continue
         key = (job.texture, job.toroidal)
         if key not in analyses:
             analyses[key] = analyse_texture(images[job.texture], wrap=job.toroidal, params=params, rng=rng)
@@ -211,22 +244,92 @@ def reshape_jobs(cfg, jobs, images, rng):
             if "max_side" in str(exc):
                 raise ConfigError(f"texture_reshape.max_side: surface {job.name}: {exc}") from None
             raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
-        UV = np.zeros((int(job.vertices.max()) + 1, 2))
-        UV[job.vertices] = res.UV
-        material = _safe(f"{job.material}_retex{len(results)}")
-        entries.setdefault(job.piece, []).append(
-            Retexture(job.faces, UV, material, f"{material}.png", res.texture))
         results[job.name] = (job, res, analyses[key])
-    return entries, results
+    return results
 
 
-def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict) -> dict:
-    """``surfaces`` (name -> metrics) and the worst case of each :data:`WORST` metric."""
+def _job_key(job) -> tuple:
+    """What makes two jobs bake the same patch: texture, wrap, texel corners, triangles and the
+    edge length ratios (rounded to 1e-6)."""
+    e = np.vstack([job.F[:, [0, 1]], job.F[:, [1, 2]], job.F[:, [2, 0]]])
+    ratio = np.round(job.ratio(e[:, 0], e[:, 1]), 6)
+    return (job.texture, job.toroidal, np.round(job.C, 6).tobytes(), job.F.tobytes(), ratio.tobytes())
+
+
+def _own_entry(job, res, k: int) -> Retexture:
+    """A surface written with its own material and PNG (toroidal: its UVs repeat the baked tile)."""
+    UV = np.zeros((int(job.vertices.max()) + 1, 2))
+    UV[job.vertices] = res.UV
+    material = _safe(f"{job.material}_retex{k}")
+    return Retexture(job.faces, UV, material, f"{material}.png", res.texture)
+
+
+def _untouched_faces(mesh, material, done, taken) -> np.ndarray:
+    """Faces of ``material`` not reshaped (``done``), with UVs in [0, 1] and no render vertex in
+    ``taken (#V,) bool``: they move into the atlas's source area."""
+    faces = np.setdiff1d(np.flatnonzero(mesh.face_material == mesh.materials.index(material)), done)
+    uv = mesh.UV[mesh.F[faces]]
+    ok = np.all(np.isfinite(uv) & (uv >= -1e-9) & (uv <= 1 + 1e-9), axis=(1, 2)) & ~taken[mesh.F[faces]].any(axis=1)
+    return faces[ok]
+
+
+def atlas_entries(sc, results, images) -> tuple[dict, dict]:
+    """The Retexture entries per piece index: per (piece, input material) one atlas (source on top,
+    every non-toroidal reshaped surface's patch below, :func:`texture.atlas.pack_atlas`) holding
+    the material's reshaped and untouched faces; toroidal surfaces continued by their UVs share one
+    copy of their tile per material (``<material>_tiled``); other toroidal surfaces (and a surface
+    sharing a render vertex with one already packed) keep their own PNG. Also per surface name its ``[x, y, w, h]``
+    box in its atlas (texels) and the atlas file."""
+    entries, boxes, groups = {}, {}, {}
+    tiled = {}
+    for k, (name, (job, res, _)) in enumerate(results.items()):
+        if job.toroidal and res.texture is None:
+            tiled.setdefault((job.piece, job.material), []).append((job, res))
+        elif job.toroidal:
+            entries.setdefault(job.piece, []).append(_own_entry(job, res, k))
+        else:
+            groups.setdefault((job.piece, job.material), []).append((name, job, res))
+    for (p, material), items in groups.items():
+        mesh = sc.meshes[p]
+        patches = list({id(res): res.texture for _, _, res in items}.values())
+        atlas, spot0, spots = pack_atlas(images[items[0][1].texture], patches)
+        slot = {id(res): spots[i] for i, res in enumerate({id(r): r for _, _, r in items}.values())}
+        UV, taken, faces = np.zeros((len(mesh.V), 2)), np.zeros(len(mesh.V), bool), []
+        file = f"{_safe(material)}_atlas.png"
+        for name, job, res in items:
+            spot = slot[id(res)]
+            if taken[job.vertices].any():
+                entries.setdefault(p, []).append(_own_entry(job, res, len(boxes)))
+                continue
+            UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
+            taken[job.vertices] = True
+            faces.append(job.faces)
+            boxes[name] = ([spot.x, spot.y, spot.w, spot.h], file)
+        rest = _untouched_faces(mesh, material, np.concatenate(faces), taken)
+        corners = np.unique(mesh.F[rest])
+        UV[corners] = to_atlas(mesh.UV[corners], spot0, atlas.shape)
+        entries.setdefault(p, []).append(
+            Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas))
+    for (p, material), items in tiled.items():
+        UV = np.zeros((len(sc.meshes[p].V), 2))
+        for job, res in items:
+            UV[job.vertices] = res.UV
+        file = f"{_safe(material)}_tiled.png"
+        entries.setdefault(p, []).append(Retexture(np.concatenate([job.faces for job, _ in items]), UV, file[:-4],
+                                                   file, images[items[0][0].texture]))
+    return entries, boxes
+
+
+def texture_metrics(results: dict, notes: dict, untouched: int, skipped: dict, boxes: dict) -> dict:
+    """``surfaces`` (name -> metrics, with its ``atlas`` file and ``atlas_box`` [x, y, w, h] when
+    packed) and the worst case of each :data:`WORST` metric."""
     surfaces = {}
     for name, (job, res, _) in results.items():
         m = dict(res.metrics)
-        m["grid_nodes"] = m.pop("nodes")
+        m["grid_nodes"] = m.pop("nodes", None)
         m.update(material=job.material, texture=job.texture.name, toroidal=job.toroidal)
+        if name in boxes:
+            m["atlas_box"], m["atlas"] = boxes[name]
         surfaces[name] = m
     out = {"surfaces": surfaces, "texture_surfaces": len(surfaces), "texture_notes": notes,
            "texture_untouched_surfaces": untouched, "texture_skipped": skipped}

@@ -180,6 +180,7 @@ def drag(
     raise_factor: float,
     flip_ratio: float,
     progress=None,
+    lengths=None,
 ) -> DragResult:
     """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
 
@@ -187,7 +188,8 @@ def drag(
     every step, or a limited-propagation one while dragging and a full one at release); at step
     ``s`` its known nodes sit at ``X0 + s / steps (T - X0)``. ``edges (E, 2)`` are the graph edges
     whose stress rows occupy ``b[stress_slice]`` with weights ``stress_weights (E,)``;
-    ``progress``, when given, wraps the iterable of steps (a progress bar). Returns the
+    ``progress``, when given, wraps the iterable of steps (a progress bar); ``lengths (E,)`` are
+    the stress targets in ``b`` (default: the rest lengths of ``X0``). Returns the
     :class:`DragResult` of the last valid step.
     """
     X0 = np.asarray(X0, np.float64)
@@ -196,7 +198,7 @@ def drag(
     u = X0[edges[:, 1]] - X0[edges[:, 0]]
     rest = np.linalg.norm(u, axis=1)
     u /= np.maximum(rest, 1e-300)[:, None]
-    lengths = rest.copy()
+    lengths = rest.copy() if lengths is None else np.array(lengths, np.float64)
     X_prev, raises = X0, 0
     step_numbers = range(1, steps + 1)
     for s in progress(step_numbers) if progress is not None else step_numbers:

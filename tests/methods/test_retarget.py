@@ -15,8 +15,10 @@ from scipy.spatial import cKDTree
 
 from synthkit.cli.main import cli
 from synthkit.core.mesh import normalize_unit, weld
+from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.images import load_image
+from synthkit.io.assets import load_asset
+from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_face_labels, load_mesh, save_mesh
 from synthkit.methods.retarget.analysis import (
     analyze,
@@ -31,6 +33,7 @@ from synthkit.methods.retarget.analysis import (
     sparsity_curve,
     vertex_normals,
 )
+from synthkit.methods.retarget.corners import carry, pack, unpack
 from synthkit.methods.retarget.pipeline import label_colours
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
@@ -39,9 +42,9 @@ from synthkit.methods.retarget.synthesis import (
     grid_phase,
     label_set,
     merge_coplanar_faces,
-    mesh_quality,
     repair_t_junctions,
     seam_planes,
+    sliver_figures,
     unique_faces,
 )
 from synthkit.runner import run_config
@@ -120,22 +123,13 @@ def test_vertex_normals_angle_weights_ignore_triangulation():
         vertex_normals(V, F, weights="cot")
 
 
-def test_mesh_quality_tiny_fixtures():
+def test_sliver_figures_tiny_fixtures():
     V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float64)
     F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
-    q = mesh_quality(V, F)
-    assert q == {"faces": 4, "boundary_edges": 0, "nonmanifold_edges": 0, "duplicate_faces": 0,
-                 "back_to_back_faces": 0, "min_angle_deg": pytest.approx(45.0), "sliver_faces": 0}
-    q = mesh_quality(V, np.concatenate([F[:3], [[0, 1, 2]]]))  # face 0 again, reversed; face 3 gone
-    assert q["duplicate_faces"] == 0 and q["back_to_back_faces"] == 1
-    assert q["boundary_edges"] == 2 and q["nonmanifold_edges"] == 2
-    q = mesh_quality(V, np.concatenate([F, [[2, 1, 0]]]))  # face 0 again, same orientation (rotated)
-    assert q["duplicate_faces"] == 1 and q["back_to_back_faces"] == 0
-    # an unwelded copy of a vertex at the same position does not open the surface
-    V2 = np.concatenate([V, V[[3]]])
-    assert mesh_quality(V2, np.array([[0, 2, 1], [0, 1, 4], [0, 3, 2], [1, 2, 3]]))["boundary_edges"] == 0
+    assert sliver_figures(V, F) == {"min_angle_deg": pytest.approx(45.0), "sliver_faces": 0}
     sliver = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-4, 0]])
-    assert mesh_quality(sliver, np.array([[0, 1, 2]]))["sliver_faces"] == 1
+    assert sliver_figures(sliver, np.array([[0, 1, 2]]))["sliver_faces"] == 1
+    assert sliver_figures(V, np.zeros((0, 3), np.int64)) == {"min_angle_deg": None, "sliver_faces": 0}
 
 
 def test_collapse_short_seam_edges_removes_the_slivers_of_a_near_cut():
@@ -147,8 +141,8 @@ def test_collapse_short_seam_edges_removes_the_slivers_of_a_near_cut():
     F2, src = collapse_short_seam_edges(V, F, on_seam, 0.01)
     assert F2.tolist() == [[0, 1, 7], [0, 7, 5], [0, 5, 4], [4, 5, 3], [5, 7, 2], [5, 2, 3]]
     assert src.tolist() == [0, 1, 3, 4, 6, 7]
-    assert mesh_quality(V, F)["sliver_faces"] == 2 and mesh_quality(V, F2)["sliver_faces"] == 0
-    assert mesh_quality(V, F2)["boundary_edges"] == mesh_quality(V, F)["boundary_edges"] == 6
+    assert sliver_figures(V, F)["sliver_faces"] == 2 and sliver_figures(V, F2)["sliver_faces"] == 0
+    assert mesh_quality(V, F2)["open_edges"] == mesh_quality(V, F)["open_edges"] == 6
     # not on a seam, or longer than the bound: kept as they are
     assert collapse_short_seam_edges(V, F, np.zeros(8, bool), 0.01)[0].tolist() == F.tolist()
     assert collapse_short_seam_edges(V, F, on_seam, 0.004)[0].tolist() == F.tolist()
@@ -159,7 +153,7 @@ def test_flip_sliver_edges_flips_a_cap_across_a_flat_pair_only():
     V = np.array([[0, 0, 0], [2, 0, 0], [1, 0.01, 0], [1, -1, 0], [1, -1, 1]], dtype=np.float64)
     F = np.array([[0, 1, 2], [1, 0, 3]])
     assert flip_sliver_edges(V, F).tolist() == [[0, 3, 2], [3, 1, 2]]
-    assert mesh_quality(V, flip_sliver_edges(V, F))["sliver_faces"] == 0
+    assert sliver_figures(V, flip_sliver_edges(V, F))["sliver_faces"] == 0
     assert flip_sliver_edges(V, F, np.array([0, 1])).tolist() == F.tolist()  # two labels: kept
     assert flip_sliver_edges(V, np.array([[0, 1, 2], [1, 0, 4]])).tolist() == [[0, 1, 2], [1, 0, 4]]  # a fold
 
@@ -195,7 +189,64 @@ def test_merge_coplanar_faces_keeps_area_boundary_and_labels():
     # the midline's ends stay; its middle vertex runs straight in both halves and goes from both,
     # so the halves still share the edge 1-5 and no T-junction appears
     E = np.sort(np.concatenate([F3[:, [0, 1]], F3[:, [1, 2]], F3[:, [2, 0]]]), axis=1).tolist()
-    assert E.count([1, 5]) == 2 and mesh_quality(V, F3)["boundary_edges"] == 6  # side midpoints 3, 7 went
+    assert E.count([1, 5]) == 2 and mesh_quality(V, F3)["open_edges"] == 6  # side midpoints 3, 7 went
+
+
+def _square_fan():
+    """The unit square as a fan of 8 triangles around its centre (vertex 8), side midpoints 1, 3, 5, 7."""
+    V = np.array([[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [1, 0.5, 0], [1, 1, 0], [0.5, 1, 0], [0, 1, 0], [0, 0.5, 0],
+                  [0.5, 0.5, 0]], dtype=np.float64)
+    return V, np.array([[8, k, (k + 1) % 8] for k in range(8)], dtype=np.int64)
+
+
+def test_carry_evaluates_the_source_faces_affine_map():
+    V = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [1, 0, 0], [1, 1, 0], [0.5, 0.5, 0], [3, 0, 0]], dtype=np.float64)
+    attr = np.array([[[7, 0.1, 0.2], [7, 0.5, 0.2], [7, 0.1, 0.6]]])  # material 7; uv = (0.1 + x/5, 0.2 + y/5)
+    out = carry(V, np.array([[3, 4, 5], [1, 6, 4]]), np.array([[0, 1, 2]]), np.array([0, 0]), attr)
+    want = np.concatenate([np.full((2, 3, 1), 7.0), 0.1 + V[[[3, 4, 5], [1, 6, 4]]][..., :2] / 5 + [0, 0.1]], axis=2)
+    np.testing.assert_allclose(out, want, atol=1e-12)  # corner 6 lies outside: extrapolated
+    assert carry(V, np.array([[3, 4, 5]]), np.array([[0, 1, 2]]), np.array([0]), None) is None
+    mat, uv, col = unpack(pack(np.array([2]), attr[:, :, 1:], np.full((1, 3, 4), 200, np.uint8)), True, True)
+    assert mat.tolist() == [2] and uv.tolist() == attr[:, :, 1:].tolist() and col.tolist() == [[[200] * 4] * 3]
+
+
+def test_merge_coplanar_faces_keeps_one_uv_map_and_never_joins_two():
+    """The square fan with uv = (x, y) is one region: 2 faces whose carried UVs are still (x, y).
+    With a UV seam down the middle (right half uv = (x + 5, y)) or another material on the right,
+    the halves stay apart and each keeps its own map."""
+    V, F = _square_fan()
+    uv = V[F][:, :, :2]
+    attr = pack(np.zeros(8, np.int64), uv, None)
+    F2, src = merge_coplanar_faces(V, F, attr=attr)
+    A2 = carry(V, F2, F, src, attr)
+    assert len(F2) == 2
+    np.testing.assert_allclose(A2[:, :, 1:], V[F2][:, :, :2], atol=1e-12)
+    right = V[F].mean(axis=1)[:, 0] > 0.5
+    for mat, shift in ((np.zeros(8, np.int64), 5.0), (right.astype(np.int64), 0.0)):
+        attr = pack(mat, uv + np.where(right[:, None, None], [shift, 0.0], 0.0), None)
+        F3, src3 = merge_coplanar_faces(V, F, attr=attr)
+        A3 = carry(V, F3, F, src3, attr)
+        side = V[F3].mean(axis=1)[:, 0] > 0.5
+        assert len(F3) < len(F) and np.all(side == right[src3])
+        np.testing.assert_allclose(A3[:, :, 1:], V[F3][:, :, :2] + np.where(side[:, None, None], [shift, 0], 0))
+        assert np.all(np.rint(A3[:, :, 0]) == mat[src3][:, None])
+
+
+def test_flip_sliver_edges_needs_one_appearance_map():
+    V = np.array([[0, 0, 0], [2, 0, 0], [1, 0.01, 0], [1, -1, 0]], dtype=np.float64)
+    F = np.array([[0, 1, 2], [1, 0, 3]])
+    same = pack(np.zeros(2, np.int64), V[F][:, :, :2], None)
+    assert flip_sliver_edges(V, F, attr=same).tolist() == [[0, 3, 2], [3, 1, 2]]
+    seam = same.copy()
+    seam[1, :, 1] += 0.5  # the face across has its own chart
+    assert flip_sliver_edges(V, F, attr=seam).tolist() == F.tolist()
+
+
+def test_repair_t_junctions_splits_only_at_the_given_vertices():
+    V = np.array([[0, 0, 0], [2, 0, 0], [1, 1, 0], [1, 0, 0], [0, -1, 0], [2, -1, 0]], dtype=np.float64)
+    F = np.array([[0, 1, 2], [0, 4, 3], [3, 5, 1]])  # vertex 3 hangs on edge 0-1
+    assert len(repair_t_junctions(V, F, tol=1e-9)[1]) == 4
+    assert repair_t_junctions(V, F, tol=1e-9, split_at=np.zeros(6, bool))[1].tolist() == F.tolist()
 
 
 def test_offset_basis_dummies():
@@ -565,7 +616,8 @@ def test_sheared_grid_retargets_in_canonical_space(tmp_path, sample_dir):
 def test_railing_copies_join_watertight(tmp_path, sample_dir, steps):
     cfg = _config(tmp_path, sample_dir, "railing", target={"steps": [steps]})
     rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
-    res = load_mesh(tmp_path / "out" / "retargeted.obj")
+    written = load_asset(tmp_path / "out" / "retargeted.obj")  # OBJ vertices as written (not split by normal)
+    res = trimesh.Trimesh(written.V, written.F, process=False)
     inp = load_mesh(sample_dir / "retarget-railing.obj")
     truth = json.loads((sample_dir / "retarget-railing.truth.json").read_text())
     # every seam closes (the input is closed), and each baluster is a stack of 5 closed boxes
@@ -576,6 +628,41 @@ def test_railing_copies_join_watertight(tmp_path, sample_dir, steps):
     grow = np.ptp(res.vertices, axis=0)[0] - np.ptp(inp.vertices, axis=0)[0]
     assert grow == pytest.approx(steps * truth["lattice"][0][0], abs=1e-9)
     assert _no_invented_geometry(rep, tmp_path / "out", inp) <= 1e-6
+
+
+@pytest.mark.slow
+def test_textured_railing_keeps_its_uvs_material_and_texture(tmp_path, sample_dir):
+    """The railing as an OBJ + MTL + PNG with a planar map (uv = (x, y) + (0.5, 0.5), a UV seam
+    between its two halves by material): the output OBJ names an MTL beside it with the texture
+    copied in, every face keeps its material, and its UVs are the input's map moved with its copy
+    (uv - xy is one label shift per face, the same at its three corners)."""
+    mesh = load_mesh(sample_dir / "retarget-railing.obj")
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    half = (V[F].mean(axis=1)[:, 2] > np.median(V[:, 2])).astype(int)
+    lines = ["mtllib rail.mtl"] + [f"v {x!r} {y!r} {z!r}" for x, y, z in V.tolist()]
+    lines += [f"vt {x + 0.5!r} {y + 0.5!r}" for x, y, _ in V.tolist()]
+    for m in (0, 1):
+        lines.append(f"usemtl paint{m}")
+        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in (F[half == m] + 1).tolist()]
+    (tmp_path / "rail.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "rail.mtl").write_text("newmtl paint0\nKd 1 1 1\nmap_Kd wood.png\nnewmtl paint1\nKd 0.5 0.5 0.5\n")
+    save_image(tmp_path / "wood.png", np.random.default_rng(0).random((8, 8, 3)).astype(np.float32))
+    cfg = tmp_path / "rail.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": str(tmp_path / "rail.obj"), "seed": 0,
+                               "target": {"steps": [2]}}))
+    rep = run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
+    res = load_asset(tmp_path / "out" / "retargeted.obj")
+    assert rep["status"] == "ok" and (tmp_path / "out" / "retargeted.mtl").is_file()
+    assert [m.name for m in res.materials] == ["paint0", "paint1"] and res.materials[0].image is not None
+    assert res.materials[1].image is None
+    shift = res.corner_uv - 0.5 - res.V[res.F][:, :, :2]  # (k, 3, 2): minus the label's shift
+    assert np.abs(shift - shift[:, :1]).max() <= 1e-5
+    shifts = np.asarray(rep["metrics"]["label_shifts"]) @ np.asarray(rep["metrics"]["grid_basis_normalised"])
+    shifts = shifts * rep["metrics"]["normalisation"]["scale"]
+    gap = np.linalg.norm(-shift[:, 0, None, :] - shifts[None, :, :2], axis=2).min(axis=1)
+    assert gap.max() <= 1e-5, gap.max()
+    z_half = (res.V[res.F].mean(axis=1)[:, 2] > np.median(V[:, 2])).astype(int)
+    assert np.all(res.face_material == z_half)
 
 
 @pytest.mark.slow
@@ -755,7 +842,7 @@ def test_cli_ply_without_faces_exit_3(tmp_path):
     text = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
             "element face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
     result, mesh, out = _cli(tmp_path, text, "no_faces", suffix=".ply")
-    _one_line_error(result, 3, mesh, "mesh has no faces (3 vertices, no triangles)")
+    _one_line_error(result, 3, mesh, "file holds no triangle mesh")
     assert not out.exists()
 
 

@@ -2,6 +2,7 @@
 SOURCES.md); every test skips when a file is absent. The sparsity table and its figures are in the
 README's retarget section."""
 
+import itertools
 import json
 from pathlib import Path
 
@@ -12,9 +13,10 @@ from click.testing import CliRunner
 
 from synthkit.cli.main import cli
 from synthkit.core.mesh import normalize_unit
+from synthkit.core.quality import mesh_quality
+from synthkit.io.assets import load_asset
 from synthkit.io.meshes import load_mesh
 from synthkit.methods.retarget.analysis import analyze
-from synthkit.methods.retarget.synthesis import mesh_quality
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = REPO.parent / "shared" / "data"
@@ -124,34 +126,90 @@ def _grow(tmp_path, name, steps, **keys):
     return result, out
 
 
+def _source_points(inp, V, F, shifts):
+    """Every input face of ``inp`` (an Asset) that the centroid of a face of ``V``, ``F`` (a result)
+    lies on after one of the label ``shifts (s, 3)`` (model units), facing the same way: ``(k (p,),
+    face (p,), W (p, 3))``, result face, input face and barycentric weights per candidate. A
+    repeating model offers several (the wall slide maps a wall onto itself), so a check holds when
+    one candidate of each face passes it."""
+    A, B, C = (inp.V[inp.F[:, i]] for i in range(3))
+    n_in = np.cross(B - A, C - A)
+    n_in /= np.maximum(np.linalg.norm(n_in, axis=1, keepdims=True), 1e-300)
+    n_out = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n_out /= np.maximum(np.linalg.norm(n_out, axis=1, keepdims=True), 1e-300)
+    tol = 1e-5 * float(np.linalg.norm(np.ptp(inp.V, axis=0)))
+    e1, e2 = B - A, C - A
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    den = np.where(d11 * d22 - d12 * d12 > 0, d11 * d22 - d12 * d12, np.inf)
+    ks, fs, Ws = [], [], []
+    for s in shifts:
+        q = V[F].mean(axis=1)[:, None, :] - s - A[None]  # (k, m, 3)
+        r1, r2 = (q * e1).sum(2), (q * e2).sum(2)
+        v, w = (d22 * r1 - d12 * r2) / den, (d11 * r2 - d12 * r1) / den
+        on = (np.abs((q * n_in).sum(2)) <= tol) & (v >= -1e-6) & (w >= -1e-6) & (v + w <= 1 + 1e-6)
+        k, f = np.nonzero(on & (n_out @ n_in.T > 0.99))
+        ks.append(k)
+        fs.append(f)
+        Ws.append(np.stack([1 - v[k, f] - w[k, f], v[k, f], w[k, f]], axis=1))
+    return np.concatenate(ks), np.concatenate(fs), np.concatenate(Ws)
+
+
+def _each(k, ok, n) -> np.ndarray:
+    """``(n,) bool``: some candidate of each result face (``k (p,)``) is ``ok (p,)`` (or True)."""
+    out = np.zeros(n, bool)
+    out[k[np.broadcast_to(ok, k.shape)]] = True
+    return out
+
+
+def _texel(image, uv):
+    """Nearest texel colours ``(k, 3)`` of ``image (H, W, C)`` at ``uv (k, 2)`` (wrapped, v up)."""
+    H, W = image.shape[:2]
+    x = np.floor(np.mod(uv[:, 0], 1.0) * W).astype(int) % W
+    y = np.floor((1.0 - np.mod(uv[:, 1], 1.0)) * H).astype(int) % H
+    return image[y, x, :3]
+
+
+def _shifts(m):
+    """The label shifts of a report's metrics in model units ``(M, 3)``."""
+    basis = np.asarray(m["grid_basis_normalised"])  # rows: the basis columns
+    return np.asarray(m["label_shifts"]) @ basis * m["normalisation"]["scale"]
+
+
 @pytest.mark.slow
-def test_kenney_grown_two_steps_is_clean(tmp_path):
-    """building-small-a grown by two steps of its wall slide (0.1 up; the floor height has no
-    seamless labeling, see the next test): open edges at most the input's times the copies used,
-    faces at most the input's times the volume ratio times 1.5, no duplicate faces, and the
-    figures in ``metrics`` agree with the written mesh. Measured: 110 open edges (limit 3 x 58),
-    595 faces (limit 820; 10,401 before issue 15), smallest angle 0 as in the input, 13 faces below 1
-    degree against the input's 14."""
+@pytest.mark.parametrize("steps", [1, 2])
+def test_kenney_grown_keeps_its_look_and_closes_its_seams(tmp_path, steps):
+    """building-small-a grown by one and two steps of its wall slide (0.1 up; the floor height has no
+    seamless labeling, see test_kenney_floor_growth_is_refused): the GLB comes back with its mesh
+    name, its colormap material with the texture embedded and UVs on every face, and each face shows
+    the colour the input shows at the same point of the copy it came from (texture sampled at the
+    face's UV centroid against the input's texture at the input's UVs there); open edges within
+    the input's times the copies, no non-manifold edge (the input has none), no degenerate face.
+    Measured (+1 / +2): open edges 94 / 117 (limits 116 / 174; before issue 22 76 / 110 with 7 / 7
+    non-manifold edges and flat faces of float noise, issue 22's report 225 against 126)."""
     name = "meshes/kenney-city/building-small-a.glb"
     _need(name)
-    result, out = _grow(tmp_path, name, [2], analysis={"generator_grip_ratio": 0})
+    result, out = _grow(tmp_path, name, [steps], analysis={"generator_grip_ratio": 0})
     assert result.exit_code == 0, result.stderr
-    m = json.loads((out / "report.json").read_text())["metrics"]
-    found = {k: m[k] for k in ("boundary_edges", "input_boundary_edges", "copies", "welded_faces", "faces_limit",
-                               "volume_ratio", "duplicate_faces", "min_angle_deg", "sliver_faces")}
-    assert m["copies"] >= 2 and m["volume_ratio"] > 1.1, found
-    assert m["boundary_edges"] <= m["input_boundary_edges"] * m["copies"] == m["boundary_edges_limit"], found
-    assert m["welded_faces"] <= m["input_welded_faces"] * m["volume_ratio"] * 1.5, found
-    assert m["duplicate_faces"] == 0 and m["nonmanifold_edges"] <= 10, found  # measured 6 (input 0)
-    assert m["min_angle_deg"] is not None and 0 <= m["min_angle_deg"] <= 60, found
-    assert m["sliver_faces"] <= m["input_sliver_faces"], found  # measured 13 against the input's 14
-    # the figures are those of the written mesh (model units, float32 file: weld a little wider)
-    res = trimesh.load(out / "retargeted.glb", force="mesh", process=False)
-    q = mesh_quality(np.asarray(res.vertices) / m["normalisation"]["scale"], np.asarray(res.faces), tol=1e-5)
-    assert q["faces"] == m["welded_faces"] and q["duplicate_faces"] == 0, (q, found)
-    assert abs(q["boundary_edges"] - m["boundary_edges"]) <= 4, (q, found)
-    grow = np.ptp(np.asarray(res.vertices), axis=0) - np.ptp(load_mesh(DATA / name).vertices, axis=0)
-    np.testing.assert_allclose(grow, [0.0, 0.2, 0.0], atol=1e-5)
+    rep = json.loads((out / "report.json").read_text())
+    m, q = rep["metrics"], rep["metrics"]["mesh_quality"]["mesh"]
+    assert rep["status"] == "ok" and m["copies"] == steps + 1, q
+    assert q["output"]["open_edges"] <= q["limits"]["open_edges"] == q["input"]["open_edges"] * (steps + 1), q
+    assert q["output"]["nonmanifold_edges"] == 0 and q["output"]["degenerate_faces"] == 0, q
+    inp, res = load_asset(DATA / name), load_asset(out / "retargeted.glb")
+    assert res.name == inp.name and [x.name for x in res.materials] == [x.name for x in inp.materials]
+    assert res.corner_uv is not None and res.materials[0].image is not None
+    np.testing.assert_array_equal(res.materials[0].image, inp.materials[0].image)
+    wq = mesh_quality(res.V, res.F)
+    assert wq["degenerate_faces"] == 0 and wq["open_edges"] <= q["limits"]["open_edges"], wq
+    k, face, W = _source_points(inp, res.V, res.F, _shifts(m))
+    uv_in = np.einsum("pc,pcj->pj", W, inp.corner_uv[face])
+    shown = _texel(res.materials[0].image, res.corner_uv.mean(axis=1))[k]
+    # a UV on a texel border (0.0625 of 512 px) shows either texel: look a hair to each side
+    same = np.zeros(len(k), bool)
+    for d in itertools.product((-1e-5, 0.0, 1e-5), repeat=2):
+        same |= np.all(_texel(inp.materials[0].image, uv_in + d) == shown, axis=1)
+    same = _each(k, same, len(res.F))
+    assert same.all(), f"{int((~same).sum())} of {len(res.F)} faces show another colour"
 
 
 @pytest.mark.slow
@@ -168,27 +226,45 @@ def test_kenney_floor_growth_is_refused(tmp_path):
 
 
 @pytest.mark.slow
-def test_house1_grown_two_floors_is_clean(tmp_path):
+def test_house1_grown_two_floors_keeps_its_atlas(tmp_path):
     """house1_baked (56 of its polygons stored twice, 106 of 528 triangles) grown by two steps of
-    its 0.383 floor offset: no duplicate face left, open edges and faces within the limits of the
-    input's 422 distinct faces and their 128 open edges. Measured: 319 open edges (limit 384),
-    849 faces (limit 892), 1 face below 1 degree (smallest 0.91; the input has none, the cut pieces
-    before re-triangulation 140, 13 without the collapse of short seam edges); before issue 15's
-    weld at 1e-6, duplicate removal, best-ear re-triangulation and seam-edge collapse: 220 open
-    edges over 74, 1,468 faces, 366 duplicates, smallest angle 0."""
+    its 0.383 floor offset: OBJ + MTL + its atlas copied beside it; every face lies on an input
+    face of one of the copies with the same texel density (UV area over surface area) and the same
+    UVs there, except those a seam collapse moved (within 0.1% of the diagonal); no duplicate,
+    degenerate or non-manifold face, open edges within the limit of the
+    input's 422 distinct faces and their 128 open edges. Measured: 332 open edges (limit 384),
+    1,132 faces (849 before issue 22 merged flat regions across atlas charts), 3 faces below 1
+    degree (smallest 0.57)."""
     name = "architecture/houses/house1_baked.obj"
     _need(name)
     result, out = _grow(tmp_path, name, [2])
     assert result.exit_code == 0, result.stderr
-    m = json.loads((out / "report.json").read_text())["metrics"]
-    found = {k: m[k] for k in ("boundary_edges", "boundary_edges_limit", "input_boundary_edges", "welded_faces",
-                               "faces_limit", "input_welded_faces", "duplicate_faces", "input_duplicate_faces",
-                               "min_angle_deg", "sliver_faces", "copies")}
-    assert (m["input_duplicate_faces"], m["input_welded_faces"], m["input_boundary_edges"]) == (106, 422, 128), found
-    assert m["copies"] == 3 and m["duplicate_faces"] == 0 and m["nonmanifold_edges"] == 0, found
-    assert m["boundary_edges"] <= m["boundary_edges_limit"] == 3 * 128, found
-    assert m["welded_faces"] <= m["faces_limit"], found
-    assert m["sliver_faces"] <= 1 and m["min_angle_deg"] > 0.9, found
-    res = trimesh.load(out / "retargeted.obj", force="mesh", process=False)
-    q = mesh_quality(np.asarray(res.vertices) / m["normalisation"]["scale"], np.asarray(res.faces))
-    assert q["duplicate_faces"] == 0 and q["faces"] == m["welded_faces"], (q, found)
+    rep = json.loads((out / "report.json").read_text())
+    m, q = rep["metrics"], rep["metrics"]["mesh_quality"]["mesh"]
+    assert (q["input"]["duplicate_faces"], q["input"]["faces"], q["input"]["open_edges"]) == (106, 422, 128), q
+    assert m["copies"] == 3 and q["limits"]["open_edges"] == 3 * 128 and rep["status"] == "ok", q
+    assert q["output"]["open_edges"] <= 384 and q["output"]["duplicate_faces"] == 0, q
+    assert q["output"]["nonmanifold_edges"] == 0 and q["output"]["degenerate_faces"] == 0, q
+    assert {"retargeted.obj", "retargeted.mtl", "retargeted_house_a_bake.png"} <= {p.name for p in out.iterdir()}
+    inp, res = load_asset(DATA / name), load_asset(out / "retargeted.obj")
+    assert res.materials[0].image is not None and res.materials[0].image.shape == inp.materials[0].image.shape
+    k, face, W = _source_points(inp, res.V, res.F, _shifts(m))
+
+    def density(V, F, uv):
+        a3 = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+        d = uv[:, 1:] - uv[:, :1]
+        return np.abs(d[:, 0, 0] * d[:, 1, 1] - d[:, 0, 1] * d[:, 1, 0]) / np.maximum(a3, 1e-300)
+
+    d_out, d_in = density(res.V, res.F, res.corner_uv)[k], density(inp.V, inp.F, inp.corner_uv)[face]
+    uv_in = np.einsum("pc,pcj->pj", W, inp.corner_uv[face])
+    same_uv = np.abs(res.corner_uv.mean(axis=1)[k] - uv_in).max(axis=1) <= 1e-5
+    same = _each(k, same_uv & (np.abs(d_out - d_in) <= 1e-3 * np.maximum(d_in, 1e-12)), len(res.F))
+    # faces next to a collapsed seam edge (a vertex moved along the seam, up to 0.01 normalised)
+    # lie up to 0.004 off the input; measured: 27 of 1,132
+    moved = np.flatnonzero(~_each(k, np.ones(len(k), bool), len(res.F)))
+    surface = trimesh.Trimesh(inp.V, inp.F, process=False)
+    C = res.V[res.F[moved]].mean(axis=1)
+    off = np.min([trimesh.proximity.closest_point(surface, C - s)[1] for s in _shifts(m)], axis=0)
+    assert np.all(off <= 1e-3 * np.linalg.norm(np.ptp(inp.V, axis=0))) and len(moved) <= 0.03 * len(res.F), off
+    same[moved] = True
+    assert same.all(), f"{int((~same).sum())} of {len(res.F)} faces have other UVs or texel density"

@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 from synthkit.core.descriptors import descriptor_distances
 from synthkit.core.graphcut import ExpansionResult, alpha_expansion
 from synthkit.core.mesh import boundary_loops, triangulate_polygons, weld
+from synthkit.methods.retarget.corners import carry, same_map
 
 __all__ = [
     "VoxelGrid",
@@ -38,7 +39,7 @@ __all__ = [
     "seam_planes",
     "assemble",
     "repair_t_junctions",
-    "mesh_quality",
+    "sliver_figures",
     "merge_coplanar_faces",
 ]
 
@@ -75,7 +76,7 @@ class VoxelGrid:
 
 POSITION_TOL = 1e-6
 """Normalised distance within which two vertices are one position when a mesh's cleanliness is
-judged (:func:`mesh_quality`, :func:`unique_faces`): the OBJ and glTF assets store 6-7 digits."""
+judged (:func:`unique_faces`): the OBJ and glTF assets store 6-7 digits."""
 
 
 def grid_phase(C, plane_distance, *, parallel=None, n_phases: int = 32) -> np.ndarray:
@@ -338,24 +339,27 @@ def _face_boxes(Vc, F, grid: VoxelGrid) -> tuple[np.ndarray, np.ndarray]:
     return lo, np.maximum(hi, lo)
 
 
-def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """The part of the faces ``F`` inside the region ``mask3 (X, Y, Z) bool``: ``(V2, F2)`` with
-    the vertices of ``Vc`` kept at their indices and cut points appended. Faces are cut plane by
-    plane, and after each cut only the pieces whose voxel box still straddles the region are cut
-    further, so a face is split only where the region's boundary passes through it."""
+def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The part of the faces ``F`` inside the region ``mask3 (X, Y, Z) bool``: ``(V2, F2, src (m2,))``
+    with the vertices of ``Vc`` kept at their indices, cut points appended and each piece's face of
+    ``F``. Faces are cut plane by plane, and after each cut only the pieces whose voxel box still
+    straddles the region are cut further, so a face is split only where the region's boundary
+    passes through it."""
     from synthkit.core.mesh import _plane_args, _split_one
 
     V, F, normals, offsets, src, eps = _plane_args(Vc, F, normals, offsets, None)
-    done = []
+    done, done_src = [], []
 
-    def sort_out(V, F):
+    def sort_out(V, F, src):
         lo, hi = _face_boxes(V, F, grid)
         count = _box_counts(mask3, lo, hi)
         volume = np.prod(hi - lo + 1, axis=1)
         done.append(F[count == volume])
-        return F[(count > 0) & (count < volume)]
+        done_src.append(src[count == volume])
+        part = (count > 0) & (count < volume)
+        return F[part], src[part]
 
-    F = sort_out(V, F)
+    F, src = sort_out(V, F, src)
     for n, d in zip(normals, offsets, strict=True):
         if len(F) == 0:
             break
@@ -364,16 +368,22 @@ def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.
         mixed = (sd > e)[F].any(axis=1) & (sd < -e)[F].any(axis=1)
         if not mixed.any():
             continue
-        V, Fi, _, Fo, _ = _split_one(V, F[mixed], np.zeros(int(mixed.sum()), np.int64), n, d, e)
-        F = sort_out(V, np.concatenate([F[~mixed], Fi, Fo]))
+        V, Fi, Si, Fo, So = _split_one(V, F[mixed], src[mixed], n, d, e)
+        F, src = sort_out(V, np.concatenate([F[~mixed], Fi, Fo]), np.concatenate([src[~mixed], Si, So]))
     if len(F):  # pieces crossing no plane but straddling by their box: keep by the centroid
         vox = np.clip(grid.voxel_of(V[F].mean(axis=1)), 0, np.asarray(grid.shape) - 1)
-        done.append(F[mask3[tuple(vox.T)]])
-    return V, np.concatenate(done) if done else np.zeros((0, 3), np.int64)
+        inside = mask3[tuple(vox.T)]
+        done.append(F[inside])
+        done_src.append(src[inside])
+    return V, np.concatenate(done), np.concatenate(done_src)
 
 
-def assemble(Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The output mesh: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int)``, not welded.
+def assemble(
+    Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling, attr=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The output mesh: ``(Vc (n, 3) canonical, F (m, 3), face_label (m,) int, attr (m, 3, k) or
+    None)``, not welded; ``attr`` carries the input faces' corner values ``attr (#F, 3, k)``
+    (:mod:`~synthkit.methods.retarget.corners`) onto every copy and cut piece.
 
     Output voxel ``x`` with label ``l`` takes the input inside voxel ``x - l`` translated by ``l``
     (canonical units), so copies stay aligned with the grid. Done per label, cutting only what
@@ -392,26 +402,28 @@ def assemble(Vc, F, grid: VoxelGrid, problem: RetargetProblem, labeling) -> tupl
     regions = label_regions(problem, labeling)
     normals, offsets = seam_planes(regions, grid.shape)
     shape = tuple(int(n) for n in grid.shape)
-    Vs, Fs, Ls = [], [], []
+    Vs, Fs, Ls, As = [], [], [], []
     off = 0
     for lab, mask in regions.items():
         if len(F) == 0:
             break
-        V2, Fl = _cut_to_region(Vc, F, grid, mask.reshape(shape), normals, offsets + normals @ grid.origin)
+        V2, Fl, src = _cut_to_region(Vc, F, grid, mask.reshape(shape), normals, offsets + normals @ grid.origin)
         if len(Fl) == 0:
             continue
         used, inv = np.unique(Fl, return_inverse=True)
         Vs.append(V2[used] + problem.labels[lab])
         Fs.append(inv.reshape(-1, 3) + off)
         Ls.append(np.full(len(Fl), lab, dtype=np.int64))
+        As.append(carry(V2, Fl, F, src, attr))
         off += len(used)
     if not Vs:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
-    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls)
+        empty = None if attr is None else np.zeros((0, 3, attr.shape[2]))
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), empty
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(Ls), None if attr is None else np.concatenate(As)
 
 
 SLIVER_DEG = 1.0
-"""A face with an interior angle below this many degrees is a sliver (:func:`mesh_quality`)."""
+"""A face with an interior angle below this many degrees is a sliver (:func:`sliver_figures`)."""
 
 
 def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -460,11 +472,10 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
 
 def _incidence(F: np.ndarray, n: int) -> list[set[int]]:
     """The faces of ``F (m, 3)`` around each of the ``n`` vertices."""
-    incident: list[set[int]] = [set() for _ in range(n)]
-    for f, tri in enumerate(F.tolist()):
-        for v in tri:
-            incident[v].add(f)
-    return incident
+    flat = np.asarray(F, dtype=np.int64).reshape(-1)
+    faces = (np.argsort(flat, kind="stable") // 3).tolist()
+    bounds = np.r_[0, np.cumsum(np.bincount(flat, minlength=n))].tolist()
+    return [set(faces[bounds[v] : bounds[v + 1]]) for v in range(n)]
 
 
 def _face_min_angles(V, F) -> np.ndarray:
@@ -494,12 +505,20 @@ def _turns_less_than(V, before, after, min_cos: float) -> bool:
     return bool(np.all(dots >= min_cos * np.linalg.norm(n0, axis=1) * np.linalg.norm(n1, axis=1)))
 
 
-def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarray:
+def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None, active=None) -> np.ndarray:
     """``F2 (m, 3)``: ``F (m, 3)`` with the longest edge of each sliver (an angle below
     :data:`SLIVER_DEG`) flipped where the face across it is coplanar (normals within 1e-9), has the
-    same ``face_label`` (when given), the two form a convex quad and the flip raises the pair's
+    same ``face_label`` (when given) and appearance map (:func:`same_map` of the corner values
+    ``attr (m, 3, k)``, when given), the two form a convex quad and the flip raises the pair's
     smallest angle. The surface is unchanged (a coplanar pair covers the same quad either way) and
-    faces keep their rows, so labels stay valid. Rounds repeat until nothing flips.
+    faces keep their rows, so labels stay valid and each face's new corner values are its old
+    face's map at the new corners (``carry(V, F2, F, arange(m), attr)``). Only the slivers among
+    ``active (m,) bool`` (all when None) are tried first; later rounds revisit the faces around a
+    flip. Rounds repeat until nothing flips.
+
+    Finding (issue 22): the generated 24k-triangle facade has 9,216 slivers of its own (thin
+    boxes), none flippable; trying them all took most of its 12-15 s pipeline. The pipeline passes
+    the faces touching a seam plane, so the pass grows with the seams, not with the mesh.
 
     Finding (issue 15): after the seam collapse, house1 shrunk by a floor kept 8 faces below one
     degree, caps of 176-178 degrees whose long edge splits a flat wall; ear clipping keeps every
@@ -508,11 +527,11 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarr
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     lab = None if face_label is None else np.asarray(face_label).reshape(-1)
     incident = _incidence(F, len(V))
-    todo = np.arange(len(F))  # faces whose neighbourhood changed: all at first
+    todo = np.arange(len(F)) if active is None else np.flatnonzero(active)  # faces whose neighbourhood changed
     for _ in range(max_rounds):
         changed: set[int] = set()
         for f in todo[_face_min_angles(V, F[todo]) < np.radians(SLIVER_DEG)]:
-            g = _flip_longest_edge(V, F, int(f), lab, incident)
+            g = _flip_longest_edge(V, F, int(f), lab, incident, attr)
             if g is not None:
                 for v in np.concatenate([F[f], F[g]]).tolist():
                     changed |= incident[v]
@@ -522,7 +541,7 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4) -> np.ndarr
     return F
 
 
-def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | None:
+def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]], attr=None) -> int | None:
     """Flip the longest edge of face ``f`` in place (see :func:`flip_sliver_edges`), keeping
     ``incident`` (:func:`_incidence`) up to date; the face across it when it did, else None."""
     tri = F[f]
@@ -534,6 +553,8 @@ def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | Non
         return None
     g = next(x for x in across if x != f)
     if lab is not None and lab[g] != lab[f]:
+        return None
+    if attr is not None and not same_map(V[F[[f]]], attr[[f]], V[F[[g]]], attr[[g]])[0]:
         return None
     d = int(F[g][~np.isin(F[g], [a, b])][0])
     if incident[c] & incident[d]:
@@ -557,14 +578,21 @@ def _flip_longest_edge(V, F, f: int, lab, incident: list[set[int]]) -> int | Non
     return g
 
 
-def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8, split_at=None) -> tuple[np.ndarray, np.ndarray]:
     """Split boundary edges at boundary vertices lying on them (within ``tol``), so that two
     copies cut by the same seam plane but tessellated differently share their seam vertices.
 
-    ``V (n, 3)``, ``F (m, 3)`` welded. Each round splits, for every face with such an edge, that
+    ``V (n, 3)``, ``F (m, 3)`` welded; ``split_at (n,) bool`` (all when None) marks the vertices
+    that may split an edge. Each round splits, for every face with such an edge, that
     edge into a fan from the opposite corner; rounds repeat until nothing changes. Returns
     ``(V, F2 (m2, 3), src (m2,))`` with the new faces' source face. Vertices are not moved, so no
     geometry is invented.
+
+    Finding (issue 22): low-poly assets have T-junctions of their own (building-small-a: a wall's
+    top edge runs under the corners of the double-sided slab above it, 58 open edges). Splitting
+    those too made the wall's pieces meet both faces of the slab: 7 non-manifold edges in
+    building-small-a grown by one step (input 0). The pipeline passes the vertices on voxel
+    planes, where seams cut and copies meet, so the input's own junctions stay as they are.
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -578,6 +606,10 @@ def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8) -> tuple[np.nda
         if not boundary.any():
             break
         bverts = np.unique(E[boundary])
+        if split_at is not None:
+            bverts = bverts[np.asarray(split_at, bool)[bverts]]
+        if len(bverts) == 0:
+            break
         tree = cKDTree(V[bverts])
         splits: dict[int, list[tuple[float, int]]] = {}
         for row in np.flatnonzero(boundary):
@@ -640,53 +672,33 @@ def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
     return keep
 
 
-def mesh_quality(V, F, *, tol: float = POSITION_TOL) -> dict:
-    """Cleanliness figures of a triangle mesh ``V (n, 3)``, ``F (m, 3)`` (issue 15), after
-    welding by position within ``tol`` (so that the UV and normal seams of an asset, whose copies
-    of a vertex share a position, do not count as open):
-
-    - ``faces``: faces left after the weld (collapsed faces dropped);
-    - ``boundary_edges``: edges used by exactly one face (open edges);
-    - ``nonmanifold_edges``: edges used by more than two faces;
-    - ``duplicate_faces``: faces beyond the first over the same three welded vertices in the same
-      orientation, i.e. a surface present twice;
-    - ``back_to_back_faces``: faces over the same three vertices as another in the opposite
-      orientation (the double-sided walls of many assets; not an error of stitching);
-    - ``min_angle_deg``: the smallest interior angle over the faces (0 for a zero-area sliver;
-      clipping leaves slivers where a cut passes close to a vertex);
-    - ``sliver_faces``: faces with an angle below 1 degree.
-    """
-    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+def sliver_figures(V, F) -> dict:
+    """Retargeting's extra figures beside :func:`synthkit.core.quality.mesh_quality` for
+    ``V (n, 3)``, ``F (m, 3)``: ``min_angle_deg``, the smallest interior angle over the faces (0 for
+    a zero-area sliver, None without faces; clipping leaves slivers where a cut passes close to a
+    vertex), and ``sliver_faces``, the faces with an angle below :data:`SLIVER_DEG`."""
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    Vw, Fw = weld(V, F, tol) if len(V) else (V, F)
-    if len(Fw) == 0:
-        return {"faces": 0, "boundary_edges": 0, "nonmanifold_edges": 0, "duplicate_faces": 0,
-                "back_to_back_faces": 0, "min_angle_deg": None, "sliver_faces": 0}
-    E = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(E, axis=0, return_counts=True)
-    _, fcounts = np.unique(_smallest_first(Fw), axis=0, return_counts=True)
-    _, scounts = np.unique(np.sort(Fw, axis=1), axis=0, return_counts=True)
-    smallest = np.degrees(_face_min_angles(Vw, Fw))
-    return {
-        "faces": int(len(Fw)),
-        "boundary_edges": int((counts == 1).sum()),
-        "nonmanifold_edges": int((counts > 2).sum()),
-        "duplicate_faces": int((fcounts - 1).sum()),
-        "back_to_back_faces": int((scounts - 1).sum() - (fcounts - 1).sum()),
-        "min_angle_deg": float(smallest.min()),
-        "sliver_faces": int((smallest < SLIVER_DEG).sum()),
-    }
+    if len(F) == 0:
+        return {"min_angle_deg": None, "sliver_faces": 0}
+    smallest = np.degrees(_face_min_angles(np.asarray(V, dtype=np.float64), F))
+    return {"min_angle_deg": float(smallest.min()), "sliver_faces": int((smallest < SLIVER_DEG).sum())}
 
 
 def merge_coplanar_faces(
-    V, F, face_label=None, *, tol: float = 1e-7
+    V, F, face_label=None, *, tol: float = 1e-7, attr=None, active=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Re-triangulate each connected region of coplanar faces (of one label) with fewer faces.
 
-    ``V (n, 3)`` welded, ``F (m, 3)``, ``face_label (m,)`` or None. Faces are grouped when they
-    share an edge (used by exactly those two faces), have the same label (when labels are given)
-    and lie in one plane (unit normals
-    within ``1e-9`` of each other's direction and plane offsets within ``tol``). A region of three
+    ``V (n, 3)`` welded, ``F (m, 3)``, ``face_label (m,)`` or None, ``attr (m, 3, k)`` the faces'
+    corner values or None (:mod:`~synthkit.methods.retarget.corners`). Faces are grouped when they
+    share an edge (used by exactly those two faces), have the same label (when labels are given),
+    lie in one plane (unit normals within ``1e-9`` of each other's direction and plane offsets
+    within ``tol``) and show one affine appearance map (:func:`same_map`: same material, UVs and
+    colours continuous and affine across the pair); a region whose faces drift off its first
+    face's map is kept as it is, and so is a region without a face of ``active (m,) bool`` (all
+    when None; the pipeline passes the faces touching a seam plane: a region away from every seam
+    is the input's own, and re-triangulating it would cost time growing with the mesh). New faces
+    take the map of their region (``src``). A region of three
     or more faces is replaced by the ear-clipping triangulation of its boundary loops
     (:func:`synthkit.core.mesh.triangulate_polygons`, holes included) when that uses fewer faces
     and covers the same area (relative ``1e-9``); otherwise it is kept. Every boundary vertex is
@@ -706,25 +718,15 @@ def merge_coplanar_faces(
     lab = np.zeros(m, np.int64) if face_label is None else np.asarray(face_label, dtype=np.int64).reshape(-1)
     if m == 0:
         return F, np.arange(0)
-    comp, area2, nrm = _coplanar_regions(V, F, lab, tol)
-    ncomp = int(comp.max()) + 1
-    sizes = np.bincount(comp, minlength=ncomp)
-    # vertices touching at most two regions: removable from those regions' loops where straight
-    vc = np.unique(np.stack([F.reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
-    n_regions = np.bincount(vc[:, 0], minlength=len(V))
-    members = np.argsort(comp, kind="stable")
-    starts = np.r_[0, np.cumsum(sizes)]
-    region_faces = {c: members[starts[c] : starts[c + 1]] for c in range(ncomp)}
-    region_loops = {c: boundary_loops(F[f]) for c, f in region_faces.items() if area2[f[0]] > 0}
-    locked = n_regions > 2  # a vertex is dropped only where every loop through it runs straight
+    comp, area2, nrm = _coplanar_regions(V, F, lab, tol, attr)
+    pid = weld(V, np.zeros((0, 3), np.int64), POSITION_TOL, return_index=True)[2]
+    region_faces, region_loops, locked, n_touch = _region_loops(V, F, comp, area2, attr, pid, active)
     for _ in range(4):
-        seen = np.zeros(len(V), np.int64)
         straight_in = np.zeros(len(V), np.int64)
         for loops in region_loops.values():
             for lp in loops:
-                np.add.at(seen, lp, 1)
-                np.add.at(straight_in, lp[_collinear(V, lp, tol)], 1)
-        drop = (seen > 0) & (straight_in == seen) & ~locked
+                np.add.at(straight_in, pid[lp[_collinear(V, lp, tol)]], 1)
+        drop = ((n_touch > 0) & (straight_in == n_touch) & ~locked)[pid]
         keep = np.ones(m, bool)
         new_faces, new_src = [], []
         failed = False
@@ -733,11 +735,10 @@ def merge_coplanar_faces(
             drops_here = any(drop[lp].any() for lp in loops)
             if len(faces) < 3 and not drops_here:
                 continue  # nothing to gain
-            tris = _retriangulate(V, F, faces, [lp[~drop[lp]] for lp in loops], nrm, area2)
+            tris = _retriangulate(V, F, faces, [lp[~drop[lp]] for lp in loops], nrm, area2, tol)
             if tris is None:
                 if drops_here:
-                    for lp in loops:
-                        locked[lp] = True
+                    locked[pid[F[faces]].reshape(-1)] = True
                     failed = True
                 continue
             keep[faces] = False
@@ -752,11 +753,50 @@ def merge_coplanar_faces(
     return F2, src
 
 
-def _coplanar_regions(V, F, lab, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _region_loops(V, F, comp, area2, attr, pid, active=None) -> tuple[dict, dict, np.ndarray, np.ndarray]:
+    """The faces ``{region: (k,)}`` and boundary loops ``{region: [loop, ...]}`` of the regions
+    :func:`merge_coplanar_faces` may re-triangulate, ``locked (n,) bool`` and ``n_touch (n,)``
+    over the positions ``pid (n,)`` (vertices welded by position, so that an asset's UV-seam twins
+    of a vertex are dropped together or not at all): locked are the positions touching more than
+    two regions or a region that stays as it is, ``n_touch`` counts the regions at each.
+
+    A region stays as it is when it has no ``active`` face, its faces have zero area, several
+    appearance maps, or a vertex
+    inside it (on none of its loops) that another region uses: building-small-a's walls stand on
+    the inside of its floor slab, and re-triangulating the slab without the wall's foot vertices
+    left the wall's bottom edge hanging (T-junctions, open edges)."""
+    ncomp = int(comp.max()) + 1
+    sizes = np.bincount(comp, minlength=ncomp)
+    vc = np.unique(np.stack([pid[F].reshape(-1), np.repeat(comp, 3)], axis=1), axis=0)
+    n_touch = np.bincount(vc[:, 0], minlength=len(V))
+    locked = n_touch > 2
+    members = np.argsort(comp, kind="stable")
+    starts = np.r_[0, np.cumsum(sizes)]
+    live = np.ones(ncomp, bool) if active is None else np.bincount(comp, weights=active, minlength=ncomp) > 0
+    live &= area2[members[starts[:-1]]] > 0
+    locked[pid[F[~live[comp]]].reshape(-1)] = True
+    region_faces = {c: members[starts[c] : starts[c + 1]] for c in np.flatnonzero(live).tolist()}
+    region_loops = {}
+    for c, f in region_faces.items():
+        first = np.full(len(f), f[0])
+        loops = boundary_loops(F[f])
+        inner = np.setdiff1d(pid[F[f]], pid[np.concatenate(loops)] if loops else np.zeros(0, np.int64))
+        if (
+            not loops
+            or (n_touch[inner] > 1).any()
+            or (attr is not None and not same_map(V[F[first]], attr[first], V[F[f]], attr[f]).all())
+        ):
+            locked[pid[F[f]].reshape(-1)] = True
+            continue
+        region_loops[c] = loops
+    return region_faces, region_loops, locked, n_touch
+
+
+def _coplanar_regions(V, F, lab, tol: float, attr=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Connected regions of coplanar faces of one label: ``(comp (m,), area2 (m,) twice the face
     areas, nrm (m, 3) unit normals)``. Two faces join when they share an edge used by exactly
-    those two, have the same label, non-zero areas, normals within ``1e-9`` and plane offsets
-    within ``tol``."""
+    those two, have the same label, non-zero areas, normals within ``1e-9``, plane offsets
+    within ``tol`` and one appearance map (:func:`same_map` of their corner values ``attr``)."""
     m = len(F)
     cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     area2 = np.linalg.norm(cr, axis=1)
@@ -776,6 +816,8 @@ def _coplanar_regions(V, F, lab, tol: float) -> tuple[np.ndarray, np.ndarray, np
         & (np.einsum("ij,ij->i", nrm[a], nrm[b]) >= 1 - 1e-9)
         & (np.abs(off[a] - off[b]) <= tol)
     )
+    if attr is not None and same.any():
+        same[same] = same_map(V[F[a[same]]], attr[a[same]], V[F[b[same]]], attr[b[same]])
     G = sp.coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
     _, comp = connected_components(G, directed=False)
     return comp, area2, nrm
@@ -791,9 +833,12 @@ def _collinear(V, loop: np.ndarray, tol: float) -> np.ndarray:
     return (ln > 0) & (t > 0) & (t < ln) & (off_line <= tol)
 
 
-def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2) -> np.ndarray | None:
+def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2, tol: float) -> np.ndarray | None:
     """Ear-clipping triangulation ``(k, 3)`` of a flat region's boundary ``loops`` (its ``faces``),
-    or None unless it has at most as many faces, the region's orientation and the same area."""
+    or None unless it has at most as many faces, the region's orientation, the same area and no
+    flat triangle (a corner within ``tol`` of the line through the other two: a vertex kept on a
+    straight stretch of the loop, because the region across it needs it, can be clipped as a
+    sliver of float noise, which is a collapsed face and, by position, a T-junction)."""
     if not all(len(lp) >= 3 for lp in loops):
         return None
     n = nrm[faces[0]]
@@ -808,5 +853,8 @@ def _retriangulate(V, F, faces: np.ndarray, loops: list[np.ndarray], nrm, area2)
         return None
     t2 = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])
     total = area2[faces].sum()
-    same_area = abs(np.linalg.norm(t2, axis=1).sum() - total) <= 1e-9 * total
-    return tris if bool(np.all(t2 @ n > 0)) and same_area else None
+    double = np.linalg.norm(t2, axis=1)
+    same_area = abs(double.sum() - total) <= 1e-9 * total
+    longest = np.linalg.norm(V[tris] - V[np.roll(tris, 1, axis=1)], axis=2).max(axis=1)
+    flat = double <= tol * longest
+    return tris if bool(np.all(t2 @ n > 0)) and same_area and not flat.any() else None

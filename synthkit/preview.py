@@ -93,12 +93,14 @@ def rasterize_mesh(
     size: int = 512,
     lines: np.ndarray | None = None,
     appearance: Appearance | None = None,
+    frame: np.ndarray | None = None,
 ) -> np.ndarray:
     """Render ``V (#V, 3)``, ``F (#F, 3)`` to an ``(size, size, 3) float32`` image in [0, 1].
 
     ``face_colors (#F, 3)`` in [0, 1] tint faces; ``appearance`` draws them textured (module
-    docstring) instead; ``lines (k, 2, 3)`` are segments drawn on top in red. Each pixel shows the
-    nearest face that holds its centre (:func:`_rasterize`).
+    docstring) instead; ``lines (k, 2, 3)`` are segments drawn on top in red. ``frame (k, 3)``:
+    world points the view is framed to instead of the mesh (so that several renders share one
+    scale). Each pixel shows the nearest face that holds its centre (:func:`_rasterize`).
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -107,7 +109,9 @@ def rasterize_mesh(
         return img
     R = view_rotation(view)
     P = V @ R.T
-    framed = P if lines is None or not len(lines) else np.vstack([P, np.asarray(lines).reshape(-1, 3) @ R.T])
+    framed = P if frame is None else np.asarray(frame, np.float64).reshape(-1, 3) @ R.T
+    if lines is not None and len(lines):
+        framed = np.vstack([framed, np.asarray(lines).reshape(-1, 3) @ R.T])
     lo, hi = framed[:, :2].min(axis=0), framed[:, :2].max(axis=0)
     extent = max(float((hi - lo).max()), 1e-12)
     margin = 0.06 * size
@@ -320,11 +324,15 @@ def before_after_png(
     path: Path | str | None, before: MeshLook, after: MeshLook, *, views: Sequence[str] = ("front", "iso", "top"),
     size: int = 256, titles: tuple[str, str] = ("input", "result"),
 ) -> np.ndarray:
-    """Two rows of textured views (``views``), the input above the result, each framed alone;
-    write a PNG (``path`` None: only render) and return it."""
+    """Two rows of textured views (``views``), the input above the result, both framed to the
+    bounding boxes of both (one scale, so a change of size shows); write a PNG (``path`` None: only
+    render) and return it."""
+    corners = np.vstack([np.asarray(m[0], np.float64) for m in (before, after)])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     rows = []
     for (V, F, app), title in zip((before, after), titles, strict=True):
-        tiles = [rasterize_mesh(V, F, view=v, size=size, appearance=app) for v in views]
+        tiles = [rasterize_mesh(V, F, view=v, size=size, appearance=app, frame=box) for v in views]
         rows.append(montage_png(None, tiles, titles=[f"{title}: {v}" for v in views], height=size))
     width = max(r.shape[1] for r in rows)
     rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]

@@ -599,3 +599,13 @@ def test_self_looped_or_flat_meshes_refused_naming_the_file(runner, tmp_path, fa
     result = runner.invoke(cli, ["surface-by-numbers", str(cfg), "--out", str(tmp_path / "o")])
     assert result.exit_code == 3
     assert re.search(str(obj) + ": " + expected, one_error_line(result))
+
+
+@pytest.mark.parametrize("method", available_methods())
+def test_init_template_explains_every_null(runner, method):
+    """A key written as null says why: REQUIRED, or what null means for it."""
+    text = runner.invoke(cli, ["init", method]).stdout
+    unexplained = [line.strip() for line in text.splitlines()
+                   if not line.lstrip().startswith("#") and re.match(r"\s*[\w.]+: null\b", line)
+                   and not re.search(r"REQUIRED|null|None|default|instead", line.split("#", 1)[-1])]
+    assert unexplained == []

@@ -183,7 +183,8 @@ class GraphSection(StrictModel):
 class StiffnessSection(StrictModel):
     """Edge stress (eq. 2) with stiffness eq. 3; l_min is the one parameter the paper adapts per model."""
 
-    l_min: float | None = Field(None, gt=0, description="Edges shorter than this are rigid (model units).")
+    l_min: float | None = Field(None, gt=0, description="Edges shorter than this are rigid (model units); null: the "
+                                  "l_min_quantile of the edge lengths.")
     l_min_quantile: float = Field(
         0.25, ge=0, le=1, description="When l_min is not given: this quantile of the graph's edge lengths."
     )

@@ -61,13 +61,17 @@ class TargetSection(StrictModel):
     """Target size: exactly one of ``steps``, ``axis_steps`` or ``scale``."""
 
     steps: list[int] | None = Field(
-        None, min_length=1, max_length=3, description="Integer steps per principal offset, in report order."
+        None, min_length=1, max_length=3,
+        description="Integer steps per principal offset, in report order; null (with axis_steps and scale null "
+        "too): one step along each principal offset."
     )
     axis_steps: dict[Literal["x", "y", "z"], int] | None = Field(
-        None, description="Steps along the principal offset closest to each named world axis."
+        None, description="Steps along the principal offset closest to each named world axis, e.g. {x: 2}; null: "
+        "steps or scale decide."
     )
     scale: list[float] | None = Field(
-        None, min_length=1, max_length=3, description="Scale factor per principal offset, rounded to steps."
+        None, min_length=1, max_length=3,
+        description="Scale factor per principal offset, rounded to steps; null: steps or axis_steps decide."
     )
 
     @model_validator(mode="after")

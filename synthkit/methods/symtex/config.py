@@ -230,7 +230,8 @@ class SymtexConfig(RunConfig):
         description="Application: transfer, filter, tile, symmetrize, or plain unguided quilting."
     )
     source: InputFile = Field(description="Input image f (the source texture).")
-    target: InputFile | None = Field(None, description="Target image or sketch g (mode: transfer).")
+    target: InputFile | None = Field(
+        None, description="Target image or sketch g (mode: transfer; null in the other modes).")
     perturbation: Literal["synth", "deform", "lens"] | None = Field(
         None,
         description="Perturbation model; default synth for transfer/filter/quilt, deform for tile/symmetrize.",

@@ -213,7 +213,7 @@ def stripes_inputs(tmp_path_factory):
 def stripes_config(folder: Path, name: str, **synthesis) -> Path:
     pair = {"target": {"labels": "cylinder.seg", "label": 0}, "source": {"mesh": "stripes.ply"}, "signal": "color"}
     return write_config(folder, name, top={"input": "cylinder.ply"}, pairs=[pair], synthesis=synthesis,
-                        extraction={"sampling": "nearest", "blend": "none"})
+                        extraction={"sampling": "nearest", "blend": "none"}, baseline=True)
 
 
 @pytest.fixture(scope="module")
@@ -519,7 +519,8 @@ def test_real_bricks_photo_onto_the_body_of_spot(tmp_path):
                        {"name": "head", "points": [[0.0, 0.301, -0.6689]]}]}
     pair = {"target": {"region": "body"}, "signal": "texture", "scale": 1.0,
             "source": {"image": str(DATA / "textures/texture_bricks.jpg"), "width": 2.0}}
-    result = run(write_config(tmp_path, "spot", top=top, pairs=[pair]), tmp_path / "out", "--previews", "none")
+    result = run(write_config(tmp_path, "spot", top=top, pairs=[pair], baseline=True), tmp_path / "out",
+                 "--previews", "none")
     assert result.exit_code == 0, result.output
     m = json.loads((tmp_path / "out" / "report.json").read_text())["metrics"]
     assert m["coverage"] == 1.0 and m["distortion_max"] <= 2.0
@@ -555,7 +556,7 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     rect = [0, 0, 580, 280]  # the brick wall of the atlas (1024 px square)
     pair = {"target": {"labels": "plaster.seg", "label": 0}, "signal": "texture",
             "source": {"image": str(DATA / "architecture/houses/house_a_bake.png"), "rect": rect, "width": 2400.0}}
-    cfg = write_config(tmp_path, "tudor", top={"input": str(path)}, pairs=[pair],
+    cfg = write_config(tmp_path, "tudor", top={"input": str(path)}, pairs=[pair], baseline=True,
                        synthesis={"patch_radius": 250.0, "orientation": "up"})
     result = run(cfg, tmp_path / "out",
                  "--previews", "none")
@@ -612,7 +613,7 @@ def test_real_bunny_detail_from_one_region_onto_another(tmp_path):
     # a smooth target: the target flank is smoothed first, so any detail there is transferred
     pair = {"target": {"labels": "parts.seg", "label": 1}, "signal": "displacement",
             "source": {"mesh": str(path), "labels": "parts.seg", "label": 0}}
-    cfg = write_config(tmp_path, "bunny", top={"input": str(path)}, pairs=[pair],
+    cfg = write_config(tmp_path, "bunny", top={"input": str(path)}, pairs=[pair], baseline=True,
                        extraction={"smoothing": 0.08})
     result = run(cfg, tmp_path / "out", "--previews", "none")
     assert result.exit_code == 0, result.output

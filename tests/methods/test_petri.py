@@ -448,13 +448,13 @@ def _check_net_files(out: Path, name: str, labels: np.ndarray, *, periodic):
 @pytest.mark.slow
 def test_curved_street(building, tmp_path, monkeypatch):
     meshes = []
-    real = pipeline.result_mesh
+    real = pipeline.joined_mesh
 
     def spy(*args, **kwargs):
         meshes.append((kwargs["weld"], real(*args, **kwargs)))
         return meshes[-1][1]
 
-    monkeypatch.setattr(pipeline, "result_mesh", spy)
+    monkeypatch.setattr(pipeline, "joined_mesh", spy)
     report, out = run(building, tmp_path, points=[[0, 0], [12, 0], [20, 5], [24, 14]], seed=3)
     mesh, _ = _check_output(out, report, closed=False)
     m = report["metrics"]
@@ -1031,9 +1031,10 @@ construction:
     assert result.exit_code == 3
     line = result.stderr.strip()
     assert "\n" not in line
-    assert ("before any random choice: none of its labels [3, 8, 13, 18] may have label(s) [13] of cell (2, 0, 1) "
+    assert ("before any random choice: none of its labels [3, 9, 14, 22] may have label(s) [14] of cell (2, 0, 1) "
             "at -a (along the curve)") in line
-    assert "3 of the example's 8 rows along X ((Y=1, Z=0), (Y=1, Z=1), (Y=1, Z=2)) hold no piece" in line
+    assert "5 of the example's 8 rows along X ((Y=0, Z=3), (Y=1, Z=0), (Y=1, Z=1), (Y=1, Z=2) and 1 more) hold no piece" \
+        in line
     assert "choose lattice.unit[0] (along X) so that pieces repeat within every row" in line
     assert line.endswith("labels.tolerance, or set labels.join_ends: auto (copies of the example side by side))")
 
@@ -1138,9 +1139,9 @@ construction:
     assert result.exit_code == 3
     line = result.stderr.strip()
     assert "\n" not in line
-    assert "before any random choice: none of its labels [3, 8, 13, 18] may have label(s) [3] of cell (20, 0, 1) " \
+    assert "before any random choice: none of its labels [3, 9, 14, 22] may have label(s) [3] of cell (20, 0, 1) " \
            "at -a (along the curve)" in line
-    assert "3 of the example's 8 rows along X admit no row of 23 cells with their own pieces (open curve): " \
+    assert "5 of the example's 8 rows along X admit no row of 23 cells with their own pieces (open curve): " \
            "make the curve 6 long, 24 cells of 0.25 (it is cut into 23)" in line
     m = run_config(write_config(tmp_path, "kenney_24", body), out_dir=tmp_path / "out")["metrics"]
     assert m["fitted_cells"] == {"from_length": 23, "to": 24} and m["construction_shape"] == [24, 4, 2]

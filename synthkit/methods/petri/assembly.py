@@ -8,6 +8,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.core.ffd import trilinear_weights
+from synthkit.methods.petri.analysis import SEAM_TOL
+from synthkit.methods.petri.appearance import Look, concat
 
 
 class PieceLibrary:
@@ -15,7 +17,8 @@ class PieceLibrary:
 
     ``axes`` are the lattice axes of the construction axes (a, b, c): a piece's local coordinates
     are reordered to (a, b, c) and their eight trilinear weights cached, so deforming a piece into a
-    cell is one ``(n, 8) @ (8, 3)`` product.
+    cell is one ``(n, 8) @ (8, 3)`` product. ``looks[label]`` is the piece's
+    :class:`~synthkit.methods.petri.appearance.Look` (None when the example's look was not given).
     """
 
     def __init__(self, pieces, representative: np.ndarray, axes: tuple[int, int, int]):
@@ -23,6 +26,7 @@ class PieceLibrary:
         self.local = []
         self.faces = []
         self.weights = []
+        self.looks = [pieces.look[int(p)] for p in representative] if pieces.look else None
         for p in representative:
             L = pieces.local[int(p)][:, list(axes)]
             self.local.append(L)
@@ -45,7 +49,7 @@ def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
 
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = library.axes
-    out.local, out.faces, out.weights = [], [], []
+    out.local, out.faces, out.weights, out.looks = [], [], [], None
     for L, Fp, W in zip(library.local, library.faces, library.weights, strict=True):
         if len(Fp) > max_faces:
             L, Fp, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
@@ -60,6 +64,7 @@ def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceL
     """``library`` (in lattice axis order X, Y, Z) with local coordinates reordered to ``axes``."""
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = tuple(library.axes[a] for a in axes)
+    out.looks = library.looks
     out.local = [L[:, list(axes)] for L in library.local]
     out.faces = list(library.faces)
     out.weights = [trilinear_weights(L) for L in out.local]
@@ -117,6 +122,13 @@ class Assembler:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
         return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs), np.concatenate(cells)
 
+    def look(self) -> Look | None:
+        """The appearance of :meth:`mesh`'s faces (None without the example's look)."""
+        looks = self.library.looks
+        if looks is None:
+            return None
+        return concat([looks[label] for _, label, _ in self.parts], looks[0])
+
 
 def crack_measure(
     library: PieceLibrary,
@@ -124,7 +136,7 @@ def crack_measure(
     corners: np.ndarray,
     *,
     periodic=(False,) * 3,
-    tol: float = 1e-9,
+    tol: float = SEAM_TOL,
     offsets: np.ndarray | None = None,
 ):
     """Gaps between neighbouring deformed pieces where their example pieces met.
@@ -224,7 +236,8 @@ def label_colors(n: int) -> np.ndarray:
     return table[i, np.arange(n)]
 
 
-def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = 1e-9, offsets=None):
+def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = SEAM_TOL,
+                        offsets=None):
     """:func:`crack_measure` on a curve network's neighbour graph ``graph = (neighbours, back, flip)``.
 
     For every pair of neighbours (cell p, its face d; cell q, its face e = ``back[p, d]``) the
@@ -279,3 +292,128 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
             seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
     return max_gap, unmatched, seams
+
+
+def close_t_junctions(V: np.ndarray, F: np.ndarray, keep_with: list, look: Look | None, tol: float, *,
+                      passes: int = 4):
+    """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices that lie inside one of their open edges
+    (within ``tol``), so that a cut curve split more finely on one side of a cell face than on the other
+    (a T-junction: closed in space, open in the mesh) is joined edge to edge.
+
+    Edges are counted over positions welded within ``tol`` (an example's UV seams are not open). A face
+    whose edge (a, b) holds points p_1 .. p_k becomes the fan (a, p_1, c), ..., (p_k, b, c); its
+    per-corner ``look`` values are interpolated along the edge, and each array of ``keep_with``
+    (per-face, e.g. labels) is repeated for the new faces. At most ``passes`` rounds (a face with
+    points on two edges is split once per round). Returns ``(F, keep_with, look)``.
+    """
+    from synthkit.core.mesh import weld
+
+    for _ in range(passes):
+        _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+        splits = _edge_splits(V, F, cls, tol)
+        if not splits:
+            break
+        F, keep_with, look = _split_faces(F, splits, keep_with, look)
+    return F, keep_with, look
+
+
+def _edge_splits(V, F, cls, tol: float) -> dict:
+    """``{face: (k, [(t, vertex), ...])}``: for each face, its first open edge (corner k to k + 1)
+    holding vertices of other open edges strictly inside it."""
+    W = cls[F]
+    E = np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]])
+    key = np.sort(E, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    open_e = np.flatnonzero((counts[inv.ravel()] == 1) & (key[:, 0] != key[:, 1]))
+    if len(open_e) == 0:
+        return {}
+    m = len(F)
+    face, corner = open_e % m, open_e // m
+    a, b = F[face, corner], F[face, (corner + 1) % 3]
+    ends = np.unique(np.concatenate([a, b]))
+    tree = cKDTree(V[ends])
+    A, B = V[a], V[b]
+    D = B - A
+    length = np.linalg.norm(D, axis=1)
+    near = tree.query_ball_point((A + B) / 2, length / 2 + tol)
+    splits: dict = {}
+    for e in np.flatnonzero(length > 2 * tol).tolist():
+        cand = ends[np.asarray(near[e], np.int64)]
+        cand = cand[(cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]])]
+        if len(cand) == 0 or int(face[e]) in splits:
+            continue
+        t = (V[cand] - A[e]) @ D[e] / length[e] ** 2
+        dist = np.linalg.norm(V[cand] - (A[e] + t[:, None] * D[e]), axis=1)
+        ok = (dist <= tol) & (t * length[e] > tol) & ((1 - t) * length[e] > tol)
+        if ok.any():
+            t, cand = t[ok], cand[ok]
+            _, first = np.unique(cls[cand], return_index=True)
+            order = first[np.argsort(t[first])]
+            splits[int(face[e])] = (int(corner[e]), list(zip(t[order].tolist(), cand[order].tolist(), strict=True)))
+    return splits
+
+
+def _split_faces(F, splits: dict, keep_with: list, look: Look | None):
+    """Replace each face of ``splits`` (see :func:`_edge_splits`) by its fan."""
+    new_F, src, weights = [], [], []
+    for f, (k, pts) in splits.items():
+        a, b, c = F[f, k], F[f, (k + 1) % 3], F[f, (k + 2) % 3]
+        chain = [(0.0, a)] + pts + [(1.0, b)]
+        for (t0, v0), (t1, v1) in zip(chain[:-1], chain[1:], strict=True):
+            new_F.append((v0, v1, c))
+            src.append(f)
+            # corner weights over the old face's corners (a, b, c) at k, k + 1, k + 2
+            weights.append([[1 - t0, t0, 0.0], [1 - t1, t1, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.fromiter(splits, np.int64)
+    keep = np.ones(len(F), bool)
+    keep[faces] = False
+    src = np.asarray(src, np.int64)
+    F2 = np.concatenate([F[keep], np.asarray(new_F, np.int64)])
+    kept = [np.concatenate([x[keep], x[src]]) for x in keep_with]
+    if look is None:
+        return F2, kept, None
+    Wt = np.asarray(weights)
+    rot = np.asarray([splits[int(f)][0] for f in src])
+    order = (rot[:, None] + np.arange(3)[None]) % 3
+    arrays = []
+    for arr in look.corners():
+        if arr is None:
+            arrays.append(None)
+            continue
+        vals = np.take_along_axis(arr[src], order[:, :, None], axis=1)
+        arrays.append(np.concatenate([arr[keep], np.einsum("mcb,mbk->mck", Wt, vals)]))
+    mat = np.concatenate([look.face_material[keep], look.face_material[src]])
+    return F2, kept, Look(arrays[0], arrays[1], mat)
+
+
+def open_edge_budget(library: PieceLibrary, labels, neighbours, *, tol: float = SEAM_TOL) -> int:
+    """The open edges a result may have when its pieces join exactly: over every cell, the open edges of
+    its piece (``labels (N,)``, the library's pieces welded within ``tol`` local units) that lie on no
+    cell face (the example's own: a wall standing on a plate, a hole in a roof) plus those on the cell
+    faces without a neighbour (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1
+    for -axis): the border of the construction space, open where the pieces were cut inside the
+    example."""
+    from synthkit.core.mesh import weld
+
+    per_label = np.zeros((len(library.faces), 7), np.int64)
+    for lab, (L, Fp) in enumerate(zip(library.local, library.faces, strict=True)):
+        if len(Fp) == 0:
+            continue
+        _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
+        W = cls[Fp]
+        E = np.sort(np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]]), axis=1)
+        E = E[E[:, 0] != E[:, 1]]
+        uniq, counts = np.unique(E, axis=0, return_counts=True)
+        rep = np.zeros((int(cls.max()) + 1, 3))
+        rep[cls] = L
+        P = rep[uniq[counts == 1]]
+        face = np.full(len(P), 6)
+        for f in range(5, -1, -1):
+            on = np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1)
+            face[on] = f
+        per_label[lab] = np.bincount(face, minlength=7)
+    lab = np.asarray(labels, np.int64).ravel()
+    nbr = np.asarray(neighbours)
+    local_face = 2 * (np.arange(6) >> 1) + 1 - (np.arange(6) & 1)
+    border = (nbr < 0) * per_label[lab][:, local_face]
+    return int(per_label[lab, 6].sum() + border.sum())

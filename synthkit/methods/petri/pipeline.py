@@ -8,17 +8,22 @@ import numpy as np
 import trimesh
 
 from synthkit import preview
-from synthkit.core.mesh import merge_vertices
+from synthkit.core.mesh import merge_vertices, remove_unreferenced, weld
+from synthkit.core.quality import WELD_REL_TOL, degenerate_faces, mesh_quality
 from synthkit.errors import InputError
-from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.io.assets import Asset, load_asset, save_asset
+from synthkit.io.meshes import save_mesh
 from synthkit.methods.petri import analysis, construction, network
+from synthkit.methods.petri.appearance import Look, example_look
 from synthkit.methods.petri.assembly import (
     Assembler,
     PieceLibrary,
     assemble,
+    close_t_junctions,
     crack_measure,
     crack_measure_graph,
     label_colors,
+    open_edge_budget,
     preview_library,
     reorder_library,
 )
@@ -36,8 +41,9 @@ PREVIEW_FACES = 400_000
 """Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
 
 
-def analyse_example(V, F, cfg: PetriConfig):
-    """Lattice, pieces, labels and constraints of the example (section 2.1)."""
+def analyse_example(V, F, cfg: PetriConfig, look: Look | None = None):
+    """Lattice, pieces, labels and constraints of the example (section 2.1); ``look`` the example
+    faces' appearance, carried into the pieces."""
     lat = cfg.lattice
     ann = lat.annotation
     spec = analysis.resolve_lattice(
@@ -49,10 +55,13 @@ def analyse_example(V, F, cfg: PetriConfig):
         fit_tolerance=lat.fit_tolerance,
         source=str(cfg.example),
     )
-    pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps)
+    pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps, look=look)
     features = analysis.feature_vectors(pieces)
     labels, reps = analysis.classify(
-        features, tolerance=cfg.labels.tolerance, pieces=pieces if cfg.labels.match == "geometry" else None
+        features,
+        tolerance=cfg.labels.tolerance,
+        pieces=pieces if cfg.labels.match == "geometry" else None,
+        seams=[analysis.face_seams(L, Fp) for L, Fp in zip(pieces.local, pieces.faces, strict=True)],
     )
     grid = labels.reshape(tuple(spec.counts))
     cons = analysis.adjacency_constraints(grid, len(reps), boundary=cfg.labels.boundary)
@@ -200,21 +209,46 @@ def infer_and_deform(net: ColouredPetriNet, library: PieceLibrary, corners, grid
     return net, assembler, restarts
 
 
-def result_mesh(assembler: Assembler, library: PieceLibrary, net: ColouredPetriNet, *, weld: bool):
-    """The assembled mesh of ``net``'s deformed pieces: ``(V, F, face_label, crack_gap, unmatched)``.
-
-    With ``weld`` the vertices the example pieces shared across a cell face are merged (faces that
-    collapse are dropped); the curved result and the baseline both go through here, so their normal
-    histograms are taken on the same form of mesh.
-    """
-    V, F, face_label, _ = assembler.mesh()
-    labels = net.label_grid()
-    gap, unmatched, seams = crack_measure(
-        library, labels, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
-    )
+def joined_mesh(assembler: Assembler, seams: np.ndarray, *, weld: bool):
+    """The result as written (the curved result and the baseline alike, so their normal histograms are
+    taken on the same form of mesh): the deformed pieces with their seam vertices ``seams (k, 2)`` merged (when
+    ``weld``), T-junctions along the cuts closed (:func:`close_t_junctions`), walls between cells
+    removed (:func:`drop_inner_walls`) and degenerate faces and unused vertices dropped.
+    Returns ``(V, F, face_label, look)`` (``look`` None without the example's look)."""
+    V, F, face_label, face_cell = assembler.mesh()
+    look = assembler.look()
     if weld:
-        V, F, face_label = weld_seams(V, F, face_label, seams)
-    return V, F, face_label, gap, unmatched
+        V, F, keep = weld_seams(V, F, seams)
+        face_label, face_cell = face_label[keep], face_cell[keep]
+        look = None if look is None else look.take(keep)
+    tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
+    F, (face_label, face_cell), look = close_t_junctions(V, F, [face_label, face_cell], look, tol)
+    keep = ~drop_inner_walls(V, F, face_cell, tol) & ~degenerate_faces(V, F)
+    V, F, _ = remove_unreferenced(V, F[keep])
+    return V, F, face_label[keep], None if look is None else look.take(keep)
+
+
+def drop_inner_walls(V, F, face_cell, tol: float) -> np.ndarray:
+    """``(#F,) bool``: pairs of faces of two different cells (``face_cell (#F,)``) over the same
+    positions (welded within ``tol``) facing opposite ways: a wall where two pieces stand back to back
+    (copies of the example side by side), inside the result."""
+    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    W = cls[F]
+    key = np.sort(W, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    out = np.zeros(len(F), bool)
+    pair = np.flatnonzero(counts[inv] == 2)
+    if len(pair) == 0:
+        return out
+    order = pair[np.argsort(inv[pair], kind="stable")]
+    a, b = order[0::2], order[1::2]
+    # orientation: the rotation of each face that starts at its smallest class
+    ra = np.take_along_axis(W[a], (np.argmin(W[a], axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+    rb = np.take_along_axis(W[b], (np.argmin(W[b], axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+    inner = (face_cell[a] != face_cell[b]) & (ra[:, 1] == rb[:, 2])
+    out[a[inner]] = out[b[inner]] = True
+    return out
 
 
 def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
@@ -226,13 +260,41 @@ def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
         )
 
 
-def weld_seams(V, F, face_label, seams):
+def weld_seams(V, F, seams):
     """Merge the matched seam vertices ``seams`` of ``V (n, 3)``, ``F (m, 3)``; faces that collapse
-    are dropped with their ``face_label (m,)``. Returns ``(V, F, face_label)``."""
+    are dropped. Returns ``(V, F, keep (m,) bool)``, ``keep`` the faces kept."""
     V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
     G = old_to_new[F]
     keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-    return V, F2, face_label[keep]
+    return V, F2, keep
+
+
+def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Look | None) -> None:
+    """Write the result mesh (``output.mesh_format``) with the example's appearance: GLB with its PBR
+    materials and textures, OBJ with an MTL and texture copies, PLY with colours; a PLY of an example
+    without colours stores each face's label instead (as before)."""
+    out_mesh = ctx.path("mesh", f"result.{cfg.output.mesh_format}")
+    if cfg.output.mesh_format == "ply" and (look is None or look.corner_color is None):
+        save_mesh(trimesh.Trimesh(V, F, process=False), out_mesh, face_labels=face_label)
+        return
+    written = save_asset(out_mesh, V, F, like=asset, **({} if look is None else look.written()))
+    for k, name in enumerate(written[1:]):
+        ctx.outputs[f"mesh_file_{k}"] = name
+
+
+def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours, copies: float) -> None:
+    """``ctx.check_quality`` of the written result against the example, with petri-synth's limits:
+    open edges at most :func:`open_edge_budget` (the pieces' own open edges plus the construction
+    space's border where pieces were cut), non-manifold and duplicate faces at most the example's times
+    ``copies`` (cells per example piece, rounded up), no degenerate face."""
+    before = mesh_quality(asset.V, asset.F)
+    limits = {
+        "open_edges": open_edge_budget(library, labels, neighbours),
+        "nonmanifold_edges": int(np.ceil(before["nonmanifold_edges"] * copies)),
+        "duplicate_faces": int(np.ceil(before["duplicate_faces"] * copies)),
+        "degenerate_faces": 0,
+    }
+    ctx.check_quality("mesh", before, mesh_quality(V, F), limits)
 
 
 def example_net(grid: np.ndarray, cons, spec) -> ColouredPetriNet:
@@ -278,7 +340,9 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     bnet, bassembler, brestarts = synthesize(
         bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
     )
-    BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
+    _, _, seams = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
+                                offsets=bassembler.offsets(bnet.n_cells))
+    BV, BF, _, _ = joined_mesh(bassembler, seams, weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
         "method": f"model synthesis on the orthogonal lattice ({what})",
@@ -390,18 +454,18 @@ def check_construction_budget(budget, cfg: PetriConfig, spec, V: np.ndarray, F: 
 
 def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("load"):
-        mesh = load_mesh(cfg.example)
-        V = np.asarray(mesh.vertices, np.float64)
-        F = np.asarray(mesh.faces, np.int64)
+        asset = load_asset(cfg.example)
+        V, F = asset.V, asset.F
+        look = example_look(asset.corner_uv, asset.corner_color, asset.face_material, len(F))
 
     with ctx.stage("analysis"):
-        spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
+        spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg, look)
 
     check_construction_budget(ctx.budget, cfg, spec, V, F, len(pieces.index))
     cons, hint, joined = curve_constraints(cfg, grid, cons, construction.PLANE_AXES[cfg.construction.plane][0])
     ctx.metrics["joined_ends"] = joined
     if cfg.construction.curves is not None:
-        return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
+        return run_network(cfg, ctx, asset, spec, pieces, features, grid, reps, cons)
 
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
@@ -423,12 +487,13 @@ def run(cfg: PetriConfig, ctx) -> None:
     labels_out = net.label_grid()
 
     with ctx.stage("assembly"):
-        RV, RF, face_label, gap, unmatched = result_mesh(assembler, library, net, weld=cfg.output.weld)
+        gap, unmatched, seams = crack_measure(
+            library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
+        )
+        RV, RF, face_label, look = joined_mesh(assembler, seams, weld=cfg.output.weld)
         require_faces(RF, cfg)
-        result = trimesh.Trimesh(RV, RF, process=False)
-        fmt = cfg.output.mesh_format
-        out_mesh = ctx.path("mesh", f"result.{fmt}")
-        save_mesh(result, out_mesh, face_labels=face_label if fmt == "ply" else None)
+        write_result(ctx, cfg, asset, RV, RF, face_label, look)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours, net.n_cells / grid.size)
         _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
@@ -558,8 +623,9 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     }
 
 
-def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps, cons) -> None:
+def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, grid, reps, cons) -> None:
     """The run of :func:`run` for a curve network (``construction.curves``)."""
+    V, F = asset.V, asset.F
     with ctx.stage("construction"):
         space = build_network_space(cfg, spec)
         deviation = space.center_deviation()
@@ -574,13 +640,10 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
 
     with ctx.stage("assembly"):
         jm = network_metrics(space, net, library, assembler)
-        RV, RF, face_label, _ = assembler.mesh()
-        if cfg.output.weld:
-            RV, RF, face_label = weld_seams(RV, RF, face_label, jm["seams"])
-        fmt = cfg.output.mesh_format
-        out_mesh = ctx.path("mesh", f"result.{fmt}")
+        RV, RF, face_label, look = joined_mesh(assembler, jm["seams"], weld=cfg.output.weld)
         require_faces(RF, cfg)
-        save_mesh(trimesh.Trimesh(RV, RF, process=False), out_mesh, face_labels=face_label if fmt == "ply" else None)
+        write_result(ctx, cfg, asset, RV, RF, face_label, look)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours, net.n_cells / grid.size)
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):

@@ -27,15 +27,27 @@ class PieceLibrary:
         self.faces = []
         self.weights = []
         self.looks = [pieces.look[int(p)] for p in representative] if pieces.look else None
+        self.face_sides = []
         for p in representative:
             L = pieces.local[int(p)][:, list(axes)]
             self.local.append(L)
             self.faces.append(pieces.faces[int(p)])
             self.weights.append(trilinear_weights(L))
+            self.face_sides.append(face_sides(L, pieces.faces[int(p)]))
 
     def deform(self, label: int, corners: np.ndarray) -> np.ndarray:
         """Vertices ``(n, 3)`` of ``label``'s piece deformed into the hexahedron ``corners (8, 3)``."""
         return self.weights[label] @ corners
+
+
+def face_sides(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
+    """``(m,) int64``: the cell face (0 -a, 1 +a, 2 -b, 3 +b, 4 -c, 5 +c in local axes) each face of a
+    piece ``L (n, 3)``, ``F (m, 3)`` lies on, -1 for none."""
+    out = np.full(len(F), -1, np.int64)
+    for side in range(6):
+        on = np.abs(L[:, side >> 1] - (side & 1)) <= tol
+        out[on[F].all(axis=1)] = side
+    return out
 
 
 def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
@@ -121,6 +133,11 @@ class Assembler:
         if not Vs:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
         return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs), np.concatenate(cells)
+
+    def face_sides(self) -> np.ndarray:
+        """:func:`face_sides` of :meth:`mesh`'s faces ``(#F,)``."""
+        sides = [self.library.face_sides[label] for _, label, _ in self.parts]
+        return np.concatenate(sides) if sides else np.zeros(0, np.int64)
 
     def look(self) -> Look | None:
         """The appearance of :meth:`mesh`'s faces (None without the example's look)."""
@@ -294,32 +311,35 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
     return max_gap, unmatched, seams
 
 
-def close_t_junctions(V: np.ndarray, F: np.ndarray, keep_with: list, look: Look | None, tol: float, *,
-                      passes: int = 4):
-    """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices that lie inside one of their open edges
-    (within ``tol``), so that a cut curve split more finely on one side of a cell face than on the other
-    (a T-junction: closed in space, open in the mesh) is joined edge to edge.
+def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_with: list, look: Look | None,
+                      tol: float, *, passes: int = 4):
+    """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices of other cells (``face_cell (m,)``) that
+    lie inside one of their open edges (within ``tol``), so that a cut curve split more finely on one
+    side of a cell face than on the other (a T-junction: closed in space, open in the mesh) is joined
+    edge to edge. T-junctions inside one piece are the example's own and stay.
 
     Edges are counted over positions welded within ``tol`` (an example's UV seams are not open). A face
     whose edge (a, b) holds points p_1 .. p_k becomes the fan (a, p_1, c), ..., (p_k, b, c); its
     per-corner ``look`` values are interpolated along the edge, and each array of ``keep_with``
     (per-face, e.g. labels) is repeated for the new faces. At most ``passes`` rounds (a face with
-    points on two edges is split once per round). Returns ``(F, keep_with, look)``.
+    points on two edges is split once per round). Returns ``(F, face_cell, keep_with, look)``.
     """
     from synthkit.core.mesh import weld
 
+    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
     for _ in range(passes):
-        _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-        splits = _edge_splits(V, F, cls, tol)
+        vertex_cell = np.full(len(V), -1, np.int64)
+        vertex_cell[F.ravel()] = np.repeat(face_cell, 3)
+        splits = _edge_splits(V, F, cls, vertex_cell, face_cell, tol)
         if not splits:
             break
-        F, keep_with, look = _split_faces(F, splits, keep_with, look)
-    return F, keep_with, look
+        F, (face_cell, *keep_with), look = _split_faces(F, splits, [face_cell, *keep_with], look)
+    return F, face_cell, keep_with, look
 
 
-def _edge_splits(V, F, cls, tol: float) -> dict:
+def _edge_splits(V, F, cls, vertex_cell, face_cell, tol: float) -> dict:
     """``{face: (k, [(t, vertex), ...])}``: for each face, its first open edge (corner k to k + 1)
-    holding vertices of other open edges strictly inside it."""
+    holding vertices of other cells' open edges strictly inside it."""
     W = cls[F]
     E = np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]])
     key = np.sort(E, axis=1)
@@ -339,7 +359,7 @@ def _edge_splits(V, F, cls, tol: float) -> dict:
     splits: dict = {}
     for e in np.flatnonzero(length > 2 * tol).tolist():
         cand = ends[np.asarray(near[e], np.int64)]
-        cand = cand[(cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]])]
+        cand = cand[(cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]]) & (vertex_cell[cand] != face_cell[face[e]])]
         if len(cand) == 0 or int(face[e]) in splits:
             continue
         t = (V[cand] - A[e]) @ D[e] / length[e] ** 2

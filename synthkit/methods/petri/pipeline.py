@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import trimesh
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from synthkit import preview
 from synthkit.core.mesh import merge_vertices, remove_unreferenced, weld
@@ -209,46 +211,107 @@ def infer_and_deform(net: ColouredPetriNet, library: PieceLibrary, corners, grid
     return net, assembler, restarts
 
 
-def joined_mesh(assembler: Assembler, seams: np.ndarray, *, weld: bool):
+def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     """The result as written (the curved result and the baseline alike, so their normal histograms are
-    taken on the same form of mesh): the deformed pieces with their seam vertices ``seams (k, 2)`` merged (when
-    ``weld``), T-junctions along the cuts closed (:func:`close_t_junctions`), walls between cells
-    removed (:func:`drop_inner_walls`) and degenerate faces and unused vertices dropped.
+    taken on the same form of mesh): the deformed pieces with their seam vertices ``seams (k, 2)`` merged
+    (when ``weld``), walls between cells removed (:func:`drop_inner_walls`, ``graph = (neighbours,
+    back)``), T-junctions along the cuts closed (:func:`close_t_junctions`), and degenerate faces, faces
+    stored twice (:func:`repeated_faces`) and unused vertices dropped.
     Returns ``(V, F, face_label, look)`` (``look`` None without the example's look)."""
     V, F, face_label, face_cell = assembler.mesh()
     look = assembler.look()
+    keep = np.ones(len(F), bool)
     if weld:
         V, F, keep = weld_seams(V, F, seams)
-        face_label, face_cell = face_label[keep], face_cell[keep]
-        look = None if look is None else look.take(keep)
     tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
-    F, (face_label, face_cell), look = close_t_junctions(V, F, [face_label, face_cell], look, tol)
-    keep = ~drop_inner_walls(V, F, face_cell, tol) & ~degenerate_faces(V, F)
+    keep = np.flatnonzero(keep)
+    walls = drop_inner_walls(V, F, face_cell[keep], assembler.face_sides()[keep], graph, tol)
+    keep = keep[~walls]
+    F, face_label, face_cell = F[~walls], face_label[keep], face_cell[keep]
+    look = None if look is None else look.take(keep)
+    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol)
+    keep = ~degenerate_faces(V, F) & ~repeated_faces(V, F, tol)
     V, F, _ = remove_unreferenced(V, F[keep])
     return V, F, face_label[keep], None if look is None else look.take(keep)
 
 
-def drop_inner_walls(V, F, face_cell, tol: float) -> np.ndarray:
-    """``(#F,) bool``: pairs of faces of two different cells (``face_cell (#F,)``) over the same
-    positions (welded within ``tol``) facing opposite ways: a wall where two pieces stand back to back
-    (copies of the example side by side), inside the result."""
+def grid_graph(net: ColouredPetriNet):
+    """``(neighbours (N, 6), back (N, 6))`` of a grid net (directions 2 axis + 0 for +axis, + 1 for -axis)."""
+    nbr = np.asarray(net.neighbours)
+    return nbr, np.broadcast_to(np.arange(6) ^ 1, nbr.shape)
+
+
+def repeated_faces(V, F, tol: float) -> np.ndarray:
+    """``(#F,) bool``: faces over the same positions (welded within ``tol``) in the same orientation as an
+    earlier face: a surface stored twice (two boxes of an example that share a side, cut into the same
+    triangles by the lattice)."""
     _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
     W = cls[F]
-    key = np.sort(W, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    out = np.zeros(len(F), bool)
-    pair = np.flatnonzero(counts[inv] == 2)
-    if len(pair) == 0:
-        return out
-    order = pair[np.argsort(inv[pair], kind="stable")]
-    a, b = order[0::2], order[1::2]
-    # orientation: the rotation of each face that starts at its smallest class
-    ra = np.take_along_axis(W[a], (np.argmin(W[a], axis=1)[:, None] + np.arange(3)) % 3, axis=1)
-    rb = np.take_along_axis(W[b], (np.argmin(W[b], axis=1)[:, None] + np.arange(3)) % 3, axis=1)
-    inner = (face_cell[a] != face_cell[b]) & (ra[:, 1] == rb[:, 2])
-    out[a[inner]] = out[b[inner]] = True
+    R = np.take_along_axis(W, (np.argmin(W, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+    _, first = np.unique(R, axis=0, return_index=True)
+    out = np.ones(len(F), bool)
+    out[first] = False
     return out
+
+
+def drop_inner_walls(V, F, face_cell, face_side, graph, tol: float) -> np.ndarray:
+    """``(#F,) bool``: walls inside the result where two pieces stand back to back (copies of the
+    example side by side: the end of one house's plate against the start of the next one's).
+
+    A wall is the faces of one cell (``face_cell (#F,)``) lying on one of its cell's faces
+    (``face_side (#F,)``, :func:`assembly.face_sides`); where the neighbour across that face
+    (``graph = (neighbours (N, 6), back (N, 6))``) has a wall on the face it shares, each connected part
+    of the one covering the same region as a part of the other (:func:`_same_region`; they may be
+    triangulated differently) is dropped with it."""
+    nbr, back = graph
+    out = np.zeros(len(F), bool)
+    on = np.flatnonzero(face_side >= 0)
+    if len(on) == 0:
+        return out
+    side = face_side[on]
+    d = 2 * (side >> 1) + 1 - (side & 1)
+    cell = face_cell[on]
+    other = nbr[cell, d]
+    walls: dict = {}
+    for i in np.flatnonzero(other >= 0).tolist():
+        walls.setdefault((int(cell[i]), int(d[i])), []).append(int(on[i]))
+    T = V[F]
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    for (c, dc), idx in walls.items():
+        n = int(nbr[c, dc])
+        idx2 = walls.get((n, int(back[c, dc])))
+        if n < c or not idx2:
+            continue
+        parts2 = _face_components(cls[F[idx2]], np.asarray(idx2))
+        for part in _face_components(cls[F[idx]], np.asarray(idx)):
+            for k, part2 in enumerate(parts2):
+                if _same_region(T[part], area[part], T[part2], area[part2], tol):
+                    out[part] = out[part2] = True
+                    parts2.pop(k)
+                    break
+    return out
+
+
+def _face_components(W: np.ndarray, idx: np.ndarray) -> list[np.ndarray]:
+    """The faces ``idx (k,)`` grouped into connected pieces by their welded corners ``W (k, 3)``."""
+    _, inv = np.unique(W, return_inverse=True)
+    inv = inv.reshape(W.shape)
+    k, n = len(W), int(inv.max()) + 1
+    rows = np.repeat(np.arange(k), 3)
+    graph = csr_matrix((np.ones(3 * k), (rows, k + inv.ravel())), shape=(k + n, k + n))
+    _, comp = connected_components(graph, directed=False)
+    return [idx[comp[:k] == c] for c in np.unique(comp[:k])]
+
+
+def _same_region(Ta, area_a, Tb, area_b, tol: float) -> bool:
+    """Whether two sets of coplanar triangles ``(k, 3, 3)`` (their doubled areas ``(k,)``) cover the same
+    region: the same area (to 1e-6) and the same bounding box (within ``tol``)."""
+    a, b = float(area_a.sum()), float(area_b.sum())
+    if abs(a - b) > 1e-6 * max(a, b):
+        return False
+    Pa, Pb = Ta.reshape(-1, 3), Tb.reshape(-1, 3)
+    return bool(np.abs(Pa.min(0) - Pb.min(0)).max() <= tol and np.abs(Pa.max(0) - Pb.max(0)).max() <= tol)
 
 
 def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
@@ -282,16 +345,23 @@ def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Lo
         ctx.outputs[f"mesh_file_{k}"] = name
 
 
-def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours, copies: float) -> None:
+def check_result_quality(ctx, asset: Asset, V, F, pieces, library: PieceLibrary, labels, neighbours) -> None:
     """``ctx.check_quality`` of the written result against the example, with petri-synth's limits:
     open edges at most :func:`open_edge_budget` (the pieces' own open edges plus the construction
-    space's border where pieces were cut), non-manifold and duplicate faces at most the example's times
-    ``copies`` (cells per example piece, rounded up), no degenerate face."""
+    space's border where pieces were cut); non-manifold edges and duplicate faces at most those of the
+    example cut into its ``pieces`` (cutting makes the triangles of two boxes that share a side equal)
+    times the copies (cells per example piece, rounded up); no degenerate face."""
     before = mesh_quality(asset.V, asset.F)
+    lat = pieces.lattice
+    Vs = [L * lat.unit + lat.cell_lo(ijk) for L, ijk in zip(pieces.local, pieces.index, strict=True)]
+    offsets = np.cumsum([0] + [len(L) for L in Vs])
+    Fs = [Fp + o for Fp, o in zip(pieces.faces, offsets[:-1], strict=True)]
+    cut = mesh_quality(np.concatenate(Vs), np.concatenate(Fs))
+    copies = len(np.asarray(labels).ravel()) / len(pieces.local)
     limits = {
         "open_edges": open_edge_budget(library, labels, neighbours),
-        "nonmanifold_edges": int(np.ceil(before["nonmanifold_edges"] * copies)),
-        "duplicate_faces": int(np.ceil(before["duplicate_faces"] * copies)),
+        "nonmanifold_edges": int(np.ceil(cut["nonmanifold_edges"] * copies)),
+        "duplicate_faces": int(np.ceil(cut["duplicate_faces"] * copies)),
         "degenerate_faces": 0,
     }
     ctx.check_quality("mesh", before, mesh_quality(V, F), limits)
@@ -342,7 +412,7 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     )
     _, _, seams = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
                                 offsets=bassembler.offsets(bnet.n_cells))
-    BV, BF, _, _ = joined_mesh(bassembler, seams, weld=cfg.output.weld)
+    BV, BF, _, _ = joined_mesh(bassembler, seams, grid_graph(bnet), weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
         "method": f"model synthesis on the orthogonal lattice ({what})",
@@ -490,10 +560,10 @@ def run(cfg: PetriConfig, ctx) -> None:
         gap, unmatched, seams = crack_measure(
             library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
         )
-        RV, RF, face_label, look = joined_mesh(assembler, seams, weld=cfg.output.weld)
+        RV, RF, face_label, look = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
-        check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours, net.n_cells / grid.size)
+        check_result_quality(ctx, asset, RV, RF, pieces, library, labels_out.ravel(), net.neighbours)
         _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
@@ -640,10 +710,10 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
 
     with ctx.stage("assembly"):
         jm = network_metrics(space, net, library, assembler)
-        RV, RF, face_label, look = joined_mesh(assembler, jm["seams"], weld=cfg.output.weld)
+        RV, RF, face_label, look = joined_mesh(assembler, jm["seams"], space.graph()[:2], weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
-        check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours, net.n_cells / grid.size)
+        check_result_quality(ctx, asset, RV, RF, pieces, library, labels_out, net.neighbours)
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):

@@ -18,6 +18,7 @@ from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, 
 from synthkit.core.quality import degenerate_faces
 from synthkit.errors import ConfigError
 from synthkit.methods.petri.appearance import Look, carry
+from synthkit.methods.petri.joints import close_t_junctions
 
 VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
 """View name -> (rectangle x axis, rectangle y axis, depth axis) as world axis indices."""
@@ -167,7 +168,9 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open", look: Look | N
     """Cut the example ``V (#V, 3)``, ``F (#F, 3)`` along every interior lattice plane into pieces.
 
     Coordinates within :data:`SEAM_TOL` units of a lattice plane are first moved onto it and faces
-    left degenerate dropped (:func:`snap_to_lattice`), so no cut leaves a sliver. Faces are split
+    left degenerate dropped (:func:`snap_to_lattice`), so no cut leaves a sliver; faces with a vertex
+    inside an open edge are split there (:func:`joints.close_t_junctions`; the example's T-junctions,
+    often filled with zero-area faces that are dropped). Faces are split
     exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
     share their cut vertices bitwise; each face goes to the cell holding its centroid (clamped to the
     lattice for faces just outside within the fit tolerance). A face lying on a lattice plane goes to
@@ -182,6 +185,8 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open", look: Look | N
     V, kept = snap_to_lattice(V, F, lattice)
     F = np.asarray(F, np.int64)[kept]
     look = None if look is None else look.take(kept)
+    # a zero-area face filling a T-junction leaves it open when dropped: split the face across instead
+    F, _, _, look = close_t_junctions(V, F, np.arange(len(F)), [], look, SEAM_TOL * float(lattice.unit.min()))
     if caps == "capped":
         return _capped_pieces(V, F, lattice, look)
     normals, offsets = [], []

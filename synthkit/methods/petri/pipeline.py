@@ -21,7 +21,6 @@ from synthkit.methods.petri.assembly import (
     Assembler,
     PieceLibrary,
     assemble,
-    close_t_junctions,
     crack_measure,
     crack_measure_graph,
     label_colors,
@@ -30,6 +29,7 @@ from synthkit.methods.petri.assembly import (
     reorder_library,
 )
 from synthkit.methods.petri.config import PetriConfig
+from synthkit.methods.petri.joints import close_t_junctions
 from synthkit.methods.petri.net import (
     ColouredPetriNet,
     adjacency_violations,

@@ -1,0 +1,102 @@
+"""Closing T-junctions: a vertex of one face lying inside an open edge of another."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from synthkit.core.mesh import weld
+from synthkit.methods.petri.appearance import Look
+
+
+def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_with: list, look: Look | None,
+                      tol: float, *, passes: int = 4):
+    """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices of other cells (``face_cell (m,)``) that
+    lie inside one of their open edges (within ``tol``), so that a cut curve split more finely on one
+    side of a cell face than on the other (a T-junction: closed in space, open in the mesh) is joined
+    edge to edge. T-junctions inside one piece are the example's own and stay.
+
+    Edges are counted over positions welded within ``tol`` (an example's UV seams are not open). A face
+    whose edge (a, b) holds points p_1 .. p_k becomes the fan (a, p_1, c), ..., (p_k, b, c); its
+    per-corner ``look`` values are interpolated along the edge, and each array of ``keep_with``
+    (per-face, e.g. labels) is repeated for the new faces. At most ``passes`` rounds (a face with
+    points on two edges is split once per round). Returns ``(F, face_cell, keep_with, look)``.
+    """
+    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    for _ in range(passes):
+        vertex_cell = np.full(len(V), -1, np.int64)
+        vertex_cell[F.ravel()] = np.repeat(face_cell, 3)
+        splits = _edge_splits(V, F, cls, vertex_cell, face_cell, tol)
+        if not splits:
+            break
+        F, (face_cell, *keep_with), look = _split_faces(F, splits, [face_cell, *keep_with], look)
+    return F, face_cell, keep_with, look
+
+
+def _edge_splits(V, F, cls, vertex_cell, face_cell, tol: float) -> dict:
+    """``{face: (k, [(t, vertex), ...])}``: for each face, its first open edge (corner k to k + 1)
+    holding vertices of other cells' open edges strictly inside it."""
+    W = cls[F]
+    E = np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]])
+    key = np.sort(E, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    open_e = np.flatnonzero((counts[inv.ravel()] == 1) & (key[:, 0] != key[:, 1]))
+    if len(open_e) == 0:
+        return {}
+    m = len(F)
+    face, corner = open_e % m, open_e // m
+    a, b = F[face, corner], F[face, (corner + 1) % 3]
+    ends = np.unique(np.concatenate([a, b]))
+    tree = cKDTree(V[ends])
+    A, B = V[a], V[b]
+    D = B - A
+    length = np.linalg.norm(D, axis=1)
+    near = tree.query_ball_point((A + B) / 2, length / 2 + tol)
+    splits: dict = {}
+    for e in np.flatnonzero(length > 2 * tol).tolist():
+        cand = ends[np.asarray(near[e], np.int64)]
+        cand = cand[(cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]]) & (vertex_cell[cand] != face_cell[face[e]])]
+        if len(cand) == 0 or int(face[e]) in splits:
+            continue
+        t = (V[cand] - A[e]) @ D[e] / length[e] ** 2
+        dist = np.linalg.norm(V[cand] - (A[e] + t[:, None] * D[e]), axis=1)
+        ok = (dist <= tol) & (t * length[e] > tol) & ((1 - t) * length[e] > tol)
+        if ok.any():
+            t, cand = t[ok], cand[ok]
+            _, first = np.unique(cls[cand], return_index=True)
+            order = first[np.argsort(t[first])]
+            splits[int(face[e])] = (int(corner[e]), list(zip(t[order].tolist(), cand[order].tolist(), strict=True)))
+    return splits
+
+
+def _split_faces(F, splits: dict, keep_with: list, look: Look | None):
+    """Replace each face of ``splits`` (see :func:`_edge_splits`) by its fan."""
+    new_F, src, weights = [], [], []
+    for f, (k, pts) in splits.items():
+        a, b, c = F[f, k], F[f, (k + 1) % 3], F[f, (k + 2) % 3]
+        chain = [(0.0, a)] + pts + [(1.0, b)]
+        for (t0, v0), (t1, v1) in zip(chain[:-1], chain[1:], strict=True):
+            new_F.append((v0, v1, c))
+            src.append(f)
+            # corner weights over the old face's corners (a, b, c) at k, k + 1, k + 2
+            weights.append([[1 - t0, t0, 0.0], [1 - t1, t1, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.fromiter(splits, np.int64)
+    keep = np.ones(len(F), bool)
+    keep[faces] = False
+    src = np.asarray(src, np.int64)
+    F2 = np.concatenate([F[keep], np.asarray(new_F, np.int64)])
+    kept = [np.concatenate([x[keep], x[src]]) for x in keep_with]
+    if look is None:
+        return F2, kept, None
+    Wt = np.asarray(weights)
+    rot = np.asarray([splits[int(f)][0] for f in src])
+    order = (rot[:, None] + np.arange(3)[None]) % 3
+    arrays = []
+    for arr in look.corners():
+        if arr is None:
+            arrays.append(None)
+            continue
+        vals = np.take_along_axis(arr[src], order[:, :, None], axis=1)
+        arrays.append(np.concatenate([arr[keep], np.einsum("mcb,mbk->mck", Wt, vals)]))
+    mat = np.concatenate([look.face_material[keep], look.face_material[src]])
+    return F2, kept, Look(arrays[0], arrays[1], mat)

@@ -312,25 +312,25 @@ def face_seams(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> list[t
     return out
 
 
-def _points_on_segments(P: np.ndarray, S: np.ndarray, tol: float) -> bool:
-    """Whether every point of ``P (n, 2)`` lies within ``tol`` of some segment of ``S (e, 2, 2)``."""
+def curve_gap(P: np.ndarray, S: np.ndarray) -> float:
+    """The largest distance from a point of ``P (n, 2)`` to its nearest segment of ``S (e, 2, 2)``: 0 for
+    no points, infinite for points and no segments."""
     if len(P) == 0:
-        return True
+        return 0.0
     if len(S) == 0:
-        return False
+        return float("inf")
     A, D = S[:, 0], S[:, 1] - S[:, 0]
     dd = np.maximum((D * D).sum(axis=1), 1e-300)
     t = np.clip(((P[:, None] - A[None]) * D[None]).sum(axis=2) / dd[None], 0.0, 1.0)
     dist = np.linalg.norm(P[:, None] - (A[None] + t[..., None] * D[None]), axis=2)
-    return bool(dist.min(axis=1).max() <= tol)
+    return float(dist.min(axis=1).max())
 
 
 def same_seams(a, b, tol: float = SEAM_TOL) -> bool:
     """Whether two pieces' :func:`face_seams` show the same curves on every cell face: each one's face
     vertices lie on the other's face edges (so they differ at most by where their edges are split)."""
     return all(
-        _points_on_segments(pa, sb, tol) and _points_on_segments(pb, sa, tol)
-        for (pa, sa), (pb, sb) in zip(a, b, strict=True)
+        curve_gap(pa, sb) <= tol and curve_gap(pb, sa) <= tol for (pa, sa), (pb, sb) in zip(a, b, strict=True)
     )
 
 

@@ -8,7 +8,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.core.ffd import trilinear_weights
-from synthkit.methods.petri.analysis import SEAM_TOL
+from synthkit.core.mesh import weld
+from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
 from synthkit.methods.petri.appearance import Look, concat
 
 
@@ -35,9 +36,29 @@ class PieceLibrary:
             self.weights.append(trilinear_weights(L))
             self.face_sides.append(face_sides(L, pieces.faces[int(p)]))
 
+    def open_edges(self, label: int) -> np.ndarray:
+        """``(k, 2)`` vertex pairs of ``label``'s piece: its open edges (:func:`piece_open_edges`), cached."""
+        cache = self.__dict__.setdefault("_open", {})
+        if label not in cache:
+            cache[label] = piece_open_edges(self.local[label], self.faces[label])
+        return cache[label]
+
     def deform(self, label: int, corners: np.ndarray) -> np.ndarray:
         """Vertices ``(n, 3)`` of ``label``'s piece deformed into the hexahedron ``corners (8, 3)``."""
         return self.weights[label] @ corners
+
+
+def piece_open_edges(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
+    """``(k, 2)`` vertex pairs: the edges of ``F (m, 3)`` used by one face only once the positions
+    ``L (n, 3)`` are welded within ``tol`` (UV seams are not open); each given by one of its copies."""
+    if len(F) == 0:
+        return np.zeros((0, 2), np.int64)
+    _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    W = np.sort(cls[E], axis=1)
+    alive = W[:, 0] != W[:, 1]
+    _, inv, counts = np.unique(W[alive], axis=0, return_inverse=True, return_counts=True)
+    return E[alive][counts[inv.ravel()] == 1]
 
 
 def face_sides(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
@@ -161,16 +182,18 @@ def crack_measure(
     For every pair of face-adjacent cells (p below q along construction axis t) with labels (A, B),
     the vertices of A's piece on its face ``t = 1`` are matched to those of B's piece on ``t = 0`` with
     the same other two local coordinates (within ``tol``): these are the boundary vertices the
-    example pieces shared. Returns ``(max_gap, unmatched, seams)``: the largest world distance between
-    matched vertices after deformation, the number of vertices on shared cell faces (summed over
-    distinct label pairs) without a partner (differing boundaries, or faces lying on the cell face
-    such as a roof under an empty cell), and, when ``offsets (N,)`` (index of each cell's first vertex
-    in the assembled mesh) is given, the matched pairs as global vertex indices ``(k, 2)``.
+    example pieces shared. Returns ``(max_gap, unmatched, seams, mismatch)``: the largest world distance
+    between matched vertices after deformation, the number of vertices on shared cell faces (summed
+    over distinct label pairs) without a partner (differing boundaries, or faces lying on the cell face
+    such as a roof under an empty cell), when ``offsets (N,)`` (index of each cell's first vertex
+    in the assembled mesh) is given the matched pairs as global vertex indices ``(k, 2)``, and the
+    largest :func:`curve_mismatch` of the pairs (local units: where the pieces' cut curves do not meet,
+    a hole the vertex gap cannot see).
     """
     lib = library
     shape = label_grid.shape
     flat = np.arange(label_grid.size).reshape(shape)
-    max_gap, unmatched = 0.0, 0
+    max_gap, unmatched, mismatch = 0.0, 0, 0.0
     match_cache = {}
     seams = []
     for t in range(3):
@@ -194,6 +217,7 @@ def crack_measure(
                 CB = LB[ib][:, others] if CA is not None else None
                 match_cache[key], missing = _match_face(ia, ib, CA, CB, tol)
                 unmatched += missing
+                mismatch = max(mismatch, curve_mismatch(lib, A, 2 * t + 1, B, 2 * t, False, tol))
             ia, ib = match_cache[key]
             if len(ia) == 0:
                 continue
@@ -203,7 +227,38 @@ def crack_measure(
             if seam is not None:
                 seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
-    return max_gap, unmatched, seams
+    return max_gap, unmatched, seams, mismatch
+
+
+def _face_coords(L: np.ndarray, t: int, flipped: bool) -> np.ndarray:
+    """``(n, 2)`` coordinates of ``L (n, 3)`` on a cell face across local axis ``t``: (u, w) with w the
+    sweep coordinate (for ``t = 2``: (a, b)), u mirrored to ``1 - u`` when ``flipped``."""
+    if t == 2:
+        return L[:, [0, 1]]
+    u = L[:, 1 - t]
+    return np.stack([1.0 - u if flipped else u, L[:, 2]], axis=1)
+
+
+def curve_mismatch(lib: PieceLibrary, A: int, side_a: int, B: int, side_b: int, flipped: bool, tol: float) -> float:
+    """How far apart the cut curves two pieces show on the cell face they share, in local units: the
+    largest distance from an end of an open edge of either piece in its face (``side_a``/``side_b``:
+    2 axis + 1 for the face at 1, + 0 for the one at 0) to the other's edges in that face, open or
+    bounding a face lying in it (:func:`analysis.curve_gap`; B's face coordinates mirrored when
+    ``flipped``), at most 1 (a cut curve with nothing across it: a hole). Open edges along the cell's
+    rim (on two faces) are left to the pair across the other face."""
+    curves = []
+    for lab, side, fl in ((A, side_a, False), (B, side_b, flipped)):
+        L, F = lib.local[lab], lib.faces[lab]
+        on = np.abs(L[:, side >> 1] - (side & 1)) <= tol
+        rim = ((np.abs(L) <= tol) | (np.abs(L - 1) <= tol)).sum(axis=1) >= 2
+        E = lib.open_edges(lab)
+        E = E[on[E[:, 0]] & on[E[:, 1]] & ~(rim[E[:, 0]] & rim[E[:, 1]])]
+        every = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]) if len(F) else np.zeros((0, 2), np.int64)
+        every = every[on[every[:, 0]] & on[every[:, 1]]]
+        C = _face_coords(L, side >> 1, fl)
+        curves.append((C[np.unique(E)], C[every]))
+    (pa, sa), (pb, sb) = curves
+    return float(min(max(curve_gap(pa, sb), curve_gap(pb, sa)), 1.0))
 
 
 def _match_face(ia, ib, CA, CB, tol: float):
@@ -262,13 +317,13 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
     same face coordinates: the sweep coordinate w as it is, the in-plane face coordinate u as ``u``
     or, where the shared edge runs the other way in q's frame (``flip``), ``1 - u``. Within one frame
     this is exactly :func:`crack_measure`; across a junction it is the example's sharing of boundary
-    vertices carried over by the rotation of the frames. Returns ``(max_gap, unmatched, seams)``
+    vertices carried over by the rotation of the frames. Returns ``(max_gap, unmatched, seams, mismatch)``
     (unmatched counted once per distinct (d, e, flip, label pair)).
     """
     nbr, back, flip = (np.asarray(x) for x in graph)
     lab = np.asarray(labels, np.int64).ravel()
     lib = library
-    max_gap, unmatched = 0.0, 0
+    max_gap, unmatched, mismatch = 0.0, 0, 0.0
     cache: dict = {}
     groups = defaultdict(list)
     N = len(lab)
@@ -288,16 +343,11 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
             ia = np.flatnonzero(np.abs(LA[:, ta] - sa) <= tol)
             ib = np.flatnonzero(np.abs(LB[:, tb] - sb) <= tol)
 
-            def face_coords(L, idx, t, flipped):
-                if t == 2:
-                    return L[idx][:, [0, 1]]
-                u = L[idx, 1 - t]
-                return np.stack([1.0 - u if flipped else u, L[idx, 2]], axis=1)
-
             both = len(ia) and len(ib)
-            CA = face_coords(LA, ia, ta, fl) if both else None
-            CB = face_coords(LB, ib, tb, False) if both else None
+            CA = _face_coords(LA[ia], ta, fl) if both else None
+            CB = _face_coords(LB[ib], tb, False) if both else None
             cache[key], missing = _match_face(ia, ib, CA, CB, tol)
+            mismatch = max(mismatch, curve_mismatch(lib, B, 2 * tb + 1 - (e & 1), A, 2 * ta + 1 - (d & 1), fl, tol))
             unmatched += missing
         ia, ib = cache[key]
         if len(ia) == 0:
@@ -308,7 +358,7 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
         if seam is not None:
             seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
-    return max_gap, unmatched, seams
+    return max_gap, unmatched, seams, mismatch
 
 
 def open_edge_budget(library: PieceLibrary, labels, neighbours, *, tol: float = SEAM_TOL) -> int:
@@ -318,20 +368,9 @@ def open_edge_budget(library: PieceLibrary, labels, neighbours, *, tol: float = 
     faces without a neighbour (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1
     for -axis): the border of the construction space, open where the pieces were cut inside the
     example."""
-    from synthkit.core.mesh import weld
-
     per_label = np.zeros((len(library.faces), 7), np.int64)
-    for lab, (L, Fp) in enumerate(zip(library.local, library.faces, strict=True)):
-        if len(Fp) == 0:
-            continue
-        _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
-        W = cls[Fp]
-        E = np.sort(np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]]), axis=1)
-        E = E[E[:, 0] != E[:, 1]]
-        uniq, counts = np.unique(E, axis=0, return_counts=True)
-        rep = np.zeros((int(cls.max()) + 1, 3))
-        rep[cls] = L
-        P = rep[uniq[counts == 1]]
+    for lab, L in enumerate(library.local):
+        P = L[library.open_edges(lab)]
         face = np.full(len(P), 6)
         for f in range(5, -1, -1):
             on = np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1)

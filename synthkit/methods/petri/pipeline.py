@@ -410,8 +410,8 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     bnet, bassembler, brestarts = synthesize(
         bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
     )
-    _, _, seams = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
-                                offsets=bassembler.offsets(bnet.n_cells))
+    _, _, seams, _ = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
+                                   offsets=bassembler.offsets(bnet.n_cells))
     BV, BF, _, _ = joined_mesh(bassembler, seams, grid_graph(bnet), weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
@@ -469,7 +469,7 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
                     violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
-    net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` and ``unmatched``
+    net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` (lattice units) and ``unmatched``
     boundary vertices."""
     plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
@@ -483,7 +483,7 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
         "adjacency_violations": int(violations),
         "unfilled_cells": int((labels_out < 0).sum()),
         "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.ravel().tolist())),
-        "crack_max": gap / float(spec.unit.min()),
+        "crack_max": gap,
         "boundary_unmatched_vertices": int(unmatched),
         "curve_max_deviation": float(deviation.max()),
         "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
@@ -557,7 +557,7 @@ def run(cfg: PetriConfig, ctx) -> None:
     labels_out = net.label_grid()
 
     with ctx.stage("assembly"):
-        gap, unmatched, seams = crack_measure(
+        gap, unmatched, seams, mismatch = crack_measure(
             library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
         )
         RV, RF, face_label, look = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
@@ -573,7 +573,8 @@ def run(cfg: PetriConfig, ctx) -> None:
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        assembler=assembler,
-                                       restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
+                                       restarts=restarts, violations=violations,
+                                       gap=max(gap / float(spec.unit.min()), mismatch), unmatched=unmatched,
                                        deviation=deviation)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
 
@@ -670,7 +671,7 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     neighbours across a frame change)."""
     nbr, back, flip, _ = space.graph()
     labels = np.asarray(net.label, np.int64)
-    gap, unmatched, seams = crack_measure_graph(
+    gap, unmatched, seams, mismatch = crack_measure_graph(
         library, labels, net.corners, (nbr, back, flip), offsets=assembler.offsets(net.n_cells)
     )
     SZ = space.size_z
@@ -681,14 +682,16 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     sub = np.where(touched[:, None], nbr, -1)
     sub = np.where((sub >= 0) & (touched[np.maximum(sub, 0)] | touched[:, None]), sub, -1)
     jviol = graph_violations(labels, sub, back, net.allowed, net.n_labels, boundary=False)
-    jgap, junmatched, _ = crack_measure_graph(library, labels, net.corners, (sub, back, flip))
+    jgap, junmatched, _, jmismatch = crack_measure_graph(library, labels, net.corners, (sub, back, flip))
     return {
         "gap": gap,
+        "mismatch": mismatch,
         "unmatched": unmatched,
         "seams": seams,
         "junction_cells": int(in_junction.sum()),
         "junction_adjacency_violations": int(jviol),
         "junction_gap": jgap,
+        "junction_mismatch": jmismatch,
         "junction_unmatched": int(junmatched),
     }
 
@@ -722,7 +725,8 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        assembler=assembler,
-                                       restarts=restarts, violations=violations, gap=jm["gap"],
+                                       restarts=restarts, violations=violations,
+                                       gap=max(jm["gap"] / float(spec.unit.min()), jm["mismatch"]),
                                        unmatched=jm["unmatched"], deviation=deviation)
         metrics = {
             "cells": int(net.n_cells),
@@ -735,7 +739,7 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
             "junctions": len(space.junctions),
             "junction_cells": jm["junction_cells"],
             "junction_adjacency_violations": jm["junction_adjacency_violations"],
-            "junction_crack_max": jm["junction_gap"] / float(spec.unit.min()),
+            "junction_crack_max": max(jm["junction_gap"] / float(spec.unit.min()), jm["junction_mismatch"]),
             "junction_unmatched_vertices": jm["junction_unmatched"],
             **shared,
         }

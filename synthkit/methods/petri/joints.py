@@ -19,7 +19,8 @@ def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_
     Edges are counted over positions welded within ``tol`` (an example's UV seams are not open). A face
     whose edge (a, b) holds points p_1 .. p_k becomes the fan (a, p_1, c), ..., (p_k, b, c); its
     per-corner ``look`` values are interpolated along the edge, and each array of ``keep_with``
-    (per-face, e.g. labels) is repeated for the new faces. At most ``passes`` rounds (a face with
+    (per-face, e.g. labels) is repeated for the new faces. A split that would give an edge more than
+    two faces is not made (:func:`_crowding_splits`). At most ``passes`` rounds (a face with
     points on two edges is split once per round). Returns ``(F, face_cell, keep_with, look)``.
     """
     _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
@@ -27,10 +28,27 @@ def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_
         vertex_cell = np.full(len(V), -1, np.int64)
         vertex_cell[F.ravel()] = np.repeat(face_cell, 3)
         splits = _edge_splits(V, F, cls, vertex_cell, face_cell, tol)
+        for f in _crowding_splits(F, splits, cls):
+            del splits[f]
         if not splits:
             break
         F, (face_cell, *keep_with), look = _split_faces(F, splits, [face_cell, *keep_with], look)
     return F, face_cell, keep_with, look
+
+
+def _crowding_splits(F, splits: dict, cls) -> list[int]:
+    """The faces of ``splits`` whose split would give one of the new edge pieces along the split edge
+    more than two faces (an example's overlapping boxes, whose vertices lie on each other's edges):
+    such a T-junction is left open rather than made non-manifold."""
+    if not splits:
+        return []
+    F2, (origin,), _ = _split_faces(F, splits, [np.arange(len(F))], None)
+    W = cls[F2]
+    E = np.sort(np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]]), axis=1)
+    _, inv, counts = np.unique(E, axis=0, return_inverse=True, return_counts=True)
+    crowded = (counts[inv.ravel()] > 2).reshape(3, -1)[0]  # edge (0, 1) of each fan face: along the split
+    new = np.arange(len(F2)) >= len(F2) - sum(len(p) + 1 for _, p in splits.values())
+    return sorted(set(origin[crowded & new].tolist()))
 
 
 def _edge_splits(V, F, cls, vertex_cell, face_cell, tol: float) -> dict:

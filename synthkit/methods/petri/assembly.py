@@ -381,3 +381,40 @@ def open_edge_budget(library: PieceLibrary, labels, neighbours, *, tol: float = 
     local_face = 2 * (np.arange(6) >> 1) + 1 - (np.arange(6) & 1)
     border = (nbr < 0) * per_label[lab][:, local_face]
     return int(per_label[lab, 6].sum() + border.sum())
+
+
+def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, neighbours, tol: float) -> int:
+    """Open edges of ``V (n, 3)``, ``F (m, 3)`` (positions welded within ``tol``) whose midpoint lies
+    farther than ``tol`` from every cell side without a neighbour (``corners (N, 8, 3)`` with corner
+    ``i + 2 j + 4 k``, ``neighbours (N, 6)``, directions 2 axis + 0 for +axis, + 1 for -axis): holes
+    inside the construction space, or the example's own open edges."""
+    import trimesh
+
+    if len(F) == 0:
+        return 0
+    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    W = np.sort(cls[E], axis=1)
+    alive = W[:, 0] != W[:, 1]
+    _, inv, counts = np.unique(W[alive], axis=0, return_inverse=True, return_counts=True)
+    E = E[alive][counts[inv.ravel()] == 1]
+    if len(E) == 0:
+        return 0
+    cell, d = np.nonzero(np.asarray(neighbours) < 0)
+    if len(cell) == 0:
+        return int(len(E))
+    axis, side = d >> 1, 1 - (d & 1)
+    quad = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
+    idx = np.zeros((len(cell), 4), np.int64)
+    for q, (u, v) in enumerate(quad):
+        bits = np.zeros((len(cell), 3), np.int64)
+        bits[np.arange(len(cell)), axis] = side
+        bits[np.arange(len(cell)), (axis + 1) % 3] = u
+        bits[np.arange(len(cell)), (axis + 2) % 3] = v
+        idx[:, q] = bits[:, 0] + 2 * bits[:, 1] + 4 * bits[:, 2]
+    P = np.asarray(corners)[cell[:, None], idx].reshape(-1, 3)
+    base = 4 * np.arange(len(cell))[:, None]
+    T = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]])
+    border = trimesh.Trimesh(P, T, process=False)
+    _, dist, _ = trimesh.proximity.closest_point(border, V[E].mean(axis=1))
+    return int((dist > tol).sum())

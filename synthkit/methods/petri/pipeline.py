@@ -25,6 +25,7 @@ from synthkit.methods.petri.assembly import (
     crack_measure_graph,
     label_colors,
     open_edge_budget,
+    open_edges_off_border,
     preview_library,
     reorder_library,
 )
@@ -489,6 +490,9 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
         "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
         "normal_histogram_example": h_ex,
         "normal_histogram_result": h_res,
+        "open_edges_off_border": open_edges_off_border(
+            RV, RF, net.corners, net.neighbours, WELD_REL_TOL * float(np.linalg.norm(np.ptp(RV, axis=0)))
+        ),
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
         **facade_metrics(V, F, assembler, grid, net, space.axes),

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from synthkit.core.ffd import trilinear_weights
 from synthkit.core.mesh import weld
 from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
-from synthkit.methods.petri.appearance import Look, concat
+from synthkit.methods.petri.appearance import Look, carry, concat
 
 
 class PieceLibrary:
@@ -75,22 +75,37 @@ def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
     """A copy of ``library`` whose pieces have at most about ``max_faces`` triangles each, for previews.
 
     Larger pieces are decimated by quadric edge collapse with their boundaries kept (topology not
-    enforced, which is faster; :func:`synthkit.core.mesh.simplify`); the weights are recomputed. Small pieces are
-    shared as they are.
+    enforced, which is faster; :func:`synthkit.core.mesh.simplify`); the weights are recomputed and the
+    looks carried over (:func:`decimated_look`). Small pieces are shared as they are.
     """
     from synthkit.core.mesh import simplify
 
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = library.axes
-    out.local, out.faces, out.weights, out.looks = [], [], [], None
-    for L, Fp, W in zip(library.local, library.faces, library.weights, strict=True):
+    out.local, out.faces, out.weights = [], [], []
+    out.looks = None if library.looks is None else []
+    for lab, (L, Fp, W) in enumerate(zip(library.local, library.faces, library.weights, strict=True)):
+        look = None if library.looks is None else library.looks[lab]
         if len(Fp) > max_faces:
-            L, Fp, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
-            W = trilinear_weights(L)
+            L2, F2, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
+            look = None if look is None else decimated_look(look, L, Fp, L2, F2)
+            L, Fp, W = L2, F2, trilinear_weights(L2)
         out.local.append(L)
         out.faces.append(Fp)
         out.weights.append(W)
+        if out.looks is not None:
+            out.looks.append(look)
+    out.face_sides = [face_sides(L, Fp) for L, Fp in zip(out.local, out.faces, strict=True)]
     return out
+
+
+def decimated_look(look: Look, L, F, L2, F2) -> Look:
+    """The look of a decimated piece ``L2, F2`` from the full piece ``L, F``: each new face takes the
+    material of the full face nearest its centroid and that face's values extended linearly to its
+    corners (:func:`appearance.carry`, corners projected onto the face's plane)."""
+    centroids = L[F].mean(axis=1)
+    _, src = cKDTree(centroids).query(L2[F2].mean(axis=1))
+    return carry(look, L, F, np.asarray(src, np.int64), L2, F2)
 
 
 def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceLibrary:
@@ -98,6 +113,7 @@ def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceL
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = tuple(library.axes[a] for a in axes)
     out.looks = library.looks
+    out.face_sides = [face_sides(L, F) for L, F in zip(out.local, out.faces, strict=True)]
     out.local = [L[:, list(axes)] for L in library.local]
     out.faces = list(library.faces)
     out.weights = [trilinear_weights(L) for L in out.local]

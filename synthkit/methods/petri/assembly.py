@@ -113,10 +113,10 @@ def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceL
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = tuple(library.axes[a] for a in axes)
     out.looks = library.looks
-    out.face_sides = [face_sides(L, F) for L, F in zip(out.local, out.faces, strict=True)]
     out.local = [L[:, list(axes)] for L in library.local]
     out.faces = list(library.faces)
     out.weights = [trilinear_weights(L) for L in out.local]
+    out.face_sides = [face_sides(L, F) for L, F in zip(out.local, out.faces, strict=True)]
     return out
 
 

@@ -70,20 +70,33 @@ def _edge_splits(V, F, cls, vertex_cell, face_cell, tol: float) -> dict:
     D = B - A
     length = np.linalg.norm(D, axis=1)
     near = tree.query_ball_point((A + B) / 2, length / 2 + tol)
+    sizes = np.fromiter((len(x) for x in near), np.int64, len(near))
+    e = np.repeat(np.arange(len(near)), sizes)
+    cand = ends[np.concatenate([np.asarray(x, np.int64) for x in near])] if len(e) else np.zeros(0, np.int64)
+    keep = (cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]]) & (vertex_cell[cand] != face_cell[face[e]])
+    keep &= length[e] > 2 * tol
+    e, cand = e[keep], cand[keep]
+    t = ((V[cand] - A[e]) * D[e]).sum(axis=1) / length[e] ** 2
+    dist = np.linalg.norm(V[cand] - (A[e] + t[:, None] * D[e]), axis=1)
+    ok = (dist <= tol) & (t * length[e] > tol) & ((1 - t) * length[e] > tol)
+    e, cand, t = e[ok], cand[ok], t[ok]
+    # one edge per face (its first), one vertex per welded position, in order along the edge
+    first_edge = np.full(m, len(open_e), np.int64)
+    np.minimum.at(first_edge, face[e], e)
+    sel = first_edge[face[e]] == e
+    e, cand, t = e[sel], cand[sel], t[sel]
+    order = np.lexsort((t, cls[cand], e))
+    e, cand, t = e[order], cand[order], t[order]
+    fresh = np.ones(len(e), bool)
+    fresh[1:] = (e[1:] != e[:-1]) | (cls[cand[1:]] != cls[cand[:-1]])
+    e, cand, t = e[fresh], cand[fresh], t[fresh]
+    order = np.lexsort((t, e))
+    e, cand, t = e[order], cand[order], t[order]
     splits: dict = {}
-    for e in np.flatnonzero(length > 2 * tol).tolist():
-        cand = ends[np.asarray(near[e], np.int64)]
-        cand = cand[(cls[cand] != cls[a[e]]) & (cls[cand] != cls[b[e]]) & (vertex_cell[cand] != face_cell[face[e]])]
-        if len(cand) == 0 or int(face[e]) in splits:
-            continue
-        t = (V[cand] - A[e]) @ D[e] / length[e] ** 2
-        dist = np.linalg.norm(V[cand] - (A[e] + t[:, None] * D[e]), axis=1)
-        ok = (dist <= tol) & (t * length[e] > tol) & ((1 - t) * length[e] > tol)
-        if ok.any():
-            t, cand = t[ok], cand[ok]
-            _, first = np.unique(cls[cand], return_index=True)
-            order = first[np.argsort(t[first])]
-            splits[int(face[e])] = (int(corner[e]), list(zip(t[order].tolist(), cand[order].tolist(), strict=True)))
+    bounds = np.flatnonzero(np.diff(np.concatenate([[-1], e, [-1]])))
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        k = int(e[lo])
+        splits[int(face[k])] = (int(corner[k]), list(zip(t[lo:hi].tolist(), cand[lo:hi].tolist(), strict=True)))
     return splits
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -152,81 +151,6 @@ def test_labels_keep_apart_pieces_that_meet_their_neighbours_differently():
 
 
 # ------------------------------------------------------------------------------------- real assets
-def uv_source(ex, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each point ``uv (k, 2)``: the face of ``ex`` whose UV triangle (often a point or a segment
-    in a palette texture) is nearest, and the distance to it."""
-    T = ex.corner_uv
-    a, b, c = T[:, 0], T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-    det = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
-    ok = np.abs(det) > 1e-14
-    src, dist = np.zeros(len(uv), int), np.zeros(len(uv))
-    for s in range(0, len(uv), 1024):
-        P = uv[s:s + 1024, None]
-        q = P - a[None]
-        u = (q[..., 0] * c[None, :, 1] - q[..., 1] * c[None, :, 0]) / np.where(ok, det, 1.0)
-        v = (b[None, :, 0] * q[..., 1] - b[None, :, 1] * q[..., 0]) / np.where(ok, det, 1.0)
-        d = np.where(ok & (u >= 0) & (v >= 0) & (u + v <= 1), 0.0, np.inf)
-        for i, j in ((0, 1), (1, 2), (2, 0)):
-            A, D = T[:, i][None], (T[:, j] - T[:, i])[None]
-            t = np.clip(((P - A) * D).sum(-1) / np.maximum((D * D).sum(-1), 1e-300), 0, 1)
-            d = np.minimum(d, np.linalg.norm(P - (A + t[..., None] * D), axis=-1))
-        src[s:s + 1024], dist[s:s + 1024] = d.argmin(axis=1), d.min(axis=1)
-    return src, dist
-
-
-def kenney_config(tmp_path: Path, glb: Path, uy: float, closed: bool, points, extra: str = "") -> Path:
-    cfg = tmp_path / "kenney.yaml"
-    cfg.write_text(f"""method: petri-synth
-example: {glb}
-lattice:
-  unit: [0.5, {uy}, 0.5]
-construction:
-  plane: xz
-  points: {json.dumps(points)}
-  closed: {str(closed).lower()}
-output:
-  mesh_format: glb
-  baseline: false
-{extra}""")
-    return cfg
-
-
-KENNEY_RUNS = {
-    "a-bent": ("a", 0.475, False, [[0, 0], [3, 0], [5, 2]]),
-    "a-ring": ("a", 0.475, True, [[0, 0], [0, 3], [4, 3], [4, 0]]),
-    "b-bent": ("b", 0.406625, False, [[0, 0], [3, 0], [5, 2]]),
-    "b-ring": ("b", 0.406625, True, [[0, 0], [0, 3], [4, 3], [4, 0]]),
-}
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(KENNEY_RUNS))
-def test_kenney_glb_keeps_its_look_and_closes_its_seams(tmp_path, name):
-    """GLB in, GLB out: UVs, the colormap embedded, every face's texture colour one the example shows
-    (the palette check), open edges within petri's limit, nothing degenerate, no crack, status ok."""
-    b, uy, closed, points = KENNEY_RUNS[name]
-    glb = KENNEY / f"building-small-{b}.glb"
-    if not glb.is_file():
-        pytest.skip(f"real data absent: {glb}")
-    report = run_config(kenney_config(tmp_path, glb, uy, closed, points), out_dir=tmp_path / "out")
-    out = load_asset(tmp_path / "out" / "result.glb")
-    ex = load_asset(glb)
-    assert out.corner_uv is not None and len(out.materials) == 1 and out.materials[0].name == ex.materials[0].name
-    assert out.name == ex.name
-    np.testing.assert_array_equal(out.materials[0].image, ex.materials[0].image)
-    # palette check: each output face's UV centroid lies on the UV triangle of an example face (a
-    # palette point or gradient segment), so the texel it shows is the colour the example shows there
-    centroid = out.corner_uv.mean(axis=1)
-    _, dist = uv_source(ex, centroid)
-    assert dist.max() < 1e-6, f"{(dist >= 1e-6).sum()} faces sample the texture off the example's UV layout"
-    q = report["metrics"]["mesh_quality"]["mesh"]
-    assert report["status"] == "ok"
-    assert all(q["output"][k] <= v for k, v in q["limits"].items()), q
-    assert q["output"]["degenerate_faces"] == 0 and q["output"]["nonmanifold_edges"] == 0
-    assert q["limits"]["open_edges"] < 12 * q["input"]["open_edges"] * report["metrics"]["cells"] / 8
-    assert report["metrics"]["crack_max"] < 1e-6
-
-
 @pytest.mark.slow
 def test_kenney_features_only_labels_are_seen_as_holes(tmp_path, monkeypatch):
     """The labels of issue 15 (features alone, unit 0.25: mirrored window halves and side walls share
@@ -235,8 +159,12 @@ def test_kenney_features_only_labels_are_seen_as_holes(tmp_path, monkeypatch):
     if not glb.is_file():
         pytest.skip(f"real data absent: {glb}")
     cfg = tmp_path / "k25.yaml"
-    cfg.write_text(kenney_config(tmp_path, glb, 0.475, False, [[0, 0], [3, 0], [5, 2]]).read_text()
-                   .replace("[0.5, 0.475, 0.5]", "[0.25, 0.475, 0.25]"))
+    cfg.write_text(f"""method: petri-synth
+example: {glb}
+lattice: {{unit: [0.25, 0.475, 0.25]}}
+construction: {{plane: xz, points: [[0, 0], [3, 0], [5, 2]]}}
+output: {{baseline: false, export_net: none}}
+""")
     ok = run_config(cfg, out_dir=tmp_path / "ok")
     assert ok["status"] == "ok" and ok["metrics"]["crack_max"] < 1e-6
     real = analysis.classify
@@ -248,22 +176,24 @@ def test_kenney_features_only_labels_are_seen_as_holes(tmp_path, monkeypatch):
 
 
 def test_road_tile_cut_along_a_curve_has_no_sliver(tmp_path):
-    """road-straight.glb stores its border at +-0.50000012 (float32): the lattice planes fall 1e-7
-    beside its vertices. Snapped, no written face has an edge under 1e-9 of the diagonal."""
+    """road-straight.glb stores its border at +-0.50000012 (float32): lattice planes from its box fall
+    1e-7 beside its vertices (before: 170 of 4,130 faces degenerate at unit 0.1, 3,884 open edges).
+    Snapped, no written face is degenerate and the open edges stay within petri's limit."""
     glb = KENNEY / "road-straight.glb"
     if not glb.is_file():
         pytest.skip(f"real data absent: {glb}")
     cfg = tmp_path / "road.yaml"
     cfg.write_text(f"""method: petri-synth
 example: {glb}
-lattice: {{unit: [0.25, 0.05, 0.25]}}
-construction: {{plane: xz, points: [[0, 0], [3, 0], [5, 2]]}}
+lattice: {{unit: [0.1, 0.05, 0.1]}}
+construction: {{plane: xz, points: [[0, 0], [1.5, 0], [2.5, 1]]}}
 output: {{mesh_format: glb, baseline: false, export_net: none}}
 """)
     report = run_config(cfg, out_dir=tmp_path / "out")
     out = load_asset(tmp_path / "out" / "result.glb")
     assert mesh_quality(out.V, out.F)["degenerate_faces"] == 0
-    assert report["metrics"]["mesh_quality"]["mesh"]["output"]["degenerate_faces"] == 0
+    q = report["metrics"]["mesh_quality"]["mesh"]
+    assert report["status"] == "ok" and q["output"]["open_edges"] <= q["limits"]["open_edges"]
 
 
 @pytest.mark.slow

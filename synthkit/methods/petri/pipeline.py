@@ -217,7 +217,8 @@ def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     taken on the same form of mesh): the deformed pieces with their seam vertices ``seams (k, 2)`` merged
     (when ``weld``), walls between cells removed (:func:`drop_inner_walls`, ``graph = (neighbours,
     back)``), T-junctions along the cuts closed (:func:`close_t_junctions`), and degenerate faces, faces
-    stored twice (:func:`repeated_faces`) and unused vertices dropped.
+    that collapse when positions are welded for the quality figures, faces stored twice
+    (:func:`repeated_faces`) and unused vertices dropped.
     Returns ``(V, F, face_label, look)`` (``look`` None without the example's look)."""
     V, F, face_label, face_cell = assembler.mesh()
     look = assembler.look()
@@ -231,7 +232,9 @@ def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     F, face_label, face_cell = F[~walls], face_label[keep], face_cell[keep]
     look = None if look is None else look.take(keep)
     F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol)
-    keep = ~degenerate_faces(V, F) & ~repeated_faces(V, F, tol)
+    W = welded_corners(V, F, tol)
+    collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
+    keep = ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
     V, F, _ = remove_unreferenced(V, F[keep])
     return V, F, face_label[keep], None if look is None else look.take(keep)
 
@@ -242,15 +245,19 @@ def grid_graph(net: ColouredPetriNet):
     return nbr, np.broadcast_to(np.arange(6) ^ 1, nbr.shape)
 
 
-def repeated_faces(V, F, tol: float) -> np.ndarray:
-    """``(#F,) bool``: faces over the same positions (welded within ``tol``) in the same orientation as an
-    earlier face: a surface stored twice (two boxes of an example that share a side, cut into the same
-    triangles by the lattice)."""
+def welded_corners(V, F, tol: float) -> np.ndarray:
+    """``(#F, 3)``: the corners of ``F`` as classes of the positions ``V`` welded within ``tol``."""
     _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-    W = cls[F]
+    return cls[F]
+
+
+def repeated_faces(W: np.ndarray) -> np.ndarray:
+    """``(#F,) bool``: faces of ``W (#F, 3)`` (corners as welded positions) over the same positions in
+    the same orientation as an earlier face: a surface stored twice (two boxes of an example that share
+    a side, cut into the same triangles by the lattice)."""
     R = np.take_along_axis(W, (np.argmin(W, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
     _, first = np.unique(R, axis=0, return_index=True)
-    out = np.ones(len(F), bool)
+    out = np.ones(len(W), bool)
     out[first] = False
     return out
 

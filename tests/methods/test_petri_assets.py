@@ -126,7 +126,8 @@ def test_drop_inner_walls_back_to_back_boxes():
     side[12:][wall_b] = 0  # -a face of cell 1
     nbr = np.full((2, 6), -1)
     nbr[0, 0], nbr[1, 1] = 1, 0
-    drop = pipeline.drop_inner_walls(V, F, cell, side, (nbr, np.broadcast_to(np.arange(6) ^ 1, (2, 6))), 1e-9)
+    graph = (nbr, np.broadcast_to(np.arange(6) ^ 1, (2, 6)))
+    drop = pipeline.drop_inner_walls(V, F, pipeline.weld_classes(V, 1e-9), cell, side, graph, 1e-9)
     assert drop.sum() == 4 and set(np.flatnonzero(drop) // 12) == {0, 1}
     q = mesh_quality(V, F[~drop])
     assert q["open_edges"] == 0 and q["nonmanifold_edges"] == 0

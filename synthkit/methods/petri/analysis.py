@@ -321,17 +321,30 @@ def curve_gap(P: np.ndarray, S: np.ndarray) -> float:
         return float("inf")
     A, D = S[:, 0], S[:, 1] - S[:, 0]
     dd = np.maximum((D * D).sum(axis=1), 1e-300)
-    t = np.clip(((P[:, None] - A[None]) * D[None]).sum(axis=2) / dd[None], 0.0, 1.0)
-    dist = np.linalg.norm(P[:, None] - (A[None] + t[..., None] * D[None]), axis=2)
-    return float(dist.min(axis=1).max())
+    worst = 0.0
+    step = max(1, (1 << 20) // len(S))
+    for i in range(0, len(P), step):
+        Q = P[i : i + step, None]
+        t = np.clip(((Q - A[None]) * D[None]).sum(axis=2) / dd[None], 0.0, 1.0)
+        worst = max(worst, float(np.linalg.norm(Q - (A[None] + t[..., None] * D[None]), axis=2).min(axis=1).max()))
+    return worst
 
 
 def same_seams(a, b, tol: float = SEAM_TOL) -> bool:
     """Whether two pieces' :func:`face_seams` show the same curves on every cell face: each one's face
     vertices lie on the other's face edges (so they differ at most by where their edges are split)."""
     return all(
-        curve_gap(pa, sb) <= tol and curve_gap(pb, sa) <= tol for (pa, sa), (pb, sb) in zip(a, b, strict=True)
+        _same_vertices(pa, pb, tol) or (curve_gap(pa, sb) <= tol and curve_gap(pb, sa) <= tol)
+        for (pa, sa), (pb, sb) in zip(a, b, strict=True)
     )
+
+
+def _same_vertices(A: np.ndarray, B: np.ndarray, tol: float) -> bool:
+    """Whether every point of ``A (n, 2)`` has one of ``B (m, 2)`` within ``tol`` and vice versa (the
+    common case of :func:`same_seams`, decided without the segments)."""
+    if len(A) == 0 or len(B) == 0:
+        return len(A) == len(B)
+    return bool(cKDTree(B).query(A)[0].max() <= tol and cKDTree(A).query(B)[0].max() <= tol)
 
 
 def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = None,

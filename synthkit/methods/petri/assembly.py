@@ -11,6 +11,7 @@ from synthkit.core.ffd import trilinear_weights
 from synthkit.core.mesh import weld
 from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
 from synthkit.methods.petri.appearance import Look, carry, concat
+from synthkit.methods.petri.joints import edge_uses
 
 
 class PieceLibrary:
@@ -55,10 +56,7 @@ def piece_open_edges(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> 
         return np.zeros((0, 2), np.int64)
     _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    W = np.sort(cls[E], axis=1)
-    alive = W[:, 0] != W[:, 1]
-    _, inv, counts = np.unique(W[alive], axis=0, return_inverse=True, return_counts=True)
-    return E[alive][counts[inv.ravel()] == 1]
+    return E[edge_uses(cls[F]) == 1]
 
 
 def face_sides(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
@@ -409,11 +407,7 @@ def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, nei
     if len(F) == 0:
         return 0
     _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    W = np.sort(cls[E], axis=1)
-    alive = W[:, 0] != W[:, 1]
-    _, inv, counts = np.unique(W[alive], axis=0, return_inverse=True, return_counts=True)
-    E = E[alive][counts[inv.ravel()] == 1]
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])[edge_uses(cls[F]) == 1]
     if len(E) == 0:
         return 0
     cell, d = np.nonzero(np.asarray(neighbours) < 0)

@@ -9,8 +9,20 @@ from synthkit.core.mesh import weld
 from synthkit.methods.petri.appearance import Look
 
 
+def edge_uses(W: np.ndarray) -> np.ndarray:
+    """``(3 m,)``: how many faces of ``W (m, 3)`` (corners as welded position classes) use each of their
+    edges, edges ordered (0, 1) of every face, then (1, 2), then (2, 0); 0 for a collapsed edge."""
+    E = np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]])
+    lo, hi = E.min(axis=1), E.max(axis=1)
+    key = lo * (int(W.max(initial=0)) + 1) + hi
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    out = counts[inv.ravel()]
+    out[lo == hi] = 0
+    return out
+
+
 def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_with: list, look: Look | None,
-                      tol: float, *, passes: int = 4):
+                      tol: float, *, passes: int = 4, cls: np.ndarray | None = None):
     """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices of other cells (``face_cell (m,)``) that
     lie inside one of their open edges (within ``tol``), so that a cut curve split more finely on one
     side of a cell face than on the other (a T-junction: closed in space, open in the mesh) is joined
@@ -20,10 +32,12 @@ def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_
     whose edge (a, b) holds points p_1 .. p_k becomes the fan (a, p_1, c), ..., (p_k, b, c); its
     per-corner ``look`` values are interpolated along the edge, and each array of ``keep_with``
     (per-face, e.g. labels) is repeated for the new faces. A split that would give an edge more than
-    two faces is not made (:func:`_crowding_splits`). At most ``passes`` rounds (a face with
-    points on two edges is split once per round). Returns ``(F, face_cell, keep_with, look)``.
+    two faces is not made (:func:`_crowding_splits`); ``cls`` may give the weld classes of ``V``. At
+    most ``passes`` rounds (a face with points on two edges is split once per round). Returns
+    ``(F, face_cell, keep_with, look)``.
     """
-    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    if cls is None:
+        _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
     for _ in range(passes):
         vertex_cell = np.full(len(V), -1, np.int64)
         vertex_cell[F.ravel()] = np.repeat(face_cell, 3)
@@ -43,10 +57,7 @@ def _crowding_splits(F, splits: dict, cls) -> list[int]:
     if not splits:
         return []
     F2, (origin,), _ = _split_faces(F, splits, [np.arange(len(F))], None)
-    W = cls[F2]
-    E = np.sort(np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]]), axis=1)
-    _, inv, counts = np.unique(E, axis=0, return_inverse=True, return_counts=True)
-    crowded = (counts[inv.ravel()] > 2).reshape(3, -1)[0]  # edge (0, 1) of each fan face: along the split
+    crowded = (edge_uses(cls[F2]) > 2).reshape(3, -1)[0]  # edge (0, 1) of each fan face: along the split
     new = np.arange(len(F2)) >= len(F2) - sum(len(p) + 1 for _, p in splits.values())
     return sorted(set(origin[crowded & new].tolist()))
 
@@ -54,11 +65,7 @@ def _crowding_splits(F, splits: dict, cls) -> list[int]:
 def _edge_splits(V, F, cls, vertex_cell, face_cell, tol: float) -> dict:
     """``{face: (k, [(t, vertex), ...])}``: for each face, its first open edge (corner k to k + 1)
     holding vertices of other cells' open edges strictly inside it."""
-    W = cls[F]
-    E = np.concatenate([W[:, [0, 1]], W[:, [1, 2]], W[:, [2, 0]]])
-    key = np.sort(E, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    open_e = np.flatnonzero((counts[inv.ravel()] == 1) & (key[:, 0] != key[:, 1]))
+    open_e = np.flatnonzero(edge_uses(cls[F]) == 1)
     if len(open_e) == 0:
         return {}
     m = len(F)

@@ -226,13 +226,14 @@ def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     if weld:
         V, F, keep = weld_seams(V, F, seams)
     tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
+    cls = weld_classes(V, tol)
     keep = np.flatnonzero(keep)
-    walls = drop_inner_walls(V, F, face_cell[keep], assembler.face_sides()[keep], graph, tol)
+    walls = drop_inner_walls(V, F, cls, face_cell[keep], assembler.face_sides()[keep], graph, tol)
     keep = keep[~walls]
     F, face_label, face_cell = F[~walls], face_label[keep], face_cell[keep]
     look = None if look is None else look.take(keep)
-    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol)
-    W = welded_corners(V, F, tol)
+    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
+    W = cls[F]
     collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
     keep = ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
     V, F, _ = remove_unreferenced(V, F[keep])
@@ -245,10 +246,9 @@ def grid_graph(net: ColouredPetriNet):
     return nbr, np.broadcast_to(np.arange(6) ^ 1, nbr.shape)
 
 
-def welded_corners(V, F, tol: float) -> np.ndarray:
-    """``(#F, 3)``: the corners of ``F`` as classes of the positions ``V`` welded within ``tol``."""
-    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-    return cls[F]
+def weld_classes(V: np.ndarray, tol: float) -> np.ndarray:
+    """``(#V,)``: the class of each position of ``V`` once positions within ``tol`` are welded."""
+    return weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
 
 
 def repeated_faces(W: np.ndarray) -> np.ndarray:
@@ -256,17 +256,18 @@ def repeated_faces(W: np.ndarray) -> np.ndarray:
     the same orientation as an earlier face: a surface stored twice (two boxes of an example that share
     a side, cut into the same triangles by the lattice)."""
     R = np.take_along_axis(W, (np.argmin(W, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
-    _, first = np.unique(R, axis=0, return_index=True)
+    _, first = np.unique(np.ascontiguousarray(R).view(np.dtype((np.void, 24))).ravel(), return_index=True)
     out = np.ones(len(W), bool)
     out[first] = False
     return out
 
 
-def drop_inner_walls(V, F, face_cell, face_side, graph, tol: float) -> np.ndarray:
+def drop_inner_walls(V, F, cls, face_cell, face_side, graph, tol: float) -> np.ndarray:
     """``(#F,) bool``: walls inside the result where two pieces stand back to back (copies of the
     example side by side: the end of one house's plate against the start of the next one's).
 
-    A wall is the faces of one cell (``face_cell (#F,)``) lying on one of its cell's faces
+    ``cls (#V,)`` are the weld classes of ``V`` (within ``tol``). A wall is the faces of one cell
+    (``face_cell (#F,)``) lying on one of its cell's faces
     (``face_side (#F,)``, :func:`assembly.face_sides`); where the neighbour across that face
     (``graph = (neighbours (N, 6), back (N, 6))``) has a wall on the face it shares, each connected part
     of the one covering the same region as a part of the other (:func:`_same_region`; they may be
@@ -285,7 +286,6 @@ def drop_inner_walls(V, F, face_cell, face_side, graph, tol: float) -> np.ndarra
         walls.setdefault((int(cell[i]), int(d[i])), []).append(int(on[i]))
     T = V[F]
     area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
-    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
     for (c, dc), idx in walls.items():
         n = int(nbr[c, dc])
         idx2 = walls.get((n, int(back[c, dc])))

@@ -83,10 +83,10 @@ def carry(look: Look, V: np.ndarray, F: np.ndarray, src: np.ndarray, V2: np.ndar
     vertex, and the material of the example's first face when no such face exists)."""
     real = src >= 0
     s = np.where(real, src, 0)
-    B = barycentrics(np.asarray(V, np.float64)[F[s]], np.asarray(V2, np.float64)[F2])
-    out = []
-    for arr in look.corners():
-        out.append(None if arr is None else np.einsum("mcb,mbk->mck", B, arr[s]))
+    out = [None, None]
+    if any(arr is not None for arr in look.corners()):
+        B = barycentrics(np.asarray(V, np.float64)[F[s]], np.asarray(V2, np.float64)[F2])
+        out = [None if arr is None else np.einsum("mcb,mbk->mck", B, arr[s]) for arr in look.corners()]
     mat = look.face_material[s].copy()
     if not real.all():
         _fill_caps(F2, real, out, mat)

@@ -11,7 +11,7 @@ from synthkit.core.ffd import trilinear_weights
 from synthkit.core.mesh import weld
 from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
 from synthkit.methods.petri.appearance import Look, carry, concat
-from synthkit.methods.petri.joints import edge_uses
+from synthkit.methods.petri.joints import edge_uses, repeated_faces
 
 
 class PieceLibrary:
@@ -375,26 +375,38 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
     return max_gap, unmatched, seams, mismatch
 
 
-def open_edge_budget(library: PieceLibrary, labels, neighbours, *, tol: float = SEAM_TOL) -> int:
-    """The open edges a result may have when its pieces join exactly: over every cell, the open edges of
-    its piece (``labels (N,)``, the library's pieces welded within ``tol`` local units) that lie on no
-    cell face (the example's own: a wall standing on a plate, a hole in a roof) plus those on the cell
-    faces without a neighbour (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1
-    for -axis): the border of the construction space, open where the pieces were cut inside the
-    example."""
-    per_label = np.zeros((len(library.faces), 7), np.int64)
-    for lab, L in enumerate(library.local):
+def quality_limits(library: PieceLibrary, labels, neighbours, *, tol: float = SEAM_TOL) -> dict:
+    """Limits of a result's mesh-quality figures when its pieces join exactly, summed over its cells
+    (``labels (N,)``; the library's pieces welded within ``tol`` local units):
+
+    - ``open_edges``: each piece's open edges that lie on no cell face (the example's own: a wall
+      standing on a plate, a hole in a roof) plus those lying only on cell faces without a neighbour
+      (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1 for -axis): the border of
+      the construction space, open where the pieces were cut inside the example (an edge on the rim
+      between such a face and one with a neighbour is closed by that neighbour when pieces join);
+    - ``nonmanifold_edges``, ``duplicate_faces``: each piece's own (an example's overlapping boxes).
+    """
+    open_by_faces = np.zeros((len(library.faces), 64), np.int64)  # open edges by the set of cell faces they lie on
+    own = np.zeros((len(library.faces), 2), np.int64)
+    for lab, (L, Fp) in enumerate(zip(library.local, library.faces, strict=True)):
+        if len(Fp) == 0:
+            continue
         P = L[library.open_edges(lab)]
-        face = np.full(len(P), 6)
-        for f in range(5, -1, -1):
-            on = np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1)
-            face[on] = f
-        per_label[lab] = np.bincount(face, minlength=7)
+        mask = np.zeros(len(P), np.int64)
+        for f in range(6):
+            mask |= np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1).astype(np.int64) << f
+        open_by_faces[lab] = np.bincount(mask, minlength=64)
+        W = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)[2][Fp]
+        own[lab] = (edge_uses(W) > 2).sum(), repeated_faces(W).sum()
     lab = np.asarray(labels, np.int64).ravel()
-    nbr = np.asarray(neighbours)
     local_face = 2 * (np.arange(6) >> 1) + 1 - (np.arange(6) & 1)
-    border = (nbr < 0) * per_label[lab][:, local_face]
-    return int(per_label[lab, 6].sum() + border.sum())
+    has = ((np.asarray(neighbours) >= 0).astype(np.int64) << local_face[None]).sum(axis=1)
+    counted = (np.arange(64)[None] & has[:, None]) == 0  # on no cell face, or only on ones without a neighbour
+    return {
+        "open_edges": int((open_by_faces[lab] * counted).sum()),
+        "nonmanifold_edges": int(own[lab, 0].sum()),
+        "duplicate_faces": int(own[lab, 1].sum()),
+    }
 
 
 def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, neighbours, tol: float) -> int:

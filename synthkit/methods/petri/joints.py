@@ -21,6 +21,17 @@ def edge_uses(W: np.ndarray) -> np.ndarray:
     return out
 
 
+def repeated_faces(W: np.ndarray) -> np.ndarray:
+    """``(#F,) bool``: faces of ``W (#F, 3)`` (corners as welded positions) over the same positions in
+    the same orientation as an earlier face: a surface stored twice (two boxes of an example that share
+    a side, cut into the same triangles by the lattice)."""
+    R = np.take_along_axis(W, (np.argmin(W, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+    _, first = np.unique(np.ascontiguousarray(R).view(np.dtype((np.void, 24))).ravel(), return_index=True)
+    out = np.ones(len(W), bool)
+    out[first] = False
+    return out
+
+
 def close_t_junctions(V: np.ndarray, F: np.ndarray, face_cell: np.ndarray, keep_with: list, look: Look | None,
                       tol: float, *, passes: int = 4, cls: np.ndarray | None = None):
     """Split faces of ``V (n, 3)``, ``F (m, 3)`` at the vertices of other cells (``face_cell (m,)``) that

@@ -24,13 +24,13 @@ from synthkit.methods.petri.assembly import (
     crack_measure,
     crack_measure_graph,
     label_colors,
-    open_edge_budget,
     open_edges_off_border,
     preview_library,
+    quality_limits,
     reorder_library,
 )
 from synthkit.methods.petri.config import PetriConfig
-from synthkit.methods.petri.joints import close_t_junctions
+from synthkit.methods.petri.joints import close_t_junctions, repeated_faces
 from synthkit.methods.petri.net import (
     ColouredPetriNet,
     adjacency_violations,
@@ -251,17 +251,6 @@ def weld_classes(V: np.ndarray, tol: float) -> np.ndarray:
     return weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
 
 
-def repeated_faces(W: np.ndarray) -> np.ndarray:
-    """``(#F,) bool``: faces of ``W (#F, 3)`` (corners as welded positions) over the same positions in
-    the same orientation as an earlier face: a surface stored twice (two boxes of an example that share
-    a side, cut into the same triangles by the lattice)."""
-    R = np.take_along_axis(W, (np.argmin(W, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
-    _, first = np.unique(np.ascontiguousarray(R).view(np.dtype((np.void, 24))).ravel(), return_index=True)
-    out = np.ones(len(W), bool)
-    out[first] = False
-    return out
-
-
 def drop_inner_walls(V, F, cls, face_cell, face_side, graph, tol: float) -> np.ndarray:
     """``(#F,) bool``: walls inside the result where two pieces stand back to back (copies of the
     example side by side: the end of one house's plate against the start of the next one's).
@@ -353,25 +342,12 @@ def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Lo
         ctx.outputs[f"mesh_file_{k}"] = name
 
 
-def check_result_quality(ctx, asset: Asset, V, F, pieces, library: PieceLibrary, labels, neighbours) -> None:
-    """``ctx.check_quality`` of the written result against the example, with petri-synth's limits:
-    open edges at most :func:`open_edge_budget` (the pieces' own open edges plus the construction
-    space's border where pieces were cut); non-manifold edges and duplicate faces at most those of the
-    example cut into its ``pieces`` (cutting makes the triangles of two boxes that share a side equal)
-    times the copies (cells per example piece, rounded up); no degenerate face."""
+def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours) -> None:
+    """``ctx.check_quality`` of the written result against the example, with petri-synth's limits
+    (:func:`assembly.quality_limits`: what the placed pieces bring themselves, plus the open cuts on
+    the construction space's border; no degenerate face)."""
     before = mesh_quality(asset.V, asset.F)
-    lat = pieces.lattice
-    Vs = [L * lat.unit + lat.cell_lo(ijk) for L, ijk in zip(pieces.local, pieces.index, strict=True)]
-    offsets = np.cumsum([0] + [len(L) for L in Vs])
-    Fs = [Fp + o for Fp, o in zip(pieces.faces, offsets[:-1], strict=True)]
-    cut = mesh_quality(np.concatenate(Vs), np.concatenate(Fs))
-    copies = len(np.asarray(labels).ravel()) / len(pieces.local)
-    limits = {
-        "open_edges": open_edge_budget(library, labels, neighbours),
-        "nonmanifold_edges": int(np.ceil(cut["nonmanifold_edges"] * copies)),
-        "duplicate_faces": int(np.ceil(cut["duplicate_faces"] * copies)),
-        "degenerate_faces": 0,
-    }
+    limits = {**quality_limits(library, labels, neighbours), "degenerate_faces": 0}
     ctx.check_quality("mesh", before, mesh_quality(V, F), limits)
 
 
@@ -574,7 +550,7 @@ def run(cfg: PetriConfig, ctx) -> None:
         RV, RF, face_label, look = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
-        check_result_quality(ctx, asset, RV, RF, pieces, library, labels_out.ravel(), net.neighbours)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours)
         _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
@@ -727,7 +703,7 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
         RV, RF, face_label, look = joined_mesh(assembler, jm["seams"], space.graph()[:2], weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
-        check_result_quality(ctx, asset, RV, RF, pieces, library, labels_out, net.neighbours)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours)
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):

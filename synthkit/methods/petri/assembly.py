@@ -409,16 +409,19 @@ def quality_limits(library: PieceLibrary, labels, neighbours, *, tol: float = SE
     }
 
 
-def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, neighbours, tol: float) -> int:
+def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, neighbours, tol: float, *,
+                          cls: np.ndarray | None = None) -> int:
     """Open edges of ``V (n, 3)``, ``F (m, 3)`` (positions welded within ``tol``) whose midpoint lies
     farther than ``tol`` from every cell side without a neighbour (``corners (N, 8, 3)`` with corner
     ``i + 2 j + 4 k``, ``neighbours (N, 6)``, directions 2 axis + 0 for +axis, + 1 for -axis): holes
-    inside the construction space, or the example's own open edges."""
+    inside the construction space, or the example's own open edges. ``cls (n,)`` may give the weld
+    classes of ``V``."""
     import trimesh
 
     if len(F) == 0:
         return 0
-    _, _, cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
+    if cls is None:
+        cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])[edge_uses(cls[F]) == 1]
     if len(E) == 0:
         return 0

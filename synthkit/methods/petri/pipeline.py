@@ -219,7 +219,8 @@ def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     back)``), T-junctions along the cuts closed (:func:`close_t_junctions`), and degenerate faces, faces
     that collapse when positions are welded for the quality figures, faces stored twice
     (:func:`repeated_faces`) and unused vertices dropped.
-    Returns ``(V, F, face_label, look)`` (``look`` None without the example's look)."""
+    Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
+    the positions' weld classes)."""
     V, F, face_label, face_cell = assembler.mesh()
     look = assembler.look()
     keep = np.ones(len(F), bool)
@@ -236,8 +237,8 @@ def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
     W = cls[F]
     collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
     keep = ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
-    V, F, _ = remove_unreferenced(V, F[keep])
-    return V, F, face_label[keep], None if look is None else look.take(keep)
+    V, F, used = remove_unreferenced(V, F[keep])
+    return V, F, face_label[keep], None if look is None else look.take(keep), cls[used]
 
 
 def grid_graph(net: ColouredPetriNet):
@@ -396,7 +397,7 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     )
     _, _, seams, _ = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
                                    offsets=bassembler.offsets(bnet.n_cells))
-    BV, BF, _, _ = joined_mesh(bassembler, seams, grid_graph(bnet), weld=cfg.output.weld)
+    BV, BF, *_ = joined_mesh(bassembler, seams, grid_graph(bnet), weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
         "method": f"model synthesis on the orthogonal lattice ({what})",
@@ -450,11 +451,11 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
 
 
 def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
-                    violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
+                    violations, gap, unmatched, deviation, cls) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
     net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` (lattice units) and ``unmatched``
-    boundary vertices."""
+    boundary vertices; ``cls`` the weld classes of ``RV``."""
     plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
     h_res = analysis.normal_histogram(RV, RF, plane_axes)
@@ -474,7 +475,7 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
         "normal_histogram_example": h_ex,
         "normal_histogram_result": h_res,
         "open_edges_off_border": open_edges_off_border(
-            RV, RF, net.corners, net.neighbours, WELD_REL_TOL * float(np.linalg.norm(np.ptp(RV, axis=0)))
+            RV, RF, net.corners, net.neighbours, WELD_REL_TOL * float(np.linalg.norm(np.ptp(RV, axis=0))), cls=cls
         ),
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
@@ -547,7 +548,7 @@ def run(cfg: PetriConfig, ctx) -> None:
         gap, unmatched, seams, mismatch = crack_measure(
             library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
         )
-        RV, RF, face_label, look = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours)
@@ -562,7 +563,7 @@ def run(cfg: PetriConfig, ctx) -> None:
                                        assembler=assembler,
                                        restarts=restarts, violations=violations,
                                        gap=max(gap / float(spec.unit.min()), mismatch), unmatched=unmatched,
-                                       deviation=deviation)
+                                       deviation=deviation, cls=cls)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
 
     bnet = None
@@ -700,7 +701,8 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
 
     with ctx.stage("assembly"):
         jm = network_metrics(space, net, library, assembler)
-        RV, RF, face_label, look = joined_mesh(assembler, jm["seams"], space.graph()[:2], weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, jm["seams"], space.graph()[:2],
+                                                    weld=cfg.output.weld)
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours)
@@ -714,7 +716,7 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
                                        assembler=assembler,
                                        restarts=restarts, violations=violations,
                                        gap=max(jm["gap"] / float(spec.unit.min()), jm["mismatch"]),
-                                       unmatched=jm["unmatched"], deviation=deviation)
+                                       unmatched=jm["unmatched"], deviation=deviation, cls=cls)
         metrics = {
             "cells": int(net.n_cells),
             "construction_shape": {

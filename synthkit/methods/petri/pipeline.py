@@ -212,27 +212,34 @@ def infer_and_deform(net: ColouredPetriNet, library: PieceLibrary, corners, grid
     return net, assembler, restarts
 
 
-def joined_mesh(assembler: Assembler, seams: np.ndarray, graph, *, weld: bool):
-    """The result as written (the curved result and the baseline alike, so their normal histograms are
-    taken on the same form of mesh): the deformed pieces with their seam vertices ``seams (k, 2)`` merged
-    (when ``weld``), walls between cells removed (:func:`drop_inner_walls`, ``graph = (neighbours,
-    back)``), T-junctions along the cuts closed (:func:`close_t_junctions`), and degenerate faces, faces
-    that collapse when positions are welded for the quality figures, faces stored twice
-    (:func:`repeated_faces`) and unused vertices dropped.
-    Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
-    the positions' weld classes)."""
+def welded_mesh(assembler: Assembler, seams: np.ndarray, *, weld: bool):
+    """The deformed pieces with their seam vertices ``seams (k, 2)`` merged when ``weld`` (faces that
+    collapse dropped): the form of mesh the normal histograms of the curved result and of the
+    baseline are both taken on. Returns ``(V, F, face_label, face_cell, kept)``, ``kept`` the indices
+    of :meth:`Assembler.mesh`'s faces kept."""
     V, F, face_label, face_cell = assembler.mesh()
-    look = assembler.look()
-    keep = np.ones(len(F), bool)
+    kept = np.arange(len(F))
     if weld:
         V, F, keep = weld_seams(V, F, seams)
+        kept = kept[keep]
+    return V, F, face_label[kept], face_cell[kept], kept
+
+
+def joined_mesh(assembler: Assembler, welded, graph):
+    """The result as written, from its :func:`welded_mesh` ``welded``: walls between cells removed
+    (:func:`drop_inner_walls`, ``graph = (neighbours, back)``), T-junctions along the cuts closed
+    (:func:`close_t_junctions`), and degenerate faces, faces that collapse when positions are welded
+    for the quality figures, faces stored twice (:func:`repeated_faces`) and unused vertices dropped.
+    Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
+    the positions' weld classes)."""
+    V, F, face_label, face_cell, kept = welded
+    look = assembler.look()
     tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
     cls = weld_classes(V, tol)
-    keep = np.flatnonzero(keep)
-    walls = drop_inner_walls(V, F, cls, face_cell[keep], assembler.face_sides()[keep], graph, tol)
-    keep = keep[~walls]
-    F, face_label, face_cell = F[~walls], face_label[keep], face_cell[keep]
-    look = None if look is None else look.take(keep)
+    walls = drop_inner_walls(V, F, cls, face_cell, assembler.face_sides()[kept], graph, tol)
+    kept = kept[~walls]
+    F, face_label, face_cell = F[~walls], face_label[~walls], face_cell[~walls]
+    look = None if look is None else look.take(kept)
     F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
     W = cls[F]
     collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
@@ -397,7 +404,7 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     )
     _, _, seams, _ = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
                                    offsets=bassembler.offsets(bnet.n_cells))
-    BV, BF, *_ = joined_mesh(bassembler, seams, grid_graph(bnet), weld=cfg.output.weld)
+    BV, BF, *_ = welded_mesh(bassembler, seams, weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
         "method": f"model synthesis on the orthogonal lattice ({what})",
@@ -451,14 +458,15 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
 
 
 def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
-                    violations, gap, unmatched, deviation, cls) -> tuple[np.ndarray, dict]:
+                    violations, gap, unmatched, deviation, cls, welded) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
     net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` (lattice units) and ``unmatched``
-    boundary vertices; ``cls`` the weld classes of ``RV``."""
+    boundary vertices; ``cls`` the weld classes of ``RV``; ``welded`` the :func:`welded_mesh` the
+    normal histogram is taken on (as the baseline's)."""
     plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
-    h_res = analysis.normal_histogram(RV, RF, plane_axes)
+    h_res = analysis.normal_histogram(welded[0], welded[1], plane_axes)
     return h_ex, {
         "labels": int(cons.n_labels),
         "example_pieces": int(grid.size),
@@ -548,7 +556,8 @@ def run(cfg: PetriConfig, ctx) -> None:
         gap, unmatched, seams, mismatch = crack_measure(
             library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
         )
-        RV, RF, face_label, look, cls = joined_mesh(assembler, seams, grid_graph(net), weld=cfg.output.weld)
+        welded = welded_mesh(assembler, seams, weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, welded, grid_graph(net))
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours)
@@ -563,7 +572,7 @@ def run(cfg: PetriConfig, ctx) -> None:
                                        assembler=assembler,
                                        restarts=restarts, violations=violations,
                                        gap=max(gap / float(spec.unit.min()), mismatch), unmatched=unmatched,
-                                       deviation=deviation, cls=cls)
+                                       deviation=deviation, cls=cls, welded=welded)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
 
     bnet = None
@@ -701,8 +710,8 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
 
     with ctx.stage("assembly"):
         jm = network_metrics(space, net, library, assembler)
-        RV, RF, face_label, look, cls = joined_mesh(assembler, jm["seams"], space.graph()[:2],
-                                                    weld=cfg.output.weld)
+        welded = welded_mesh(assembler, jm["seams"], weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, welded, space.graph()[:2])
         require_faces(RF, cfg)
         write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours)
@@ -716,7 +725,7 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
                                        assembler=assembler,
                                        restarts=restarts, violations=violations,
                                        gap=max(jm["gap"] / float(spec.unit.min()), jm["mismatch"]),
-                                       unmatched=jm["unmatched"], deviation=deviation, cls=cls)
+                                       unmatched=jm["unmatched"], deviation=deviation, cls=cls, welded=welded)
         metrics = {
             "cells": int(net.n_cells),
             "construction_shape": {

@@ -152,20 +152,27 @@ def test_labels_keep_apart_pieces_that_meet_their_neighbours_differently():
 
 
 # ------------------------------------------------------------------------------------- real assets
+def kenney_config(tmp_path: Path, name: str, unit, points, fmt: str) -> Path:
+    """A config growing Kenney's ``name`` along ``points`` (plane xz) with lattice ``unit``; skips the
+    test when the real data is absent."""
+    path = KENNEY / name
+    if not path.is_file():
+        pytest.skip(f"real data absent: {path}")
+    cfg = tmp_path / "kenney.yaml"
+    cfg.write_text(f"""method: petri-synth
+example: {path}
+lattice: {{unit: {list(unit)}}}
+construction: {{plane: xz, points: {points}}}
+output: {{mesh_format: {fmt}, baseline: false, export_net: none}}
+""")
+    return cfg
+
+
 @pytest.mark.slow
 def test_kenney_features_only_labels_are_seen_as_holes(tmp_path, monkeypatch):
     """The labels of issue 15 (features alone, unit 0.25: mirrored window halves and side walls share
     labels) open the seams: the crack sees it and the run says so."""
-    glb = KENNEY / "building-small-a.glb"
-    if not glb.is_file():
-        pytest.skip(f"real data absent: {glb}")
-    cfg = tmp_path / "k25.yaml"
-    cfg.write_text(f"""method: petri-synth
-example: {glb}
-lattice: {{unit: [0.25, 0.475, 0.25]}}
-construction: {{plane: xz, points: [[0, 0], [3, 0], [5, 2]]}}
-output: {{baseline: false, export_net: none}}
-""")
+    cfg = kenney_config(tmp_path, "building-small-a.glb", [0.25, 0.475, 0.25], [[0, 0], [3, 0], [5, 2]], "ply")
     ok = run_config(cfg, out_dir=tmp_path / "ok")
     q = ok["metrics"]["mesh_quality"]["mesh"]
     assert ok["metrics"]["crack_max"] < 1e-6 and q["output"]["open_edges"] < 1.1 * q["limits"]["open_edges"]
@@ -181,16 +188,7 @@ def test_road_tile_cut_along_a_curve_has_no_sliver(tmp_path):
     """road-straight.glb stores its border at +-0.50000012 (float32): lattice planes from its box fall
     1e-7 beside its vertices (before: 170 of 4,130 faces degenerate at unit 0.1, 3,884 open edges).
     Snapped, no written face is degenerate and the open edges come within 5% of petri's limit."""
-    glb = KENNEY / "road-straight.glb"
-    if not glb.is_file():
-        pytest.skip(f"real data absent: {glb}")
-    cfg = tmp_path / "road.yaml"
-    cfg.write_text(f"""method: petri-synth
-example: {glb}
-lattice: {{unit: [0.1, 0.05, 0.1]}}
-construction: {{plane: xz, points: [[0, 0], [1.5, 0], [2.5, 1]]}}
-output: {{mesh_format: glb, baseline: false, export_net: none}}
-""")
+    cfg = kenney_config(tmp_path, "road-straight.glb", [0.1, 0.05, 0.1], [[0, 0], [1.5, 0], [2.5, 1]], "glb")
     report = run_config(cfg, out_dir=tmp_path / "out")
     out = load_asset(tmp_path / "out" / "result.glb")
     assert mesh_quality(out.V, out.F)["degenerate_faces"] == 0

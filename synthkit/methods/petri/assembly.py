@@ -51,10 +51,12 @@ class PieceLibrary:
 
 def piece_open_edges(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
     """``(k, 2)`` vertex pairs: the edges of ``F (m, 3)`` used by one face only once the positions
-    ``L (n, 3)`` are welded within ``tol`` (UV seams are not open); each given by one of its copies."""
+    ``L (n, 3)`` are welded within ``tol`` (UV seams are not open) and faces stored twice counted once
+    (as the result is written); each given by one of its copies."""
     if len(F) == 0:
         return np.zeros((0, 2), np.int64)
     _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
+    F = F[~repeated_faces(cls[F])]
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     return E[edge_uses(cls[F]) == 1]
 
@@ -384,7 +386,8 @@ def quality_limits(library: PieceLibrary, labels, neighbours, *, tol: float = SE
       (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1 for -axis): the border of
       the construction space, open where the pieces were cut inside the example (an edge on the rim
       between such a face and one with a neighbour is closed by that neighbour when pieces join);
-    - ``nonmanifold_edges``, ``duplicate_faces``: each piece's own (an example's overlapping boxes).
+    - ``nonmanifold_edges``: each piece's own (an example's overlapping boxes), its faces stored twice
+      counted once; ``duplicate_faces``: 0 (they are never written).
     """
     open_by_faces = np.zeros((len(library.faces), 64), np.int64)  # open edges by the set of cell faces they lie on
     own = np.zeros((len(library.faces), 2), np.int64)
@@ -397,7 +400,8 @@ def quality_limits(library: PieceLibrary, labels, neighbours, *, tol: float = SE
             mask |= np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1).astype(np.int64) << f
         open_by_faces[lab] = np.bincount(mask, minlength=64)
         W = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)[2][Fp]
-        own[lab] = (edge_uses(W) > 2).sum(), repeated_faces(W).sum()
+        twice = repeated_faces(W)
+        own[lab] = (edge_uses(W[~twice]) > 2).sum(), 0
     lab = np.asarray(labels, np.int64).ravel()
     local_face = 2 * (np.arange(6) >> 1) + 1 - (np.arange(6) & 1)
     has = ((np.asarray(neighbours) >= 0).astype(np.int64) << local_face[None]).sum(axis=1)

@@ -168,7 +168,6 @@ output: {{mesh_format: {fmt}, baseline: false, export_net: none}}
     return cfg
 
 
-@pytest.mark.slow
 def test_kenney_features_only_labels_are_seen_as_holes(tmp_path, monkeypatch):
     """The labels of issue 15 (features alone, unit 0.25: mirrored window halves and side walls share
     labels) open the seams: the crack sees it and the run says so."""
@@ -196,7 +195,6 @@ def test_road_tile_cut_along_a_curve_has_no_sliver(tmp_path):
     assert q["output"]["open_edges"] <= 1.05 * q["limits"]["open_edges"]  # 215 against 211: 4 curb-end rim edges
 
 
-@pytest.mark.slow
 def test_bundled_street_network_is_open_only_on_its_border(tmp_path):
     report = run_config(CONFIGS / "street_network.yaml", out_dir=tmp_path / "out")
     m = report["metrics"]

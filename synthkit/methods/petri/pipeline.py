@@ -226,10 +226,10 @@ def welded_mesh(assembler: Assembler, seams: np.ndarray, *, weld: bool):
 
 
 def joined_mesh(assembler: Assembler, welded, graph):
-    """The result as written, from its :func:`welded_mesh` ``welded``: walls between cells removed
-    (:func:`drop_inner_walls`, ``graph = (neighbours, back)``), T-junctions along the cuts closed
-    (:func:`close_t_junctions`), and degenerate faces, faces that collapse when positions are welded
-    for the quality figures, faces stored twice (:func:`repeated_faces`) and unused vertices dropped.
+    """The result as written, from its :func:`welded_mesh` ``welded``: walls between cells
+    (:func:`drop_inner_walls`, ``graph = (neighbours, back)``), degenerate faces, faces that collapse
+    when positions are welded for the quality figures and faces stored twice (:func:`repeated_faces`)
+    dropped, then T-junctions closed (:func:`close_t_junctions`) and unused vertices dropped.
     Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
     the positions' weld classes)."""
     V, F, face_label, face_cell, kept = welded
@@ -237,15 +237,16 @@ def joined_mesh(assembler: Assembler, welded, graph):
     tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
     cls = weld_classes(V, tol)
     walls = drop_inner_walls(V, F, cls, face_cell, assembler.face_sides()[kept], graph, tol)
-    kept = kept[~walls]
-    F, face_label, face_cell = F[~walls], face_label[~walls], face_cell[~walls]
-    look = None if look is None else look.take(kept)
-    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
     W = cls[F]
     collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
-    keep = ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
-    V, F, used = remove_unreferenced(V, F[keep])
-    return V, F, face_label[keep], None if look is None else look.take(keep), cls[used]
+    keep = ~walls & ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
+    F, face_label, face_cell, kept = F[keep], face_label[keep], face_cell[keep], kept[keep]
+    look = None if look is None else look.take(kept)
+    # after the drops: a zero-area face that filled a T-junction leaves it to be closed here; the fans
+    # keep their face's height and split edges at vertices more than ``tol`` apart, so none is degenerate
+    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
+    V, F, used = remove_unreferenced(V, F)
+    return V, F, face_label, look, cls[used]
 
 
 def grid_graph(net: ColouredPetriNet):

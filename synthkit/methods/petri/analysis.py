@@ -15,12 +15,19 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
+from synthkit.core.quality import degenerate_faces
 from synthkit.errors import ConfigError
+from synthkit.methods.petri.appearance import Look, carry
+from synthkit.methods.petri.joints import close_t_junctions
 
 VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
 """View name -> (rectangle x axis, rectangle y axis, depth axis) as world axis indices."""
 
 MAX_PIECES = 200_000
+
+SEAM_TOL = 1e-5
+"""Local units within which a vertex lies on a cell face and two pieces' face vertices coincide (the
+float32 rounding of exported assets, about 1e-7 of their coordinates, stays well inside)."""
 
 
 @dataclass
@@ -41,7 +48,8 @@ class Pieces:
     """The example cut by the lattice.
 
     ``local[p] (n_p, 3)`` vertex positions in cell-local coordinates, ``faces[p] (m_p, 3)``,
-    ``src_face[p] (m_p,)`` the example face each came from; pieces are in C order of ``index (P, 3)``.
+    ``src_face[p] (m_p,)`` the example face each came from, ``look[p]`` their appearance (when the
+    example's look was given); pieces are in C order of ``index (P, 3)``.
     """
 
     lattice: LatticeSpec
@@ -49,6 +57,7 @@ class Pieces:
     local: list[np.ndarray] = field(default_factory=list)
     faces: list[np.ndarray] = field(default_factory=list)
     src_face: list[np.ndarray] = field(default_factory=list)
+    look: list[Look] = field(default_factory=list)
 
 
 @dataclass
@@ -140,20 +149,46 @@ def resolve_lattice(
     return LatticeSpec(unit=u, origin=o + n0 * u, counts=counts)
 
 
-def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
+def snap_to_lattice(V, F, lattice: LatticeSpec, *, tol: float = SEAM_TOL):
+    """``V (#V, 3)`` with every coordinate within ``tol`` units of a lattice plane moved onto it, and
+    the faces of ``F (#F, 3)`` that are then degenerate (:func:`synthkit.core.quality.degenerate_faces`).
+
+    Exported assets store positions in float32, so a wall meant to stand on a lattice plane often
+    ends 1e-7 beside it; cut there, it would leave slivers that thin along every cut (a road tile:
+    553 of 6,400 written faces with an edge under 1e-9). Returns ``(V, kept (#F,) bool)``."""
+    V = np.array(V, np.float64)
+    x = (V - lattice.origin) / lattice.unit
+    r = np.round(x)
+    near = np.abs(x - r) <= tol
+    V[near] = (lattice.origin + r * lattice.unit)[near]
+    return V, ~degenerate_faces(V, F)
+
+
+def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open", look: Look | None = None) -> Pieces:
     """Cut the example ``V (#V, 3)``, ``F (#F, 3)`` along every interior lattice plane into pieces.
 
-    Faces are split exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
+    Coordinates within :data:`SEAM_TOL` units of a lattice plane are first moved onto it and faces
+    left degenerate dropped (:func:`snap_to_lattice`), so no cut leaves a sliver; faces with a vertex
+    inside an open edge are split there (:func:`joints.close_t_junctions`; the example's T-junctions,
+    often filled with zero-area faces that are dropped). Faces are split
+    exactly (:func:`synthkit.core.mesh.split_by_planes`), so neighbouring pieces
     share their cut vertices bitwise; each face goes to the cell holding its centroid (clamped to the
     lattice for faces just outside within the fit tolerance). A face lying on a lattice plane goes to
     the cell behind it (its centroid is moved 1e-7 units against its normal first), so the roof of a
     box ending on a plane stays with the box. ``caps="open"`` leaves cut faces open.
     ``"capped"`` instead clips the example to each cell by the cell's interior lattice planes with
     :func:`synthkit.core.mesh.clip_by_planes` (``cap=True``), which closes every cut with planar caps
-    (cap faces get ``src_face = -1``; meaningful for closed examples).
+    (cap faces get ``src_face = -1``; meaningful for closed examples). With ``look`` (the example
+    faces' appearance) each piece gets its faces' look (:func:`appearance.carry`: values at cut
+    points interpolated in the example face).
     """
+    V, kept = snap_to_lattice(V, F, lattice)
+    F = np.asarray(F, np.int64)[kept]
+    look = None if look is None else look.take(kept)
+    # a zero-area face filling a T-junction leaves it open when dropped: split the face across instead
+    F, _, _, look = close_t_junctions(V, F, np.arange(len(F)), [], look, SEAM_TOL * float(lattice.unit.min()))
     if caps == "capped":
-        return _capped_pieces(V, F, lattice)
+        return _capped_pieces(V, F, lattice, look)
     normals, offsets = [], []
     for axis in range(3):
         for m in range(1, int(lattice.counts[axis])):
@@ -180,16 +215,19 @@ def cut_pieces(V, F, lattice: LatticeSpec, *, caps: str = "open") -> Pieces:
     bounds = np.searchsorted(flat[order], np.arange(n_cells + 1))
     index = np.stack(np.unravel_index(np.arange(n_cells), tuple(lattice.counts)), axis=1)
     pieces = Pieces(lattice=lattice, index=index)
+    looks = None if look is None else carry(look, V, F, src, V2, F2)
     for p in range(n_cells):
         sel = order[bounds[p] : bounds[p + 1]]
         used, Fp = np.unique(F2[sel], return_inverse=True)
         pieces.local.append((V2[used] - lattice.cell_lo(index[p])) / lattice.unit)
         pieces.faces.append(Fp.reshape(-1, 3).astype(np.int64))
         pieces.src_face.append(src[sel])
+        if looks is not None:
+            pieces.look.append(looks.take(sel))
     return pieces
 
 
-def _capped_pieces(V, F, lattice: LatticeSpec) -> Pieces:
+def _capped_pieces(V, F, lattice: LatticeSpec, look: Look | None) -> Pieces:
     """Pieces by clipping with caps: slabs along X, each cut into Y slabs, each into Z cells, so every
     face is clipped only against the planes around it. Only interior lattice planes cut."""
     counts = lattice.counts
@@ -228,6 +266,8 @@ def _capped_pieces(V, F, lattice: LatticeSpec) -> Pieces:
         pieces.local.append((Vp - lattice.cell_lo(index[p])) / lattice.unit)
         pieces.faces.append(Fp)
         pieces.src_face.append(Sp)
+        if look is not None:
+            pieces.look.append(carry(look, V, F, Sp, Vp, Fp))
     return pieces
 
 
@@ -257,7 +297,58 @@ def feature_vectors(pieces: Pieces, *, corner_tol: float = 1e-6) -> np.ndarray:
     return out
 
 
-def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = None) -> tuple[np.ndarray, np.ndarray]:
+def face_seams(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> list[tuple[np.ndarray, np.ndarray]]:
+    """What a piece ``L (n, 3)`` (cell-local), ``F (m, 3)`` shows on each of its cell's six faces (order
+    -X, +X, -Y, +Y, -Z, +Z): ``(points (k, 2), segments (e, 2, 2))``, its vertices on the face and its
+    edges lying in the face, in the face's other two local coordinates."""
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]) if len(F) else np.zeros((0, 2), np.int64)
+    out = []
+    for t in range(3):
+        others = [x for x in range(3) if x != t]
+        for side in (0.0, 1.0):
+            on = np.abs(L[:, t] - side) <= tol
+            Es = E[on[E[:, 0]] & on[E[:, 1]]]
+            out.append((L[on][:, others], L[Es][:, :, others]))
+    return out
+
+
+def curve_gap(P: np.ndarray, S: np.ndarray) -> float:
+    """The largest distance from a point of ``P (n, 2)`` to its nearest segment of ``S (e, 2, 2)``: 0 for
+    no points, infinite for points and no segments."""
+    if len(P) == 0:
+        return 0.0
+    if len(S) == 0:
+        return float("inf")
+    A, D = S[:, 0], S[:, 1] - S[:, 0]
+    dd = np.maximum((D * D).sum(axis=1), 1e-300)
+    worst = 0.0
+    step = max(1, (1 << 20) // len(S))
+    for i in range(0, len(P), step):
+        Q = P[i : i + step, None]
+        t = np.clip(((Q - A[None]) * D[None]).sum(axis=2) / dd[None], 0.0, 1.0)
+        worst = max(worst, float(np.linalg.norm(Q - (A[None] + t[..., None] * D[None]), axis=2).min(axis=1).max()))
+    return worst
+
+
+def same_seams(a, b, tol: float = SEAM_TOL) -> bool:
+    """Whether two pieces' :func:`face_seams` show the same curves on every cell face: each one's face
+    vertices lie on the other's face edges (so they differ at most by where their edges are split)."""
+    return all(
+        _same_vertices(pa, pb, tol) or (curve_gap(pa, sb) <= tol and curve_gap(pb, sa) <= tol)
+        for (pa, sa), (pb, sb) in zip(a, b, strict=True)
+    )
+
+
+def _same_vertices(A: np.ndarray, B: np.ndarray, tol: float) -> bool:
+    """Whether every point of ``A (n, 2)`` has one of ``B (m, 2)`` within ``tol`` and vice versa (the
+    common case of :func:`same_seams`, decided without the segments)."""
+    if len(A) == 0 or len(B) == 0:
+        return len(A) == len(B)
+    return bool(cKDTree(B).query(A)[0].max() <= tol and cKDTree(A).query(B)[0].max() <= tol)
+
+
+def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = None,
+             seams: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Labels from feature vectors: greedy, in piece order.
 
     A piece joins the first label whose representative (its first piece) has equal corner flags,
@@ -265,7 +356,11 @@ def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = 
     local units; otherwise it starts a new label. With ``pieces`` given (the "geometry" match, an
     addition to the paper: eq. 1 cannot tell a piece from its mirror image), the two pieces' vertices
     and face centroids must also lie within ``tolerance`` local units of each other both ways.
-    Returns ``(labels (P,), representative (L,))``.
+    With ``seams`` (each piece's :func:`face_seams`; an addition to the paper, issue 22) the two
+    pieces must also show the same curves on each of the six cell faces (:func:`same_seams`): the
+    result places a label's representative wherever any of its pieces stood, so pieces that meet
+    their neighbours differently (a mirrored window half, a side wall taken for a front) would open
+    holes along the cuts. Returns ``(labels (P,), representative (L,))``.
     """
     labels = np.full(len(features), -1, np.int64)
     reps: list[int] = []
@@ -295,6 +390,8 @@ def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = 
             hit = np.flatnonzero(area_ok & box_ok & flag_ok)
             if pieces is not None:
                 hit = [h for h in hit if same_shape(p, reps[h])]
+            if seams is not None:
+                hit = [h for h in hit if same_seams(seams[p], seams[reps[h]])]
             if len(hit):
                 labels[p] = hit[0]
                 continue

@@ -8,6 +8,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.core.ffd import trilinear_weights
+from synthkit.core.mesh import weld
+from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
+from synthkit.methods.petri.appearance import Look, carry, concat
+from synthkit.methods.petri.joints import edge_uses, repeated_faces
 
 
 class PieceLibrary:
@@ -15,7 +19,8 @@ class PieceLibrary:
 
     ``axes`` are the lattice axes of the construction axes (a, b, c): a piece's local coordinates
     are reordered to (a, b, c) and their eight trilinear weights cached, so deforming a piece into a
-    cell is one ``(n, 8) @ (8, 3)`` product.
+    cell is one ``(n, 8) @ (8, 3)`` product. ``looks[label]`` is the piece's
+    :class:`~synthkit.methods.petri.appearance.Look` (None when the example's look was not given).
     """
 
     def __init__(self, pieces, representative: np.ndarray, axes: tuple[int, int, int]):
@@ -23,46 +28,95 @@ class PieceLibrary:
         self.local = []
         self.faces = []
         self.weights = []
+        self.looks = [pieces.look[int(p)] for p in representative] if pieces.look else None
+        self.face_sides = []
         for p in representative:
             L = pieces.local[int(p)][:, list(axes)]
             self.local.append(L)
             self.faces.append(pieces.faces[int(p)])
             self.weights.append(trilinear_weights(L))
+            self.face_sides.append(face_sides(L, pieces.faces[int(p)]))
+
+    def open_edges(self, label: int) -> np.ndarray:
+        """``(k, 2)`` vertex pairs of ``label``'s piece: its open edges (:func:`piece_open_edges`), cached."""
+        cache = self.__dict__.setdefault("_open", {})
+        if label not in cache:
+            cache[label] = piece_open_edges(self.local[label], self.faces[label])
+        return cache[label]
 
     def deform(self, label: int, corners: np.ndarray) -> np.ndarray:
         """Vertices ``(n, 3)`` of ``label``'s piece deformed into the hexahedron ``corners (8, 3)``."""
         return self.weights[label] @ corners
 
 
+def piece_open_edges(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
+    """``(k, 2)`` vertex pairs: the edges of ``F (m, 3)`` used by one face only once the positions
+    ``L (n, 3)`` are welded within ``tol`` (UV seams are not open) and faces stored twice counted once
+    (as the result is written); each given by one of its copies."""
+    if len(F) == 0:
+        return np.zeros((0, 2), np.int64)
+    _, _, cls = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)
+    F = F[~repeated_faces(cls[F])]
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    return E[edge_uses(cls[F]) == 1]
+
+
+def face_sides(L: np.ndarray, F: np.ndarray, *, tol: float = SEAM_TOL) -> np.ndarray:
+    """``(m,) int64``: the cell face (0 -a, 1 +a, 2 -b, 3 +b, 4 -c, 5 +c in local axes) each face of a
+    piece ``L (n, 3)``, ``F (m, 3)`` lies on, -1 for none."""
+    out = np.full(len(F), -1, np.int64)
+    for side in range(6):
+        on = np.abs(L[:, side >> 1] - (side & 1)) <= tol
+        out[on[F].all(axis=1)] = side
+    return out
+
+
 def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
     """A copy of ``library`` whose pieces have at most about ``max_faces`` triangles each, for previews.
 
     Larger pieces are decimated by quadric edge collapse with their boundaries kept (topology not
-    enforced, which is faster; :func:`synthkit.core.mesh.simplify`); the weights are recomputed. Small pieces are
-    shared as they are.
+    enforced, which is faster; :func:`synthkit.core.mesh.simplify`); the weights are recomputed and the
+    looks carried over (:func:`decimated_look`). Small pieces are shared as they are.
     """
     from synthkit.core.mesh import simplify
 
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = library.axes
     out.local, out.faces, out.weights = [], [], []
-    for L, Fp, W in zip(library.local, library.faces, library.weights, strict=True):
+    out.looks = None if library.looks is None else []
+    for lab, (L, Fp, W) in enumerate(zip(library.local, library.faces, library.weights, strict=True)):
+        look = None if library.looks is None else library.looks[lab]
         if len(Fp) > max_faces:
-            L, Fp, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
-            W = trilinear_weights(L)
+            L2, F2, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
+            look = None if look is None else decimated_look(look, L, Fp, L2, F2)
+            L, Fp, W = L2, F2, trilinear_weights(L2)
         out.local.append(L)
         out.faces.append(Fp)
         out.weights.append(W)
+        if out.looks is not None:
+            out.looks.append(look)
+    out.face_sides = [face_sides(L, Fp) for L, Fp in zip(out.local, out.faces, strict=True)]
     return out
+
+
+def decimated_look(look: Look, L, F, L2, F2) -> Look:
+    """The look of a decimated piece ``L2, F2`` from the full piece ``L, F``: each new face takes the
+    material of the full face nearest its centroid and that face's values extended linearly to its
+    corners (:func:`appearance.carry`, corners projected onto the face's plane)."""
+    centroids = L[F].mean(axis=1)
+    _, src = cKDTree(centroids).query(L2[F2].mean(axis=1))
+    return carry(look, L, F, np.asarray(src, np.int64), L2, F2)
 
 
 def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceLibrary:
     """``library`` (in lattice axis order X, Y, Z) with local coordinates reordered to ``axes``."""
     out = PieceLibrary.__new__(PieceLibrary)
     out.axes = tuple(library.axes[a] for a in axes)
+    out.looks = library.looks
     out.local = [L[:, list(axes)] for L in library.local]
     out.faces = list(library.faces)
     out.weights = [trilinear_weights(L) for L in out.local]
+    out.face_sides = [face_sides(L, F) for L, F in zip(out.local, out.faces, strict=True)]
     return out
 
 
@@ -117,6 +171,18 @@ class Assembler:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
         return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(labs), np.concatenate(cells)
 
+    def face_sides(self) -> np.ndarray:
+        """:func:`face_sides` of :meth:`mesh`'s faces ``(#F,)``."""
+        sides = [self.library.face_sides[label] for _, label, _ in self.parts]
+        return np.concatenate(sides) if sides else np.zeros(0, np.int64)
+
+    def look(self) -> Look | None:
+        """The appearance of :meth:`mesh`'s faces (None without the example's look)."""
+        looks = self.library.looks
+        if looks is None:
+            return None
+        return concat([looks[label] for _, label, _ in self.parts], looks[0])
+
 
 def crack_measure(
     library: PieceLibrary,
@@ -124,7 +190,7 @@ def crack_measure(
     corners: np.ndarray,
     *,
     periodic=(False,) * 3,
-    tol: float = 1e-9,
+    tol: float = SEAM_TOL,
     offsets: np.ndarray | None = None,
 ):
     """Gaps between neighbouring deformed pieces where their example pieces met.
@@ -132,16 +198,18 @@ def crack_measure(
     For every pair of face-adjacent cells (p below q along construction axis t) with labels (A, B),
     the vertices of A's piece on its face ``t = 1`` are matched to those of B's piece on ``t = 0`` with
     the same other two local coordinates (within ``tol``): these are the boundary vertices the
-    example pieces shared. Returns ``(max_gap, unmatched, seams)``: the largest world distance between
-    matched vertices after deformation, the number of vertices on shared cell faces (summed over
-    distinct label pairs) without a partner (differing boundaries, or faces lying on the cell face
-    such as a roof under an empty cell), and, when ``offsets (N,)`` (index of each cell's first vertex
-    in the assembled mesh) is given, the matched pairs as global vertex indices ``(k, 2)``.
+    example pieces shared. Returns ``(max_gap, unmatched, seams, mismatch)``: the largest world distance
+    between matched vertices after deformation, the number of vertices on shared cell faces (summed
+    over distinct label pairs) without a partner (differing boundaries, or faces lying on the cell face
+    such as a roof under an empty cell), when ``offsets (N,)`` (index of each cell's first vertex
+    in the assembled mesh) is given the matched pairs as global vertex indices ``(k, 2)``, and the
+    largest :func:`curve_mismatch` of the pairs (local units: where the pieces' cut curves do not meet,
+    a hole the vertex gap cannot see).
     """
     lib = library
     shape = label_grid.shape
     flat = np.arange(label_grid.size).reshape(shape)
-    max_gap, unmatched = 0.0, 0
+    max_gap, unmatched, mismatch = 0.0, 0, 0.0
     match_cache = {}
     seams = []
     for t in range(3):
@@ -165,6 +233,7 @@ def crack_measure(
                 CB = LB[ib][:, others] if CA is not None else None
                 match_cache[key], missing = _match_face(ia, ib, CA, CB, tol)
                 unmatched += missing
+                mismatch = max(mismatch, curve_mismatch(lib, A, 2 * t + 1, B, 2 * t, False, tol))
             ia, ib = match_cache[key]
             if len(ia) == 0:
                 continue
@@ -174,7 +243,38 @@ def crack_measure(
             if seam is not None:
                 seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
-    return max_gap, unmatched, seams
+    return max_gap, unmatched, seams, mismatch
+
+
+def _face_coords(L: np.ndarray, t: int, flipped: bool) -> np.ndarray:
+    """``(n, 2)`` coordinates of ``L (n, 3)`` on a cell face across local axis ``t``: (u, w) with w the
+    sweep coordinate (for ``t = 2``: (a, b)), u mirrored to ``1 - u`` when ``flipped``."""
+    if t == 2:
+        return L[:, [0, 1]]
+    u = L[:, 1 - t]
+    return np.stack([1.0 - u if flipped else u, L[:, 2]], axis=1)
+
+
+def curve_mismatch(lib: PieceLibrary, A: int, side_a: int, B: int, side_b: int, flipped: bool, tol: float) -> float:
+    """How far apart the cut curves two pieces show on the cell face they share, in local units: the
+    largest distance from an end of an open edge of either piece in its face (``side_a``/``side_b``:
+    2 axis + 1 for the face at 1, + 0 for the one at 0) to the other's edges in that face, open or
+    bounding a face lying in it (:func:`analysis.curve_gap`; B's face coordinates mirrored when
+    ``flipped``), at most 1 (a cut curve with nothing across it: a hole). Open edges along the cell's
+    rim (on two faces) are left to the pair across the other face."""
+    curves = []
+    for lab, side, fl in ((A, side_a, False), (B, side_b, flipped)):
+        L, F = lib.local[lab], lib.faces[lab]
+        on = np.abs(L[:, side >> 1] - (side & 1)) <= tol
+        rim = ((np.abs(L) <= tol) | (np.abs(L - 1) <= tol)).sum(axis=1) >= 2
+        E = lib.open_edges(lab)
+        E = E[on[E[:, 0]] & on[E[:, 1]] & ~(rim[E[:, 0]] & rim[E[:, 1]])]
+        every = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]) if len(F) else np.zeros((0, 2), np.int64)
+        every = every[on[every[:, 0]] & on[every[:, 1]]]
+        C = _face_coords(L, side >> 1, fl)
+        curves.append((C[np.unique(E)], C[every]))
+    (pa, sa), (pb, sb) = curves
+    return float(min(max(curve_gap(pa, sb), curve_gap(pb, sa)), 1.0))
 
 
 def _match_face(ia, ib, CA, CB, tol: float):
@@ -224,7 +324,8 @@ def label_colors(n: int) -> np.ndarray:
     return table[i, np.arange(n)]
 
 
-def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = 1e-9, offsets=None):
+def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = SEAM_TOL,
+                        offsets=None):
     """:func:`crack_measure` on a curve network's neighbour graph ``graph = (neighbours, back, flip)``.
 
     For every pair of neighbours (cell p, its face d; cell q, its face e = ``back[p, d]``) the
@@ -232,13 +333,13 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
     same face coordinates: the sweep coordinate w as it is, the in-plane face coordinate u as ``u``
     or, where the shared edge runs the other way in q's frame (``flip``), ``1 - u``. Within one frame
     this is exactly :func:`crack_measure`; across a junction it is the example's sharing of boundary
-    vertices carried over by the rotation of the frames. Returns ``(max_gap, unmatched, seams)``
+    vertices carried over by the rotation of the frames. Returns ``(max_gap, unmatched, seams, mismatch)``
     (unmatched counted once per distinct (d, e, flip, label pair)).
     """
     nbr, back, flip = (np.asarray(x) for x in graph)
     lab = np.asarray(labels, np.int64).ravel()
     lib = library
-    max_gap, unmatched = 0.0, 0
+    max_gap, unmatched, mismatch = 0.0, 0, 0.0
     cache: dict = {}
     groups = defaultdict(list)
     N = len(lab)
@@ -258,16 +359,11 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
             ia = np.flatnonzero(np.abs(LA[:, ta] - sa) <= tol)
             ib = np.flatnonzero(np.abs(LB[:, tb] - sb) <= tol)
 
-            def face_coords(L, idx, t, flipped):
-                if t == 2:
-                    return L[idx][:, [0, 1]]
-                u = L[idx, 1 - t]
-                return np.stack([1.0 - u if flipped else u, L[idx, 2]], axis=1)
-
             both = len(ia) and len(ib)
-            CA = face_coords(LA, ia, ta, fl) if both else None
-            CB = face_coords(LB, ib, tb, False) if both else None
+            CA = _face_coords(LA[ia], ta, fl) if both else None
+            CB = _face_coords(LB[ib], tb, False) if both else None
             cache[key], missing = _match_face(ia, ib, CA, CB, tol)
+            mismatch = max(mismatch, curve_mismatch(lib, B, 2 * tb + 1 - (e & 1), A, 2 * ta + 1 - (d & 1), fl, tol))
             unmatched += missing
         ia, ib = cache[key]
         if len(ia) == 0:
@@ -278,4 +374,76 @@ def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, grap
         if seam is not None:
             seams.append(seam)
     seams = np.concatenate(seams) if seams else np.zeros((0, 2), np.int64)
-    return max_gap, unmatched, seams
+    return max_gap, unmatched, seams, mismatch
+
+
+def quality_limits(library: PieceLibrary, labels, neighbours, *, tol: float = SEAM_TOL) -> dict:
+    """Limits of a result's mesh-quality figures when its pieces join exactly, summed over its cells
+    (``labels (N,)``; the library's pieces welded within ``tol`` local units):
+
+    - ``open_edges``: each piece's open edges that lie on no cell face (the example's own: a wall
+      standing on a plate, a hole in a roof) plus those lying only on cell faces without a neighbour
+      (``neighbours (N, 6)``, -1: none; directions 2 axis + 0 for +axis, + 1 for -axis): the border of
+      the construction space, open where the pieces were cut inside the example (an edge on the rim
+      between such a face and one with a neighbour is closed by that neighbour when pieces join);
+    - ``nonmanifold_edges``: each piece's own (an example's overlapping boxes), its faces stored twice
+      counted once; ``duplicate_faces``: 0 (they are never written).
+    """
+    open_by_faces = np.zeros((len(library.faces), 64), np.int64)  # open edges by the set of cell faces they lie on
+    own = np.zeros((len(library.faces), 2), np.int64)
+    for lab, (L, Fp) in enumerate(zip(library.local, library.faces, strict=True)):
+        if len(Fp) == 0:
+            continue
+        P = L[library.open_edges(lab)]
+        mask = np.zeros(len(P), np.int64)
+        for f in range(6):
+            mask |= np.all(np.abs(P[:, :, f >> 1] - (f & 1)) <= tol, axis=1).astype(np.int64) << f
+        open_by_faces[lab] = np.bincount(mask, minlength=64)
+        W = weld(L, np.zeros((0, 3), np.int64), tol, return_index=True)[2][Fp]
+        twice = repeated_faces(W)
+        own[lab] = (edge_uses(W[~twice]) > 2).sum(), 0
+    lab = np.asarray(labels, np.int64).ravel()
+    local_face = 2 * (np.arange(6) >> 1) + 1 - (np.arange(6) & 1)
+    has = ((np.asarray(neighbours) >= 0).astype(np.int64) << local_face[None]).sum(axis=1)
+    counted = (np.arange(64)[None] & has[:, None]) == 0  # on no cell face, or only on ones without a neighbour
+    return {
+        "open_edges": int((open_by_faces[lab] * counted).sum()),
+        "nonmanifold_edges": int(own[lab, 0].sum()),
+        "duplicate_faces": int(own[lab, 1].sum()),
+    }
+
+
+def open_edges_off_border(V: np.ndarray, F: np.ndarray, corners: np.ndarray, neighbours, tol: float, *,
+                          cls: np.ndarray | None = None) -> int:
+    """Open edges of ``V (n, 3)``, ``F (m, 3)`` (positions welded within ``tol``) whose midpoint lies
+    farther than ``tol`` from every cell side without a neighbour (``corners (N, 8, 3)`` with corner
+    ``i + 2 j + 4 k``, ``neighbours (N, 6)``, directions 2 axis + 0 for +axis, + 1 for -axis): holes
+    inside the construction space, or the example's own open edges. ``cls (n,)`` may give the weld
+    classes of ``V``."""
+    import trimesh
+
+    if len(F) == 0:
+        return 0
+    if cls is None:
+        cls = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])[edge_uses(cls[F]) == 1]
+    if len(E) == 0:
+        return 0
+    cell, d = np.nonzero(np.asarray(neighbours) < 0)
+    if len(cell) == 0:
+        return int(len(E))
+    axis, side = d >> 1, 1 - (d & 1)
+    quad = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
+    idx = np.zeros((len(cell), 4), np.int64)
+    for q, (u, v) in enumerate(quad):
+        bits = np.zeros((len(cell), 3), np.int64)
+        bits[np.arange(len(cell)), axis] = side
+        bits[np.arange(len(cell)), (axis + 1) % 3] = u
+        bits[np.arange(len(cell)), (axis + 2) % 3] = v
+        idx[:, q] = bits[:, 0] + 2 * bits[:, 1] + 4 * bits[:, 2]
+    P = np.asarray(corners)[cell[:, None], idx].reshape(-1, 3)
+    base = 4 * np.arange(len(cell))[:, None]
+    T = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]])
+    border = trimesh.Trimesh(P, T, process=False)
+    _, dist, _ = trimesh.proximity.closest_point(border, V[E].mean(axis=1))
+    return int((dist > tol).sum())

@@ -6,12 +6,17 @@ import json
 
 import numpy as np
 import trimesh
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from synthkit import preview
-from synthkit.core.mesh import merge_vertices
+from synthkit.core.mesh import merge_vertices, remove_unreferenced, weld
+from synthkit.core.quality import WELD_REL_TOL, degenerate_faces, mesh_quality
 from synthkit.errors import InputError
-from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.io.assets import Asset, load_asset, save_asset
+from synthkit.io.meshes import save_mesh
 from synthkit.methods.petri import analysis, construction, network
+from synthkit.methods.petri.appearance import Look, example_look
 from synthkit.methods.petri.assembly import (
     Assembler,
     PieceLibrary,
@@ -19,10 +24,13 @@ from synthkit.methods.petri.assembly import (
     crack_measure,
     crack_measure_graph,
     label_colors,
+    open_edges_off_border,
     preview_library,
+    quality_limits,
     reorder_library,
 )
 from synthkit.methods.petri.config import PetriConfig
+from synthkit.methods.petri.joints import close_t_junctions, repeated_faces
 from synthkit.methods.petri.net import (
     ColouredPetriNet,
     adjacency_violations,
@@ -36,8 +44,9 @@ PREVIEW_FACES = 400_000
 """Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
 
 
-def analyse_example(V, F, cfg: PetriConfig):
-    """Lattice, pieces, labels and constraints of the example (section 2.1)."""
+def analyse_example(V, F, cfg: PetriConfig, look: Look | None = None):
+    """Lattice, pieces, labels and constraints of the example (section 2.1); ``look`` the example
+    faces' appearance, carried into the pieces."""
     lat = cfg.lattice
     ann = lat.annotation
     spec = analysis.resolve_lattice(
@@ -49,10 +58,13 @@ def analyse_example(V, F, cfg: PetriConfig):
         fit_tolerance=lat.fit_tolerance,
         source=str(cfg.example),
     )
-    pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps)
+    pieces = analysis.cut_pieces(V, F, spec, caps=lat.caps, look=look)
     features = analysis.feature_vectors(pieces)
     labels, reps = analysis.classify(
-        features, tolerance=cfg.labels.tolerance, pieces=pieces if cfg.labels.match == "geometry" else None
+        features,
+        tolerance=cfg.labels.tolerance,
+        pieces=pieces if cfg.labels.match == "geometry" else None,
+        seams=[analysis.face_seams(L, Fp) for L, Fp in zip(pieces.local, pieces.faces, strict=True)],
     )
     grid = labels.reshape(tuple(spec.counts))
     cons = analysis.adjacency_constraints(grid, len(reps), boundary=cfg.labels.boundary)
@@ -200,21 +212,112 @@ def infer_and_deform(net: ColouredPetriNet, library: PieceLibrary, corners, grid
     return net, assembler, restarts
 
 
-def result_mesh(assembler: Assembler, library: PieceLibrary, net: ColouredPetriNet, *, weld: bool):
-    """The assembled mesh of ``net``'s deformed pieces: ``(V, F, face_label, crack_gap, unmatched)``.
-
-    With ``weld`` the vertices the example pieces shared across a cell face are merged (faces that
-    collapse are dropped); the curved result and the baseline both go through here, so their normal
-    histograms are taken on the same form of mesh.
-    """
-    V, F, face_label, _ = assembler.mesh()
-    labels = net.label_grid()
-    gap, unmatched, seams = crack_measure(
-        library, labels, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
-    )
+def welded_mesh(assembler: Assembler, seams: np.ndarray, *, weld: bool):
+    """The deformed pieces with their seam vertices ``seams (k, 2)`` merged when ``weld`` (faces that
+    collapse dropped): the form of mesh the normal histograms of the curved result and of the
+    baseline are both taken on. Returns ``(V, F, face_label, face_cell, kept)``, ``kept`` the indices
+    of :meth:`Assembler.mesh`'s faces kept."""
+    V, F, face_label, face_cell = assembler.mesh()
+    kept = np.arange(len(F))
     if weld:
-        V, F, face_label = weld_seams(V, F, face_label, seams)
-    return V, F, face_label, gap, unmatched
+        V, F, keep = weld_seams(V, F, seams)
+        kept = kept[keep]
+    return V, F, face_label[kept], face_cell[kept], kept
+
+
+def joined_mesh(assembler: Assembler, welded, graph):
+    """The result as written, from its :func:`welded_mesh` ``welded``: walls between cells
+    (:func:`drop_inner_walls`, ``graph = (neighbours, back)``), degenerate faces, faces that collapse
+    when positions are welded for the quality figures and faces stored twice (:func:`repeated_faces`)
+    dropped, then T-junctions closed (:func:`close_t_junctions`) and unused vertices dropped.
+    Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
+    the positions' weld classes)."""
+    V, F, face_label, face_cell, kept = welded
+    look = assembler.look()
+    tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
+    cls = weld_classes(V, tol)
+    walls = drop_inner_walls(V, F, cls, face_cell, assembler.face_sides()[kept], graph, tol)
+    W = cls[F]
+    collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
+    keep = ~walls & ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
+    F, face_label, face_cell, kept = F[keep], face_label[keep], face_cell[keep], kept[keep]
+    look = None if look is None else look.take(kept)
+    # after the drops: a zero-area face that filled a T-junction leaves it to be closed here; the fans
+    # keep their face's height and split edges at vertices more than ``tol`` apart, so none is degenerate
+    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
+    V, F, used = remove_unreferenced(V, F)
+    return V, F, face_label, look, cls[used]
+
+
+def grid_graph(net: ColouredPetriNet):
+    """``(neighbours (N, 6), back (N, 6))`` of a grid net (directions 2 axis + 0 for +axis, + 1 for -axis)."""
+    nbr = np.asarray(net.neighbours)
+    return nbr, np.broadcast_to(np.arange(6) ^ 1, nbr.shape)
+
+
+def weld_classes(V: np.ndarray, tol: float) -> np.ndarray:
+    """``(#V,)``: the class of each position of ``V`` once positions within ``tol`` are welded."""
+    return weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
+
+
+def drop_inner_walls(V, F, cls, face_cell, face_side, graph, tol: float) -> np.ndarray:
+    """``(#F,) bool``: walls inside the result where two pieces stand back to back (copies of the
+    example side by side: the end of one house's plate against the start of the next one's).
+
+    ``cls (#V,)`` are the weld classes of ``V`` (within ``tol``). A wall is the faces of one cell
+    (``face_cell (#F,)``) lying on one of its cell's faces
+    (``face_side (#F,)``, :func:`assembly.face_sides`); where the neighbour across that face
+    (``graph = (neighbours (N, 6), back (N, 6))``) has a wall on the face it shares, each connected part
+    of the one covering the same region as a part of the other (:func:`_same_region`; they may be
+    triangulated differently) is dropped with it."""
+    nbr, back = graph
+    out = np.zeros(len(F), bool)
+    on = np.flatnonzero(face_side >= 0)
+    if len(on) == 0:
+        return out
+    side = face_side[on]
+    d = 2 * (side >> 1) + 1 - (side & 1)
+    cell = face_cell[on]
+    other = nbr[cell, d]
+    walls: dict = {}
+    for i in np.flatnonzero(other >= 0).tolist():
+        walls.setdefault((int(cell[i]), int(d[i])), []).append(int(on[i]))
+    T = V[F]
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    for (c, dc), idx in walls.items():
+        n = int(nbr[c, dc])
+        idx2 = walls.get((n, int(back[c, dc])))
+        if n < c or not idx2:
+            continue
+        parts2 = _face_components(cls[F[idx2]], np.asarray(idx2))
+        for part in _face_components(cls[F[idx]], np.asarray(idx)):
+            for k, part2 in enumerate(parts2):
+                if _same_region(T[part], area[part], T[part2], area[part2], tol):
+                    out[part] = out[part2] = True
+                    parts2.pop(k)
+                    break
+    return out
+
+
+def _face_components(W: np.ndarray, idx: np.ndarray) -> list[np.ndarray]:
+    """The faces ``idx (k,)`` grouped into connected pieces by their welded corners ``W (k, 3)``."""
+    _, inv = np.unique(W, return_inverse=True)
+    inv = inv.reshape(W.shape)
+    k, n = len(W), int(inv.max()) + 1
+    rows = np.repeat(np.arange(k), 3)
+    graph = csr_matrix((np.ones(3 * k), (rows, k + inv.ravel())), shape=(k + n, k + n))
+    _, comp = connected_components(graph, directed=False)
+    return [idx[comp[:k] == c] for c in np.unique(comp[:k])]
+
+
+def _same_region(Ta, area_a, Tb, area_b, tol: float) -> bool:
+    """Whether two sets of coplanar triangles ``(k, 3, 3)`` (their doubled areas ``(k,)``) cover the same
+    region: the same area (to 1e-6) and the same bounding box (within ``tol``)."""
+    a, b = float(area_a.sum()), float(area_b.sum())
+    if abs(a - b) > 1e-6 * max(a, b):
+        return False
+    Pa, Pb = Ta.reshape(-1, 3), Tb.reshape(-1, 3)
+    return bool(np.abs(Pa.min(0) - Pb.min(0)).max() <= tol and np.abs(Pa.max(0) - Pb.max(0)).max() <= tol)
 
 
 def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
@@ -226,13 +329,35 @@ def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
         )
 
 
-def weld_seams(V, F, face_label, seams):
+def weld_seams(V, F, seams):
     """Merge the matched seam vertices ``seams`` of ``V (n, 3)``, ``F (m, 3)``; faces that collapse
-    are dropped with their ``face_label (m,)``. Returns ``(V, F, face_label)``."""
+    are dropped. Returns ``(V, F, keep (m,) bool)``, ``keep`` the faces kept."""
     V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
     G = old_to_new[F]
     keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
-    return V, F2, face_label[keep]
+    return V, F2, keep
+
+
+def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Look | None) -> None:
+    """Write the result mesh (``output.mesh_format``) with the example's appearance: GLB with its PBR
+    materials and textures, OBJ with an MTL and texture copies, PLY with colours; a PLY of an example
+    without colours stores each face's label instead (as before)."""
+    out_mesh = ctx.path("mesh", f"result.{cfg.output.mesh_format}")
+    if cfg.output.mesh_format == "ply" and (look is None or look.corner_color is None):
+        save_mesh(trimesh.Trimesh(V, F, process=False), out_mesh, face_labels=face_label)
+        return
+    written = save_asset(out_mesh, V, F, like=asset, **({} if look is None else look.written()))
+    for k, name in enumerate(written[1:]):
+        ctx.outputs[f"mesh_file_{k}"] = name
+
+
+def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours) -> None:
+    """``ctx.check_quality`` of the written result against the example, with petri-synth's limits
+    (:func:`assembly.quality_limits`: what the placed pieces bring themselves, plus the open cuts on
+    the construction space's border; no degenerate face)."""
+    before = mesh_quality(asset.V, asset.F)
+    limits = {**quality_limits(library, labels, neighbours), "degenerate_faces": 0}
+    ctx.check_quality("mesh", before, mesh_quality(V, F), limits)
 
 
 def example_net(grid: np.ndarray, cons, spec) -> ColouredPetriNet:
@@ -278,7 +403,9 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     bnet, bassembler, brestarts = synthesize(
         bspace, cons, library, grid, ctx.rng, max_restarts=cfg.inference.max_restarts
     )
-    BV, BF, _, _, _ = result_mesh(bassembler, library, bnet, weld=cfg.output.weld)
+    _, _, seams, _ = crack_measure(library, bnet.label_grid(), bnet.corners, periodic=bnet.periodic,
+                                   offsets=bassembler.offsets(bnet.n_cells))
+    BV, BF, *_ = welded_mesh(bassembler, seams, weld=cfg.output.weld)
     h_base = analysis.normal_histogram(BV, BF, plane_axes)
     metrics["baseline"] = {
         "method": f"model synthesis on the orthogonal lattice ({what})",
@@ -332,14 +459,15 @@ def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, l
 
 
 def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
-                    violations, gap, unmatched, deviation) -> tuple[np.ndarray, dict]:
+                    violations, gap, unmatched, deviation, cls, welded) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
     (the baseline compares against it): the result ``RV, RF`` against the example ``V, F``, the
-    net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` and ``unmatched``
-    boundary vertices."""
+    net's labels ``labels_out`` (any shape) and the assembly's crack ``gap`` (lattice units) and ``unmatched``
+    boundary vertices; ``cls`` the weld classes of ``RV``; ``welded`` the :func:`welded_mesh` the
+    normal histogram is taken on (as the baseline's)."""
     plane_axes = space.point_axes
     h_ex = analysis.normal_histogram(V, F, plane_axes)
-    h_res = analysis.normal_histogram(RV, RF, plane_axes)
+    h_res = analysis.normal_histogram(welded[0], welded[1], plane_axes)
     return h_ex, {
         "labels": int(cons.n_labels),
         "example_pieces": int(grid.size),
@@ -349,12 +477,15 @@ def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_
         "adjacency_violations": int(violations),
         "unfilled_cells": int((labels_out < 0).sum()),
         "empty_cells": int(sum(len(library.faces[lab]) == 0 for lab in labels_out.ravel().tolist())),
-        "crack_max": gap / float(spec.unit.min()),
+        "crack_max": gap,
         "boundary_unmatched_vertices": int(unmatched),
         "curve_max_deviation": float(deviation.max()),
         "normal_histogram_D": analysis.histogram_discrimination(h_ex, h_res),
         "normal_histogram_example": h_ex,
         "normal_histogram_result": h_res,
+        "open_edges_off_border": open_edges_off_border(
+            RV, RF, net.corners, net.neighbours, WELD_REL_TOL * float(np.linalg.norm(np.ptp(RV, axis=0))), cls=cls
+        ),
         "result_vertices": int(len(RV)),
         "result_faces": int(len(RF)),
         **facade_metrics(V, F, assembler, grid, net, space.axes),
@@ -390,18 +521,18 @@ def check_construction_budget(budget, cfg: PetriConfig, spec, V: np.ndarray, F: 
 
 def run(cfg: PetriConfig, ctx) -> None:
     with ctx.stage("load"):
-        mesh = load_mesh(cfg.example)
-        V = np.asarray(mesh.vertices, np.float64)
-        F = np.asarray(mesh.faces, np.int64)
+        asset = load_asset(cfg.example)
+        V, F = asset.V, asset.F
+        look = example_look(asset.corner_uv, asset.corner_color, asset.face_material, len(F))
 
     with ctx.stage("analysis"):
-        spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg)
+        spec, pieces, features, grid, reps, cons = analyse_example(V, F, cfg, look)
 
     check_construction_budget(ctx.budget, cfg, spec, V, F, len(pieces.index))
     cons, hint, joined = curve_constraints(cfg, grid, cons, construction.PLANE_AXES[cfg.construction.plane][0])
     ctx.metrics["joined_ends"] = joined
     if cfg.construction.curves is not None:
-        return run_network(cfg, ctx, V, F, spec, pieces, features, grid, reps, cons)
+        return run_network(cfg, ctx, asset, spec, pieces, features, grid, reps, cons)
 
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
@@ -423,12 +554,14 @@ def run(cfg: PetriConfig, ctx) -> None:
     labels_out = net.label_grid()
 
     with ctx.stage("assembly"):
-        RV, RF, face_label, gap, unmatched = result_mesh(assembler, library, net, weld=cfg.output.weld)
+        gap, unmatched, seams, mismatch = crack_measure(
+            library, labels_out, net.corners, periodic=net.periodic, offsets=assembler.offsets(net.n_cells)
+        )
+        welded = welded_mesh(assembler, seams, weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, welded, grid_graph(net))
         require_faces(RF, cfg)
-        result = trimesh.Trimesh(RV, RF, process=False)
-        fmt = cfg.output.mesh_format
-        out_mesh = ctx.path("mesh", f"result.{fmt}")
-        save_mesh(result, out_mesh, face_labels=face_label if fmt == "ply" else None)
+        write_result(ctx, cfg, asset, RV, RF, face_label, look)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours)
         _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
@@ -438,8 +571,9 @@ def run(cfg: PetriConfig, ctx) -> None:
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        assembler=assembler,
-                                       restarts=restarts, violations=violations, gap=gap, unmatched=unmatched,
-                                       deviation=deviation)
+                                       restarts=restarts, violations=violations,
+                                       gap=max(gap / float(spec.unit.min()), mismatch), unmatched=unmatched,
+                                       deviation=deviation, cls=cls, welded=welded)
         metrics = {"cells": int(net.n_cells), "construction_shape": list(space.shape), **shared}
 
     bnet = None
@@ -535,7 +669,7 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     neighbours across a frame change)."""
     nbr, back, flip, _ = space.graph()
     labels = np.asarray(net.label, np.int64)
-    gap, unmatched, seams = crack_measure_graph(
+    gap, unmatched, seams, mismatch = crack_measure_graph(
         library, labels, net.corners, (nbr, back, flip), offsets=assembler.offsets(net.n_cells)
     )
     SZ = space.size_z
@@ -546,20 +680,23 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     sub = np.where(touched[:, None], nbr, -1)
     sub = np.where((sub >= 0) & (touched[np.maximum(sub, 0)] | touched[:, None]), sub, -1)
     jviol = graph_violations(labels, sub, back, net.allowed, net.n_labels, boundary=False)
-    jgap, junmatched, _ = crack_measure_graph(library, labels, net.corners, (sub, back, flip))
+    jgap, junmatched, _, jmismatch = crack_measure_graph(library, labels, net.corners, (sub, back, flip))
     return {
         "gap": gap,
+        "mismatch": mismatch,
         "unmatched": unmatched,
         "seams": seams,
         "junction_cells": int(in_junction.sum()),
         "junction_adjacency_violations": int(jviol),
         "junction_gap": jgap,
+        "junction_mismatch": jmismatch,
         "junction_unmatched": int(junmatched),
     }
 
 
-def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps, cons) -> None:
+def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, grid, reps, cons) -> None:
     """The run of :func:`run` for a curve network (``construction.curves``)."""
+    V, F = asset.V, asset.F
     with ctx.stage("construction"):
         space = build_network_space(cfg, spec)
         deviation = space.center_deviation()
@@ -574,13 +711,11 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
 
     with ctx.stage("assembly"):
         jm = network_metrics(space, net, library, assembler)
-        RV, RF, face_label, _ = assembler.mesh()
-        if cfg.output.weld:
-            RV, RF, face_label = weld_seams(RV, RF, face_label, jm["seams"])
-        fmt = cfg.output.mesh_format
-        out_mesh = ctx.path("mesh", f"result.{fmt}")
+        welded = welded_mesh(assembler, jm["seams"], weld=cfg.output.weld)
+        RV, RF, face_label, look, cls = joined_mesh(assembler, welded, space.graph()[:2])
         require_faces(RF, cfg)
-        save_mesh(trimesh.Trimesh(RV, RF, process=False), out_mesh, face_labels=face_label if fmt == "ply" else None)
+        write_result(ctx, cfg, asset, RV, RF, face_label, look)
+        check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours)
         _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
@@ -589,8 +724,9 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
         plane_axes = space.point_axes
         h_ex, shared = _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out,
                                        assembler=assembler,
-                                       restarts=restarts, violations=violations, gap=jm["gap"],
-                                       unmatched=jm["unmatched"], deviation=deviation)
+                                       restarts=restarts, violations=violations,
+                                       gap=max(jm["gap"] / float(spec.unit.min()), jm["mismatch"]),
+                                       unmatched=jm["unmatched"], deviation=deviation, cls=cls, welded=welded)
         metrics = {
             "cells": int(net.n_cells),
             "construction_shape": {
@@ -602,7 +738,7 @@ def run_network(cfg: PetriConfig, ctx, V, F, spec, pieces, features, grid, reps,
             "junctions": len(space.junctions),
             "junction_cells": jm["junction_cells"],
             "junction_adjacency_violations": jm["junction_adjacency_violations"],
-            "junction_crack_max": jm["junction_gap"] / float(spec.unit.min()),
+            "junction_crack_max": max(jm["junction_gap"] / float(spec.unit.min()), jm["junction_mismatch"]),
             "junction_unmatched_vertices": jm["junction_unmatched"],
             **shared,
         }

@@ -47,6 +47,15 @@ def degenerate_faces(V, F, *, diagonal: float | None = None) -> np.ndarray:
     return (edges.min(axis=1) <= tol) | (height <= tol)
 
 
+def _welded_index(V: np.ndarray, tol: float) -> np.ndarray:
+    """``(#V,)`` welded vertex of each vertex: exact copies (an asset's seam vertices) are merged
+    first by their bytes, then the remaining positions within ``tol`` by :func:`weld`."""
+    P = np.ascontiguousarray(V, dtype=np.float64) + 0.0  # -0.0 -> 0.0: equal positions, equal bytes
+    _, first, inverse = np.unique(P.view(np.dtype((np.void, 24))).ravel(), return_index=True, return_inverse=True)
+    _, _, unique_to_welded = weld(P[first], np.zeros((0, 3), np.int64), tol, return_index=True)
+    return unique_to_welded[inverse.reshape(-1)]
+
+
 def mesh_quality(V, F, *, weld_tol: float | None = None) -> dict:
     """Cleanliness figures of ``V (#V, 3)``, ``F (#F, 3)`` (see :data:`QUALITY_FIGURES`):
 
@@ -67,8 +76,7 @@ def mesh_quality(V, F, *, weld_tol: float | None = None) -> dict:
         return figures
     diag = _diagonal(V)
     tol = WELD_REL_TOL * diag if weld_tol is None else float(weld_tol)
-    _, _, old_to_new = weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)
-    Fw = old_to_new[F]
+    Fw = _welded_index(V, tol)[F]
     alive = (Fw[:, 0] != Fw[:, 1]) & (Fw[:, 1] != Fw[:, 2]) & (Fw[:, 2] != Fw[:, 0])
     figures["degenerate_faces"] = int((degenerate_faces(V, F, diagonal=diag) | ~alive).sum())
     Fa = Fw[alive]

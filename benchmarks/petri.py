@@ -108,6 +108,7 @@ def bench_full_run(detail: int) -> None:
             "method: petri-synth\nseed: 1\nexample: big.ply\n"
             "lattice:\n  unit: [2.0, 3.0, 2.0]\n"
             f"construction:\n  plane: xz\n  points: {pts}\n  size_y: 5\n  size_z: 3\n"
+            "output:\n  baseline: true\n"
         )
         start = time.perf_counter()
         report = run_config(tmp / "big.yaml", out_dir=tmp / "out", show_progress=False)

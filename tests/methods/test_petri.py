@@ -66,6 +66,7 @@ construction:
 output:
   export_net: both
   weld: true
+  baseline: true
 """
 
 
@@ -1099,6 +1100,7 @@ construction:
   closed: {str(closed).lower()}
 output:
   mesh_format: glb
+  baseline: true
 """)
     report = run_config(cfg, out_dir=tmp_path / "out")
     m = report["metrics"]

@@ -223,9 +223,10 @@ class Output(StrictModel):
         "pnml", description="Export the target Petri net as PNML and/or Graphviz DOT."
     )
     baseline: bool = Field(
-        True,
+        False,
         description="Also run Merrell-style model synthesis on the orthogonal lattice (a straight curve "
-        "of the same length) and report its normal-histogram D beside the curved result's.",
+        "of the same length) and report its normal-histogram D beside the curved result's (off by "
+        "default: a comparison, not part of the result).",
     )
     weld: bool = Field(
         True,

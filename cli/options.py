@@ -34,6 +34,10 @@ set_option = set_option_for()
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace an existing output folder.")
 progress_option = click.option("--no-progress", is_flag=True, help="Do not show progress bars.")
 json_option = click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
+name_outputs_option = click.option(
+    "--name-outputs", is_flag=True,
+    help="Also write the summary preview and the main result as <run>.preview.png and <run>.<suffix> "
+         "(hard links), so that files gathered from many runs keep apart.")
 previews_option = click.option(
     "--previews", type=click.Choice(["all", "summary", "none"]), default="all", show_default=True,
     help="PNG previews to render: every one, the one summary image of each run, or none (results and "
@@ -166,9 +170,10 @@ def method_command(
     @progress_option
     @previews_option
     @json_option
+    @name_outputs_option
     @global_options
     @report_errors
-    def command(config, out_dir, seed, overrides, overwrite, no_progress, previews, as_json, **extra):
+    def command(config, out_dir, seed, overrides, overwrite, no_progress, previews, as_json, name_outputs, **extra):
         from synthkit.runner import default_out_dir, run_config
 
         ctx = click.get_current_context()
@@ -185,6 +190,7 @@ def method_command(
             budget=run_budget(ctx),
             previews=previews,
             strict=strict_mode(ctx),
+            name_outputs=name_outputs,
         )
         if as_json:
             click.echo(json.dumps(report, indent=2))

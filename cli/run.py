@@ -17,6 +17,7 @@ import click
 from .options import (
     global_options,
     json_option,
+    name_outputs_option,
     overwrite_option,
     previews_option,
     print_summary,
@@ -54,10 +55,11 @@ from .options import (
 @progress_option
 @previews_option
 @json_option
+@name_outputs_option
 @global_options
 @click.pass_context
 def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler, scheduler_file, connect_timeout,
-            retries, overwrite, no_progress, previews, as_json) -> None:
+            retries, overwrite, no_progress, previews, as_json, name_outputs) -> None:
     """Run every CONFIG, dispatching on its `method:` key.
 
     A failed config is reported and the batch goes on; at the end every failure is listed, the
@@ -93,11 +95,12 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
             root = ctx.find_root().obj or {}
             max_bytes = None if root.get("max_memory") is None else int(root["max_memory"] * 2**30)
             problem = batch_run.run_distributed(report, cluster, seed=seed, overwrite=overwrite, max_bytes=max_bytes,
-                                                verbosity=verbosity(ctx), previews=previews, on_done=on_done)
+                                                verbosity=verbosity(ctx), previews=previews, on_done=on_done,
+                                                name_outputs=name_outputs)
         else:
             batch_run.run_sequential(report, seed=seed, overwrite=overwrite, budget=run_budget(ctx),
                                      show_progress=not no_progress and verbosity(ctx) >= 0, previews=previews,
-                                     on_done=on_done)
+                                     on_done=on_done, name_outputs=name_outputs)
     finally:
         bar.close()
         _say(ctx, report.finish(), always=True)

@@ -303,7 +303,8 @@ def worker_label() -> str:
 
 
 def execute(config: str, out_dir: str, *, seed: int | None, overrides: Sequence[str], overwrite: bool,
-            max_bytes: int | None, verbosity: int = 0, previews: str = "all") -> dict[str, Any]:
+            max_bytes: int | None, verbosity: int = 0, previews: str = "all",
+            name_outputs: bool = False) -> dict[str, Any]:
     """Run one config into ``out_dir`` (on a worker) and return its outcome; never raises ``Exception``.
 
     Returns ``{"status", "exit_code", "error", "traceback", "seconds", "report", "worker"}``.
@@ -317,7 +318,8 @@ def execute(config: str, out_dir: str, *, seed: int | None, overrides: Sequence[
     outcome: dict[str, Any] = {"worker": worker_label(), "error": None, "traceback": None, "report": None}
     try:
         report = run_config(config, out_dir=out_dir, seed=seed, overrides=list(overrides), overwrite=overwrite,
-                            show_progress=False, budget=Budget(max_bytes), previews=previews)
+                            show_progress=False, budget=Budget(max_bytes), previews=previews,
+                            name_outputs=name_outputs)
     except Exception as exc:
         code, line = describe_exception(exc)
         outcome |= {"status": "failed", "exit_code": code, "error": line, "traceback": traceback.format_exc()}

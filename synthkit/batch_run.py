@@ -205,7 +205,7 @@ OnDone = Callable[[int, dict, "BaseException | None", "str | None"], None]
 
 
 def run_sequential(report: BatchReport, *, seed, overwrite: bool, show_progress: bool, budget, previews: str,
-                   on_done: OnDone) -> None:
+                   on_done: OnDone, name_outputs: bool = False) -> None:
     """Run every job of ``report`` in this process, one after another, filling its rows."""
     from synthkit.runner import run_config
 
@@ -214,7 +214,8 @@ def run_sequential(report: BatchReport, *, seed, overwrite: bool, show_progress:
         try:
             job.out = str(out_dir_of(job, str(report.out_root)))
             result = run_config(job.config, out_dir=job.out, seed=seed, overrides=job.overrides, overwrite=overwrite,
-                                show_progress=show_progress, budget=budget, previews=previews)
+                                show_progress=show_progress, budget=budget, previews=previews,
+                                name_outputs=name_outputs)
         except Exception as exc:
             code, line = describe_exception(exc)
             seconds = round(time.perf_counter() - start, 3)
@@ -241,7 +242,8 @@ class Cluster:
         return bool(self.scheduler or self.scheduler_file)
 
 
-def _tasks(report: BatchReport, cluster: Cluster, *, seed, overwrite, max_bytes, verbosity, previews, on_done):
+def _tasks(report: BatchReport, cluster: Cluster, *, seed, overwrite, max_bytes, verbosity, previews, on_done,
+           name_outputs=False):
     """Validate every job here (same errors as a sequential run) and return (its task, the files it reads)."""
     from synthkit.runner import load_method_config
 
@@ -260,7 +262,7 @@ def _tasks(report: BatchReport, cluster: Cluster, *, seed, overwrite, max_bytes,
         tasks[i] = {"config": os.path.abspath(job.config) if remote else job.config,
                     "out_dir": os.path.abspath(job.out) if remote else job.out, "seed": seed,
                     "overrides": job.overrides, "overwrite": overwrite, "max_bytes": max_bytes,
-                    "verbosity": verbosity, "previews": previews}
+                    "verbosity": verbosity, "previews": previews, "name_outputs": name_outputs}
     return tasks, files
 
 
@@ -292,13 +294,13 @@ def _client(cluster: Cluster, files, out_root):
 
 
 def run_distributed(report: BatchReport, cluster: Cluster, *, seed, overwrite: bool, max_bytes: int | None,
-                    verbosity: int, previews: str, on_done: OnDone) -> str | None:
+                    verbosity: int, previews: str, on_done: OnDone, name_outputs: bool = False) -> str | None:
     """Run the jobs of ``report`` on Dask, filling its rows; return None, or the one line saying why
     the cluster cannot be used (exit 2). Configs are validated here first."""
     from synthkit import outdir
 
     tasks, files = _tasks(report, cluster, seed=seed, overwrite=overwrite, max_bytes=max_bytes,
-                          verbosity=verbosity, previews=previews, on_done=on_done)
+                          verbosity=verbosity, previews=previews, on_done=on_done, name_outputs=name_outputs)
     if not tasks:
         return None
     try:

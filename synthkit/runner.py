@@ -58,6 +58,9 @@ class RunContext:
         The lines :meth:`check_quality` warned with (``--strict`` names the first).
     label : str
         What the stage line on a terminal starts with (``<method> <output folder name>``).
+    name_outputs_as : str or None
+        ``--name-outputs``: the run's name, under which its summary preview and main result are
+        linked once the pipeline is done.
     previews : str
         ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
     budget : Budget
@@ -85,6 +88,7 @@ class RunContext:
         self.status = "ok"
         self.quality_warnings: list[str] = []
         self.label = "run"
+        self.name_outputs_as: str | None = None
         if previews not in PREVIEW_LEVELS:
             raise ValueError(f"previews must be one of {', '.join(PREVIEW_LEVELS)}, got {previews!r}")
         self.previews = previews
@@ -273,12 +277,15 @@ def run_config(
     budget: Budget | None = None,
     previews: str = "all",
     strict: bool = False,
+    name_outputs: bool = False,
 ) -> dict[str, Any]:
     """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report.
 
     See :mod:`synthkit.outdir` for what may be replaced, the lock and the staging folder. With
     ``strict``, a run whose report says ``degraded`` is written, then raises :class:`QualityError`
-    (exit 3) naming its first figure over a limit.
+    (exit 3) naming its first figure over a limit. With ``name_outputs``, the summary preview and
+    the main result are also written as ``<folder name>.<suffix>`` and ``<folder name>.preview.png``
+    (hard links), so that files gathered from many runs keep apart.
     """
     named: list[Path] = []
     fields: list[str] = []
@@ -300,6 +307,7 @@ def run_config(
             outdir.make_staging(staging)
             ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
             ctx.label = f"{method} {target.name}"
+            ctx.name_outputs_as = target.name if name_outputs else None
             try:
                 report = _run_staged(method, cfg, ctx, config_path)
             except _RefusalKept as kept:
@@ -326,6 +334,8 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
     start = time.perf_counter()
     try:
         pipeline_module(method).run(cfg, ctx)
+        if ctx.name_outputs_as:
+            _name_outputs(ctx, ctx.name_outputs_as)
         if ctx.previews != "none" and not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
             raise RuntimeError(f"method {method} wrote no PNG preview")
         return _write_report(method, cfg, ctx, config_path, start, ctx.status)
@@ -337,6 +347,21 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
         if named is exc:
             raise
         raise named from None
+
+
+def _name_outputs(ctx: RunContext, name: str) -> None:
+    """Hard-link (or copy) the summary preview and the main result under the run's ``name``."""
+    from synthkit.summary import main_output
+
+    for key, source in (("named_preview", summary_preview(ctx.outputs)), ("named_result", main_output(ctx.outputs))):
+        if source is None:
+            continue
+        suffix = ".preview.png" if key == "named_preview" else Path(source).suffix
+        target = ctx.path(key, f"{name}{suffix}")
+        try:
+            os.link(ctx.out_dir / source, target)
+        except OSError:
+            shutil.copyfile(ctx.out_dir / source, target)
 
 
 class _RefusalKept(Exception):

@@ -3,7 +3,7 @@ so the command line can use it before numpy loads)."""
 
 from __future__ import annotations
 
-__all__ = ["HEADLINE_METRICS", "SUMMARY_KEYS", "headline", "summary_preview"]
+__all__ = ["HEADLINE_METRICS", "SUMMARY_KEYS", "MAIN_KEYS", "headline", "summary_preview", "main_output"]
 
 HEADLINE_METRICS = ("n_principal", "sparsity_top7", "graph_nodes", "graph_labels", "energy", "cells", "labels",
                     "adjacency_violations", "normal_histogram_D", "objective_start", "objective_end",
@@ -24,6 +24,18 @@ def summary_preview(outputs: dict) -> str | None:
         if key in pngs:
             return pngs[key]
     return next(iter(pngs.values()), None)
+
+
+MAIN_KEYS = ("mesh", "transferred", "labels_ply", "result")
+"""Output keys of a run's main result, first present wins (reshape's meshes are ``mesh_<piece>``)."""
+
+
+def main_output(outputs: dict) -> str | None:
+    """The file name of a run's main result among its ``outputs`` (key -> file name), or None."""
+    for key in MAIN_KEYS:
+        if key in outputs:
+            return outputs[key]
+    return next((v for k, v in outputs.items() if k.startswith("mesh_")), None)
 
 
 def headline(metrics: dict) -> dict:

@@ -244,3 +244,18 @@ def test_validate_accepts_a_batch_file_and_checks_its_sweeps(runner, echo_config
     spec.write_text(f"configs: [{echo_config.name}]\nsweep: {{gain: [0.5, 20]}}\n")
     bad = runner.invoke(cli, ["validate", str(spec)])
     assert bad.exit_code == 2 and "gain: Input should be less than or equal to 10" in bad.stderr
+
+
+def test_name_outputs_links_the_summary_and_main_result_under_the_run_name(runner, echo_config, tmp_path):
+    from synthkit.summary import main_output
+
+    root = tmp_path / "o"
+    result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(root), "--name-outputs"])
+    assert result.exit_code == 0, result.stderr
+    folder = root / "echo"
+    assert (folder / "echo.preview.png").read_bytes() == (folder / "result.png").read_bytes()
+    report = json.loads((folder / "report.json").read_text())
+    assert report["outputs"]["named_preview"] == "echo.preview.png"
+    assert main_output({"labels_ply": "labels.ply", "mesh_wall": "wall.obj"}) == "labels.ply"
+    assert main_output({"mesh_wall": "wall.obj", "report": "report.json"}) == "wall.obj"
+    assert main_output({"report": "report.json"}) is None

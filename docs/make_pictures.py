@@ -5,6 +5,10 @@ at most :data:`MAX_WIDTH` pixels wide and written to ``docs/images/<name>.png`` 
 :data:`MAX_BYTES` (scaled down further until it fits). With Debian's chromium installed, the review
 page of those runs is rendered too (``docs/images/review.png``).
 
+With the third-party models in ``../shared/data`` (see its SOURCES.md; never copied here), the
+real-model pictures are rendered too: the input above the result, textured, from the front, iso
+and top views, framed alike (:data:`REAL`). Without them those pictures are kept as they are.
+
 Run: ``.venv/bin/python docs/make_pictures.py``.
 """
 
@@ -32,6 +36,22 @@ PICTURES = {
     "reshape": "configs/reshape/house-link.yaml",
 }
 """Picture name -> the bundled config whose summary preview it shows."""
+
+
+SHARED = ROOT.parent / "shared" / "data"
+REAL = {
+    "petri-kenney-ring": (f"""method: petri-synth
+example: {SHARED}/meshes/kenney-city/building-small-a.glb
+lattice: {{unit: [0.5, 0.475, 0.5]}}
+construction: {{plane: xz, points: [[0, 0], [0, 3], [4, 3], [4, 0]], closed: true}}
+output: {{mesh_format: glb}}
+""", "meshes/kenney-city/building-small-a.glb", "result.glb"),
+    "reshape-house1-wider": (f"""method: reshape
+input: {SHARED}/architecture/houses/house1_baked.obj
+scale: {{x: 1.3}}
+""", "architecture/houses/house1_baked.obj", "house1_baked.obj"),
+}
+"""Picture name -> (config text, input relative to ../shared/data, the result's file in the run folder)."""
 
 
 def fitted_png(source: Path, target: Path) -> int:
@@ -63,6 +83,26 @@ def screenshot(page: Path, target: Path) -> bool:
     return True
 
 
+def real_pictures(tmp: Path) -> None:
+    """Render :data:`REAL` (input above result, textured) when ../shared/data is present."""
+    from synthkit.io.assets import load_asset
+    from synthkit.preview import Appearance, before_after_png
+    from synthkit.runner import run_config
+
+    if not SHARED.is_dir():
+        print(f"{SHARED} not present: real-model pictures kept as they are")
+        return
+    for name, (text, source, result) in REAL.items():
+        config = tmp / f"{name}.yaml"
+        config.write_text(text)
+        run_config(config, out_dir=tmp / name, show_progress=False)
+        before, after = load_asset(SHARED / source), load_asset(tmp / name / result)
+        raw = tmp / f"{name}-raw.png"
+        before_after_png(raw, *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)], size=320)
+        size = fitted_png(raw, IMAGES / f"{name}.png")
+        print(f"{name}: -> docs/images/{name}.png ({size / 1000:.0f} KB)")
+
+
 def main() -> int:
     from synthkit.review import write_review
     from synthkit.runner import run_config
@@ -81,6 +121,7 @@ def main() -> int:
             print(f"review page -> docs/images/review.png ({size / 1000:.0f} KB)")
         else:
             print("chromium not installed: docs/images/review.png not rendered")
+        real_pictures(Path(tmp))
     return 0
 
 

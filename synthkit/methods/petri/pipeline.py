@@ -341,7 +341,8 @@ def weld_seams(V, F, seams):
 def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Look | None) -> None:
     """Write the result mesh (``output.mesh_format``) with the example's appearance: GLB with its PBR
     materials and textures, OBJ with an MTL and texture copies, PLY with colours; a PLY of an example
-    without colours stores each face's label instead (as before)."""
+    without colours stores each face's label instead (as before). An example with an appearance also
+    gets ``before_after.png``: example above result, textured, from three views (the summary)."""
     out_mesh = ctx.path("mesh", f"result.{cfg.output.mesh_format}")
     if cfg.output.mesh_format == "ply" and (look is None or look.corner_color is None):
         save_mesh(trimesh.Trimesh(V, F, process=False), out_mesh, face_labels=face_label)
@@ -349,6 +350,10 @@ def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Lo
     written = save_asset(out_mesh, V, F, like=asset, **({} if look is None else look.written()))
     for k, name in enumerate(written[1:]):
         ctx.outputs[f"mesh_file_{k}"] = name
+    if look is not None and (asset.textured or asset.corner_color is not None) and ctx.wants_preview("summary"):
+        example = (asset.V, asset.F, preview.Appearance.of(asset, like_input=True))
+        result = (V, F, preview.Appearance.of(asset, **look.written()))
+        preview.before_after_png(ctx.path("before_after", "before_after.png"), example, result, size=320)
 
 
 def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours) -> None:

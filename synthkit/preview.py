@@ -127,10 +127,11 @@ def rasterize_mesh(
     face_at = np.full(size * size, -1, dtype=np.int64)
     _rasterize(pix[F], P[F, 2], size, depth, face_at)
     covered = face_at >= 0
-    img.reshape(-1, 3)[covered] = _shaded_colors(P, F, face_colors, face_at[covered])
+    img.reshape(-1, 3)[covered] = _shaded_colors(P, F, None if appearance is not None else face_colors,
+                                                 face_at[covered])
     if appearance is not None:
         pixels = np.flatnonzero(covered)
-        img.reshape(-1, 3)[pixels] *= _surface_colors(appearance, pix[F], pixels, face_at[pixels], size)
+        img.reshape(-1, 3)[pixels] *= _surface_colors(appearance, pix[F], pixels, face_at[pixels], size, face_colors)
     if lines is not None and len(lines):
         segs = np.asarray(lines, dtype=np.float64).reshape(-1, 3) @ R.T
         seg_pix = to_pixels(segs).reshape(-1, 2, 2)
@@ -169,10 +170,10 @@ def _shaded_colors(P: np.ndarray, F: np.ndarray, face_colors, faces: np.ndarray)
 
 
 def _surface_colors(app: Appearance, tri_pix: np.ndarray, pixels: np.ndarray, faces: np.ndarray,
-                    size: int) -> np.ndarray:
+                    size: int, face_colors=None) -> np.ndarray:
     """``(k, 3)`` unshaded colours (over :data:`_BASE_COLOR`, which the shading applied) of the
     pixels ``pixels (k,)`` showing faces ``faces (k,)``; ``tri_pix (#F, 3, 2)`` are the faces'
-    pixel coordinates."""
+    pixel coordinates. Untextured faces take ``face_colors (#F, 3)`` when given, else their tint."""
     T = tri_pix[faces]
     px = np.stack([pixels % size, pixels // size], axis=1).astype(np.float64)
     e1, e2, d = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0], px - T[:, 0]
@@ -183,6 +184,9 @@ def _surface_colors(app: Appearance, tri_pix: np.ndarray, pixels: np.ndarray, fa
     W = np.clip(np.stack([1 - w1 - w2, w1, w2], axis=1), 0, 1)
     W /= np.maximum(W.sum(axis=1, keepdims=True), 1e-12)
     color = app.face_tint[faces].astype(np.float64)
+    if face_colors is not None:
+        plain = app.face_image[faces] < 0
+        color[plain] = np.broadcast_to(np.asarray(face_colors, np.float64), (len(app.face_image), 3))[faces[plain]]
     if app.corner_color is not None:
         color = color * np.einsum("kc,kcj->kj", W, app.corner_color[faces])
     if app.corner_uv is not None:

@@ -644,6 +644,21 @@ def _param_tiles(results, size: int) -> list[np.ndarray]:
     return tiles
 
 
+def _textured_look(cfg, work: WorkMesh, preps, ext: Extracted) -> preview.Appearance | None:
+    """How ``transferred.obj`` looks (its corner UVs into the target's own texture and the pairs'
+    source textures), or None when the result has no UVs (it is then drawn in its vertex colours)."""
+    if ext.uv is None:
+        return None
+    images = [work.texture] + [prep.texture if pair.signal == "texture" else None
+                               for prep, pair in zip(preps, cfg.transfer.pairs, strict=True)]
+    images = [None if img is None else np.asarray(img, np.float32)[..., :3] for img in images]
+    material = np.asarray(ext.material, np.int64)
+    has = np.array([img is not None for img in images])
+    face_image = np.where(has[material], material, -1)
+    return preview.Appearance(corner_uv=ext.uv, face_image=face_image, images=images,
+                              face_tint=np.ones((len(material), 3)))
+
+
 def _previews(cfg, ctx, work: WorkMesh, layout: Layout, preps, results, ext: Extracted) -> None:
     if not ctx.wants_preview("summary"):
         return
@@ -653,8 +668,9 @@ def _previews(cfg, ctx, work: WorkMesh, layout: Layout, preps, results, ext: Ext
     before = np.full((len(V0), 3), 0.75) if before is None else before
     views = ("front", "side", "iso")
     imgs = [preview.rasterize_mesh(V0, F, face_colors=_face_colors(F, before), view=v, size=size) for v in views]
-    imgs += [preview.rasterize_mesh(ext.positions, F, face_colors=_face_colors(F, ext.colors), view=v, size=size)
-             for v in views]
+    look = _textured_look(cfg, work, preps, ext)
+    imgs += [preview.rasterize_mesh(ext.positions, F, face_colors=_face_colors(F, ext.colors), view=v, size=size,
+                                    appearance=look) for v in views]
     titles = [f"before {v}" for v in views] + [f"after {v}" for v in views]
     preview.montage_png(ctx.path("preview_transfer", "transfer.png"), imgs, titles=titles, height=size)
     if not ctx.wants_preview("all"):

@@ -23,13 +23,22 @@ weights of points with respect to a closed polygon.
 from __future__ import annotations
 
 import cv2
+import numba
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.lsq import LeastSquares
 
-__all__ = ["ARAP2D", "MeshSampler", "mean_value_coordinates", "arap_deform", "triangle_stretch"]
+__all__ = [
+    "ARAP2D",
+    "MeshSampler",
+    "mean_value_coordinates",
+    "mvc_interpolate",
+    "arap_deform",
+    "triangle_stretch",
+]
 
 _R90 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -238,36 +247,89 @@ def triangle_stretch(A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=NUMBA_CACHE)
+def _mvc_row(x, y, P, w):  # pragma: no cover - compiled
+    """Floater's weights of the point ``(x, y)`` in polygon ``P (n, 2)`` written to ``w (n,)``."""
+    n = P.shape[0]
+    for i in range(n):
+        dx, dy = P[i, 0] - x, P[i, 1] - y
+        if dx * dx + dy * dy <= 1e-24:  # on vertex i
+            w[:] = 0.0
+            w[i] = 1.0
+            return
+    total = 0.0
+    prev_tan = 0.0
+    for i in range(n + 1):  # i = n revisits edge 0 -> 1 to close vertex 0
+        a, b = i % n, (i + 1) % n
+        dx, dy = P[a, 0] - x, P[a, 1] - y
+        ex, ey = P[b, 0] - x, P[b, 1] - y
+        r, rn = np.hypot(dx, dy), np.hypot(ex, ey)
+        cross = dx * ey - dy * ex
+        dot = dx * ex + dy * ey
+        if abs(cross) <= 1e-12 * max(r * rn, 1e-300) and dot < 0:  # on the edge a -> b
+            t = r / (r + rn)
+            w[:] = 0.0
+            w[a], w[b] = 1.0 - t, t
+            return
+        denom = r * rn + dot
+        tan_half = cross / denom if abs(denom) > 1e-300 else 0.0
+        if i > 0:
+            w[a] = (prev_tan + tan_half) / max(r, 1e-300)
+        prev_tan = tan_half
+    for i in range(n):
+        total += w[i]
+    for i in range(n):
+        w[i] /= total
+
+
+@numba.njit(parallel=True, cache=NUMBA_CACHE)
+def _mvc_rows_kernel(X, P, out):  # pragma: no cover - compiled
+    for k in numba.prange(X.shape[0]):
+        _mvc_row(X[k, 0], X[k, 1], P, out[k])
+
+
+@numba.njit(parallel=True, cache=NUMBA_CACHE)
+def _mvc_interpolate_kernel(X, P, C, out):  # pragma: no cover - compiled
+    n = P.shape[0]
+    for k in numba.prange(X.shape[0]):
+        w = np.empty(n)
+        _mvc_row(X[k, 0], X[k, 1], P, w)
+        for c in range(C.shape[1]):
+            acc = 0.0
+            for i in range(n):
+                acc += w[i] * C[i, c]
+            out[k, c] = acc
+
+
+def _mvc_inputs(points, polygon):
+    X = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    P = np.ascontiguousarray(polygon, dtype=np.float64).reshape(-1, 2)
+    if len(P) < 3:
+        raise ValueError(f"the polygon needs at least 3 vertices, got {len(P)}")
+    return X, P
+
+
 def mean_value_coordinates(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Floater's mean value coordinates ``(k, n)`` of ``points (k, 2)`` inside ``polygon (n, 2)``.
 
     ``w_i = (tan(a_{i-1} / 2) + tan(a_i / 2)) / |v_i - x|`` with ``a_i`` the angle at ``x`` between
-    ``v_i`` and ``v_{i+1}``, normalized to sum 1. A point on a polygon vertex gets that vertex's
-    unit weight; points on an edge get the linear interpolation of its two end points.
+    ``v_i`` and ``v_{i+1}`` (``tan(a / 2) = cross / (r r' + dot)``), normalized to sum 1. A point on
+    a polygon vertex gets that vertex's unit weight; points on an edge get the linear
+    interpolation of its two end points. Compiled, points shared by both cores.
     """
-    X = np.asarray(points, dtype=np.float64)
-    P = np.asarray(polygon, dtype=np.float64)
-    d = P[None, :, :] - X[:, None, :]  # (k, n, 2)
-    r = np.hypot(d[..., 0], d[..., 1])
-    dn = np.roll(d, -1, axis=1)
-    rn = np.roll(r, -1, axis=1)
-    cross = d[..., 0] * dn[..., 1] - d[..., 1] * dn[..., 0]
-    dot = (d * dn).sum(axis=2)
-    # tan(a/2) = sin a / (1 + cos a) = cross / (r rn + dot)
-    denom = r * rn + dot
-    on_edge = (np.abs(cross) <= 1e-12 * np.maximum(r * rn, 1e-300)) & (dot < 0)
-    tan_half = np.divide(cross, denom, out=np.zeros_like(cross), where=np.abs(denom) > 1e-300)
-    w = (np.roll(tan_half, 1, axis=1) + tan_half) / np.maximum(r, 1e-300)
-    weights = w / w.sum(axis=1, keepdims=True)
-    at_vertex = r <= 1e-12
-    rows_v = at_vertex.any(axis=1)
-    if rows_v.any():
-        weights[rows_v] = at_vertex[rows_v].astype(np.float64)
-    rows_e = on_edge.any(axis=1) & ~rows_v
-    for k in np.flatnonzero(rows_e):
-        i = int(np.argmax(on_edge[k]))
-        j = (i + 1) % len(P)
-        t = r[k, i] / (r[k, i] + r[k, j])
-        weights[k] = 0.0
-        weights[k, i], weights[k, j] = 1.0 - t, t
-    return weights
+    X, P = _mvc_inputs(points, polygon)
+    out = np.empty((len(X), len(P)))
+    _mvc_rows_kernel(X, P, out)
+    return out
+
+
+def mvc_interpolate(points: np.ndarray, polygon: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``mean_value_coordinates(points, polygon) @ values``, ``(k, C)``, without the ``(k, n)`` matrix.
+
+    ``values (n, C)`` are given at the polygon's vertices.
+    """
+    X, P = _mvc_inputs(points, polygon)
+    C = np.ascontiguousarray(values, dtype=np.float64).reshape(len(P), -1)
+    out = np.empty((len(X), C.shape[1]))
+    _mvc_interpolate_kernel(X, P, C, out)
+    return out

@@ -68,7 +68,7 @@ import scipy.linalg
 
 from synthkit.core import symmetry as sy
 from synthkit.core.tiling import cut_tile, fix_seams, seam_masks
-from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates, triangle_stretch
+from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates, mvc_interpolate, triangle_stretch
 from synthkit.io.images import save_image
 from synthkit.methods.symtex.common import build_objective, build_targets, write_common
 from synthkit.preview import montage_png
@@ -280,10 +280,6 @@ def _border_polygon(H: int, W: int, spacing: int) -> np.ndarray:
     ).astype(np.float64)
 
 
-def _mvc_rows(pts: np.ndarray, poly: np.ndarray, chunk: int = 2048) -> np.ndarray:
-    return np.concatenate([mean_value_coordinates(pts[s : s + chunk], poly) for s in range(0, len(pts), chunk)])
-
-
 def _linear_matrix(pos: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Weights ``(len(pos), len(nodes))`` of 1-D linear interpolation at ``pos`` between ``nodes``."""
     j = np.clip(np.searchsorted(nodes, pos, side="right") - 1, 0, len(nodes) - 2)
@@ -308,28 +304,36 @@ def _spread(c: np.ndarray, shape, poly: np.ndarray, band: int, step: int) -> np.
     mask = np.zeros((H, W), dtype=bool)
     mask[:band], mask[H - band :], mask[:, :band], mask[:, W - band :] = True, True, True, True
     yy, xx = np.nonzero(mask)
-    out[yy, xx] = _mvc_rows(np.stack([xx, yy], 1).astype(np.float64), poly) @ c
+    out[yy, xx] = mvc_interpolate(np.stack([xx, yy], 1).astype(np.float64), poly, c)
     if H - 2 * band > 0 and W - 2 * band > 0:
         ys = np.linspace(band - 1, H - band, int(np.ceil((H - 2 * band + 1) / step)) + 1)
         xs = np.linspace(band - 1, W - band, int(np.ceil((W - 2 * band + 1) / step)) + 1)
         gy, gx = np.meshgrid(ys, xs, indexing="ij")
-        grid = (_mvc_rows(np.stack([gx.ravel(), gy.ravel()], 1), poly) @ c).reshape(len(ys), len(xs), -1)
+        grid = mvc_interpolate(np.stack([gx.ravel(), gy.ravel()], 1), poly, c).reshape(len(ys), len(xs), -1)
         Ry = _linear_matrix(np.arange(band, H - band, dtype=np.float64), ys)
         Rx = _linear_matrix(np.arange(band, W - band, dtype=np.float64), xs)
-        out[band : H - band, band : W - band] = np.einsum("iy,yxc,jx->ijc", Ry, grid, Rx)
+        # Ry grid Rx^T per channel, as two matrix products (a three-operand einsum is a slow loop)
+        rows = np.tensordot(Ry, grid, axes=(1, 0))  # (h, nx, C)
+        out[band : H - band, band : W - band] = np.einsum("jx,ixc->ijc", Rx, rows, optimize=True)
     return out
 
 
 def _min_norm_lstsq(A: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Least-squares solution of smallest norm of ``A x = r`` by Cholesky of the normal equations
-    (``A^T (A A^T)^-1 r`` when ``A`` is wide), ``lstsq`` when they are singular."""
+    (``A^T (A A^T)^-1 r`` when ``A`` is wide); when they are singular (the corner constraints of
+    a blend with a vertex every pixel are dependent), by the pseudo-inverse of the normal matrix
+    from its eigendecomposition (eigenvalues below ``1e-12`` of the largest dropped), the same
+    minimum-norm solution as an SVD of ``A`` at a fraction of its cost."""
     wide = A.shape[0] <= A.shape[1]
     G = A @ A.T if wide else A.T @ A
     try:
         fac = scipy.linalg.cho_factor(G)
+        solve = lambda b: scipy.linalg.cho_solve(fac, b)  # noqa: E731
     except np.linalg.LinAlgError:
-        return np.linalg.lstsq(A, r, rcond=None)[0]
-    return A.T @ scipy.linalg.cho_solve(fac, r) if wide else scipy.linalg.cho_solve(fac, A.T @ r)
+        lam, V = scipy.linalg.eigh(G)
+        inv = np.where(lam > 1e-12 * lam.max(), 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
+        solve = lambda b: V @ (inv[:, None] * (V.T @ b))  # noqa: E731
+    return A.T @ solve(r) if wide else solve(A.T @ r)
 
 
 def toroidal_blend(img: np.ndarray, *, spacing: int = 1, band: int = 8, step: int = 4) -> np.ndarray:
@@ -357,10 +361,10 @@ def toroidal_blend(img: np.ndarray, *, spacing: int = 1, band: int = 8, step: in
     y, x = np.arange(H, dtype=np.float64), np.arange(W, dtype=np.float64)
 
     def col(j):
-        return _mvc_rows(np.stack([np.full(H, float(j)), y], 1), poly)
+        return mean_value_coordinates(np.stack([np.full(H, float(j)), y], 1), poly)
 
     def row(i):
-        return _mvc_rows(np.stack([x, np.full(W, float(i))], 1), poly)
+        return mean_value_coordinates(np.stack([x, np.full(W, float(i))], 1), poly)
 
     # 1.5 v[0] - 1.5 v[-1] + 0.5 v[-2] - 0.5 v[1] = 0 along each seam
     coef = (1.5, -1.5, 0.5, -0.5)

@@ -161,6 +161,7 @@ def guided_walk(
     value = current_value()
     result.history.append(value)
     tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    matcher = q.PatchMatcher(src, patch)
     for _ in range(sweeps):
         changed = 0
         iterator = progress(tiles, total=len(tiles), desc="guided walk") if progress else tiles
@@ -170,7 +171,7 @@ def guided_walk(
             region = canvas[np.ix_(ry, rx)]
             overlaps = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
             band = _band(patch, overlaps)
-            cost = q.overlap_costs(src, region, band.astype(np.float32))
+            cost = matcher.costs(region, band)
             pos = q.candidates(cost, tol=None, k=candidates)
             patches = q.source_patches(src, pos, patch)
             keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)

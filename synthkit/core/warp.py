@@ -249,21 +249,24 @@ def triangle_stretch(A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=NUMBA_CACHE)
 def _mvc_row(x, y, P, w):  # pragma: no cover - compiled
-    """Floater's weights of the point ``(x, y)`` in polygon ``P (n, 2)`` written to ``w (n,)``."""
+    """Floater's weights of the point ``(x, y)`` in polygon ``P (n, 2)`` written to ``w (n,)``.
+
+    One pass over the edges ``a -> b``: the distance of ``b`` is carried to the next edge, and
+    ``w[b]`` is completed there; vertex 0 is completed after the last edge."""
     n = P.shape[0]
-    for i in range(n):
-        dx, dy = P[i, 0] - x, P[i, 1] - y
-        if dx * dx + dy * dy <= 1e-24:  # on vertex i
-            w[:] = 0.0
-            w[i] = 1.0
-            return
-    total = 0.0
+    dx, dy = P[0, 0] - x, P[0, 1] - y
+    r = np.sqrt(dx * dx + dy * dy)
+    r0 = r
+    first_tan = 0.0
     prev_tan = 0.0
-    for i in range(n + 1):  # i = n revisits edge 0 -> 1 to close vertex 0
-        a, b = i % n, (i + 1) % n
-        dx, dy = P[a, 0] - x, P[a, 1] - y
+    for a in range(n):
+        b = a + 1 if a + 1 < n else 0
+        if r <= 1e-12:  # on vertex a
+            w[:] = 0.0
+            w[a] = 1.0
+            return
         ex, ey = P[b, 0] - x, P[b, 1] - y
-        r, rn = np.hypot(dx, dy), np.hypot(ex, ey)
+        rn = np.sqrt(ex * ex + ey * ey)
         cross = dx * ey - dy * ex
         dot = dx * ex + dy * ey
         if abs(cross) <= 1e-12 * max(r * rn, 1e-300) and dot < 0:  # on the edge a -> b
@@ -273,9 +276,14 @@ def _mvc_row(x, y, P, w):  # pragma: no cover - compiled
             return
         denom = r * rn + dot
         tan_half = cross / denom if abs(denom) > 1e-300 else 0.0
-        if i > 0:
-            w[a] = (prev_tan + tan_half) / max(r, 1e-300)
+        if a == 0:
+            first_tan = tan_half
+        else:
+            w[a] = (prev_tan + tan_half) / r
         prev_tan = tan_half
+        dx, dy, r = ex, ey, rn
+    w[0] = (prev_tan + first_tan) / r0
+    total = 0.0
     for i in range(n):
         total += w[i]
     for i in range(n):

@@ -91,7 +91,7 @@ def test_real_photo_crop_tiles_seamlessly(tmp_path, write_config, seam_steps):
         mode="tile",
         source="c.png",
         symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
-        tile={"margin": 0.2},
+        tile={"margin": 0.2, "optimize": True},
         deform={"points": 16, "levels": 2, "step": 4.0, "max_cycles": 1, "max_evaluations": 200},
     )
     report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
@@ -127,6 +127,7 @@ TILE_REAL = dict(
     mode="tile",
     source="c.png",
     symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
+    tile={"optimize": True},
     deform={"points": 24, "levels": 2, "step": 4.0, "max_cycles": 2, "max_evaluations": 300},
 )
 TILE_PHOTOS = [

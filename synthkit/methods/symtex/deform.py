@@ -61,6 +61,8 @@ Where real photographs contradict the paper (issue 14, README tables):
 from __future__ import annotations
 
 import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -320,20 +322,18 @@ def _spread(c: np.ndarray, shape, poly: np.ndarray, band: int, step: int) -> np.
 
 def _min_norm_lstsq(A: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Least-squares solution of smallest norm of ``A x = r`` by Cholesky of the normal equations
-    (``A^T (A A^T)^-1 r`` when ``A`` is wide); when they are singular (the corner constraints of
-    a blend with a vertex every pixel are dependent), by the pseudo-inverse of the normal matrix
-    from its eigendecomposition (eigenvalues below ``1e-12`` of the largest dropped), the same
-    minimum-norm solution as an SVD of ``A`` at a fraction of its cost."""
+    (``A^T (A A^T)^-1 r`` when ``A`` is wide). When they are singular (the corner constraints of a
+    blend with a vertex every pixel are dependent: one zero eigenvalue, the next 2.0 of 10 on a
+    640x480 photo), ``1e-10`` of their mean diagonal is added (Tikhonov): the solution moves by
+    about 1e-10 of itself, where an SVD of ``A`` took seconds."""
     wide = A.shape[0] <= A.shape[1]
     G = A @ A.T if wide else A.T @ A
     try:
         fac = scipy.linalg.cho_factor(G)
-        solve = lambda b: scipy.linalg.cho_solve(fac, b)  # noqa: E731
     except np.linalg.LinAlgError:
-        lam, V = scipy.linalg.eigh(G)
-        inv = np.where(lam > 1e-12 * lam.max(), 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
-        solve = lambda b: V @ (inv[:, None] * (V.T @ b))  # noqa: E731
-    return A.T @ solve(r) if wide else solve(A.T @ r)
+        G[np.diag_indices_from(G)] += 1e-10 * float(np.trace(G)) / len(G)
+        fac = scipy.linalg.cho_factor(G)
+    return A.T @ scipy.linalg.cho_solve(fac, r) if wide else scipy.linalg.cho_solve(fac, A.T @ r)
 
 
 def toroidal_blend(img: np.ndarray, *, spacing: int = 1, band: int = 8, step: int = 4) -> np.ndarray:
@@ -505,6 +505,9 @@ def run_deform(cfg, ctx, src, tgt) -> None:
     it, ``metrics.tile_candidates`` holds the figures of all). ``optimized.png`` is always the
     optimized tile, ``cut<overlap>.png`` the cut tiles.
     """
+    if cfg.mode == "tile" and not cfg.tile.optimize:
+        _run_tile_unoptimized(cfg, ctx, src)
+        return
     dc = cfg.deform
     H, W = src.shape[:2]
     out_shape = (H, W)
@@ -594,23 +597,47 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         _write_deform_images(ctx, src, image, tiles)
 
 
-def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict):
-    """Blend the warped tile and the input toroidally, cut the input's cut tiles, and return
-    ``(result, tiles)``: the result chosen by :func:`choose_tile` and every candidate image by
-    name; the figures of every candidate go to ``metrics``."""
-    tc = cfg.tile
-    with ctx.stage("blend"):
-        optimized = toroidal_blend(image, spacing=tc.mvc_spacing)
-    with ctx.stage("baseline"):
-        baseline = toroidal_blend(src, spacing=tc.mvc_spacing)
-    hf_input = high_frequency_energy(src)
-    input_objective = objective.value(src)
-    tiles = {"optimized": optimized, "baseline": baseline, "input": src}
-    candidates = {
-        "optimized": _tile_candidate(optimized, objective, hf_view, metrics["max_stretch"]),
-        "baseline": _tile_candidate(baseline, objective, hf_input, 1.0),
-        "input": _tile_candidate(src, objective, hf_input, 1.0),
+def _run_tile_unoptimized(cfg, ctx, src) -> None:
+    """Mode ``tile`` without the paper's optimization (``tile.optimize: false``, the default): the
+    blended input and the cut tiles are compared with the input as :func:`choose_tile` does, in
+    seconds (issue 24: the optimized tile was returned on none of 4 photographs and took minutes).
+    E_symm is that of the same objective as with the optimization (window of the tile crop)."""
+    out_shape, _ = tile_crop(src.shape, cfg.tile.margin)
+    with ctx.stage("target"):
+        objective = build_objective(cfg, out_shape, None, source=src)
+    start = objective.value(src)
+    metrics = {
+        "objective": "E_symm",
+        "objective_start": start,
+        "objective_end": start,
+        "iterations": 0,
+        "tile_optimized": False,
     }
+    image, tiles = _tile_result(cfg, ctx, src, None, objective, None, metrics)
+    ctx.metrics.update(metrics)
+    with ctx.stage("write"):
+        write_common(cfg, ctx, src, image, objective, None)
+        _write_deform_images(ctx, src, image, tiles)
+
+
+def _tile_result(cfg, ctx, src, image, objective, hf_view: float | None, metrics: dict):
+    """Blend the warped tile (``image``; None without the optimization) and the input toroidally,
+    cut the input's cut tiles, and return ``(result, tiles)``: the result chosen by
+    :func:`choose_tile` and every candidate image by name; the figures of every candidate go to
+    ``metrics``."""
+    tc = cfg.tile
+    tiles, candidates = {}, {}
+    hf_input = high_frequency_energy(src)
+    if image is not None:
+        with ctx.stage("blend"):
+            tiles["optimized"] = toroidal_blend(image, spacing=tc.mvc_spacing)
+        candidates["optimized"] = _tile_candidate(tiles["optimized"], objective, hf_view, metrics["max_stretch"])
+    with ctx.stage("baseline"):
+        tiles["baseline"] = toroidal_blend(src, spacing=tc.mvc_spacing)
+    tiles["input"] = src
+    input_objective = objective.value(src)
+    candidates["baseline"] = _tile_candidate(tiles["baseline"], objective, hf_input, 1.0)
+    candidates["input"] = _tile_candidate(src, objective, hf_input, 1.0)
     for ov in _cut_overlaps(tc.cut_overlaps, src.shape):
         with ctx.stage("cut"):
             cut, source = cut_tile(src, ov)
@@ -619,17 +646,20 @@ def _tile_result(cfg, ctx, src, image, objective, hf_view: float, metrics: dict)
     choice = choose_tile(candidates, input_objective)
     result = tiles[choice]
     chosen = candidates[choice]
+    if image is not None:
+        metrics.update(
+            objective_warped=metrics["objective_end"],
+            objective_optimized=candidates["optimized"]["objective"],
+            optimized_seam_ratio=candidates["optimized"]["seam_ratio"],
+        )
     metrics.update(
-        objective_warped=metrics["objective_end"],
         objective_end=chosen["objective"],
-        objective_optimized=candidates["optimized"]["objective"],
         baseline_objective=candidates["baseline"]["objective"],
         input_objective=input_objective,
         seam_ratio=chosen["seam_ratio"],
         seam_band_ratio=chosen["seam_band_ratio"],
         seam_ratio_input=candidates["input"]["seam_ratio"],
         baseline_seam_ratio=candidates["baseline"]["seam_ratio"],
-        optimized_seam_ratio=candidates["optimized"]["seam_ratio"],
         sharpness=chosen["sharpness"],
         tile_choice=choice,
         tile_candidates=candidates,
@@ -651,17 +681,19 @@ def _cut_overlaps(overlaps, shape) -> list[int]:
 
 
 def _write_deform_images(ctx, src, image, tiles) -> None:
-    """The tile images (``tiles`` None outside tile), tilings and ``comparison.png``."""
+    """The tile images (``tiles`` None outside tile), tilings and ``comparison.png``; the PNGs are
+    encoded by two threads (a 640x480 input has five 1440x1920 tilings)."""
     if tiles is not None:
-        save_image(ctx.path("optimized", "optimized.png"), tiles["optimized"])
-        save_image(ctx.path("baseline", "baseline.png"), tiles["baseline"])
         cuts = sorted((k for k in tiles if k.startswith("cut")), key=tile_order)
-        for name in cuts:
-            save_image(ctx.path(name, f"{name}.png"), tiles[name])
+        jobs = [(ctx.path(k, f"{k}.png"), lambda k=k: tiles[k]) for k in ("optimized", "baseline") if k in tiles]
+        jobs += [(ctx.path(name, f"{name}.png"), lambda name=name: tiles[name]) for name in cuts]
         if ctx.wants_preview("all"):
-            save_image(ctx.path("tiled", "tiled_3x3.png"), np.tile(image, (3, 3, 1)))
-            for name in ["optimized", "input", "baseline", *cuts]:
-                save_image(ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), np.tile(tiles[name], (3, 3, 1)))
+            jobs.append((ctx.path("tiled", "tiled_3x3.png"), lambda: np.tile(image, (3, 3, 1))))
+            for name in [n for n in ("optimized", "input", "baseline") if n in tiles] + cuts:
+                tiled = lambda name=name: np.tile(tiles[name], (3, 3, 1))  # noqa: E731
+                jobs.append((ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), tiled))
+        with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+            list(pool.map(lambda job: save_image(job[0], job[1]()), jobs))
     if not ctx.wants_preview("summary"):
         return
     if tiles is None:

@@ -38,6 +38,7 @@ __all__ = [
     "mvc_interpolate",
     "arap_deform",
     "triangle_stretch",
+    "displacement_gradient",
 ]
 
 _R90 = np.array([[0.0, -1.0], [1.0, 0.0]])
@@ -222,6 +223,28 @@ class MeshSampler:
         if interpolation != "linear":
             out = np.clip(out, float(src.min()), float(src.max()))
         return out
+
+
+def displacement_gradient(rest: np.ndarray, A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Gradient ``(m,)`` of the displacement from map ``A (n, 2)`` to map ``B (n, 2)`` per triangle.
+
+    Both maps are given at the vertices of the ``rest (n, 2)`` mesh ``F (m, 3)`` (the output's
+    pixel grid) and are linear on each triangle, so the displacement ``B - A`` has one Jacobian
+    ``D_t = (E_B - E_A) E_rest^-1`` per triangle; its largest singular value is returned. Two
+    points ``d`` px apart inside a triangle move by at most ``|D_t| d`` against each other: with
+    0.2, neighbouring pattern elements one period apart shift by at most a fifth of it.
+    """
+    R, A, B = (np.asarray(X, dtype=np.float64) for X in (rest, A, B))
+    F = np.asarray(F, dtype=np.int64)
+
+    def edges(X):
+        return np.stack([X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]], axis=2)  # (m, 2, 2) columns
+
+    ER = edges(R)
+    if np.any(np.abs(np.linalg.det(ER)) <= 1e-12):
+        raise ValueError("rest mesh has a degenerate triangle")
+    D = (edges(B) - edges(A)) @ np.linalg.inv(ER)
+    return np.linalg.svd(D, compute_uv=False)[:, 0]
 
 
 def triangle_stretch(A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -347,3 +347,48 @@ def test_real_line_art_auto_signal_is_inverted_luminance_and_undoes_warp(tmp_pat
     m_lum, _, after_lum = symmetrize_real(tmp_path / "lum", write_config, art, 3.0, signals=["lum"])
     assert m_lum["signals"] == ["lum"]
     assert after < after_lum
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 24: symmetrize never returns a worse image, on every shared photo and its negative
+
+SHARED_PHOTOS = [
+    "lattice-p4.jpg",
+    "lattice-p3-21.jpg",
+    "lattice-p2-2.jpg",
+    "lattice-p2-4.png",
+    "texture_bricks.jpg",
+    "aerial_rocks_02_diff_1k.jpg",
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("negative", [False, True], ids=["photo", "negative"])
+@pytest.mark.parametrize("name", SHARED_PHOTOS)
+def test_symmetrize_never_returns_a_worse_image(tmp_path, write_config, name, negative):
+    """Issue 24 on a 96 px native crop of each shared photo and of its luminance negative: the
+    returned image's E_symm is not below the input's, the deformation is kept only when E_symm
+    rose and its displacement gradient is within deform.max_gradient, otherwise result.png is the
+    input and metrics.status_reason says why."""
+    from synthkit.methods.symtex.config import DeformSection
+
+    crop = native_crop(name, 96)
+    photo = 1.0 - crop if negative else crop
+    save_image(tmp_path / "w.png", photo)
+    quick = {"points": 16, "levels": 2, "step": 4.0, "max_cycles": 1, "max_evaluations": 150}
+    cfg = dict(SYMMETRIZE_REAL, deform=quick)
+    report = run_config(write_config(tmp_path, "s", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    out = load_image(tmp_path / "out" / "result.png")
+    bound = DeformSection().max_gradient
+    assert m["objective_end"] >= m["baseline_objective"]
+    if m["status"] == "symmetrized":
+        assert m["status_reason"] is None
+        assert m["objective_end"] > m["baseline_objective"]
+        assert m["max_displacement_gradient"] <= bound
+    else:
+        assert m["status"] == "input returned" and m["status_reason"]
+        np.testing.assert_array_equal(out, load_image(tmp_path / "w.png"))
+        smap = np.load(tmp_path / "out" / report["outputs"]["sample_map"])
+        H, W = smap.shape[:2]
+        np.testing.assert_allclose(smap, np.stack(np.meshgrid(np.arange(W), np.arange(H)), axis=2), atol=1e-4)

@@ -132,6 +132,19 @@ class DeformSection(StrictModel):
             "null = unbounded (the paper's model, which smeared bark and bent brick courses)."
         ),
     )
+    max_gradient: float | None = Field(
+        0.2,
+        gt=0.0,
+        le=10.0,
+        description=(
+            "Mode symmetrize: bound of the displacement field's gradient (largest singular value of "
+            "its Jacobian per mesh triangle): two points d px apart move by at most this times d "
+            "against each other, so neighbouring pattern elements one period apart shift by at most "
+            "a fifth of it and stay in their rows. Moves beyond it are refused, and a result beyond "
+            "it, or whose E_symm is not above the input's, is not returned: the input comes back "
+            "(metrics.status, metrics.status_reason). null: unbounded gradient (E_symm still checked)."
+        ),
+    )
     min_gain: float | None = Field(
         None,
         ge=0.0,

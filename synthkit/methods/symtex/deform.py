@@ -70,7 +70,14 @@ import scipy.linalg
 
 from synthkit.core import symmetry as sy
 from synthkit.core.tiling import cut_tile, fix_seams, seam_masks
-from synthkit.core.warp import ARAP2D, MeshSampler, mean_value_coordinates, mvc_interpolate, triangle_stretch
+from synthkit.core.warp import (
+    ARAP2D,
+    MeshSampler,
+    displacement_gradient,
+    mean_value_coordinates,
+    mvc_interpolate,
+    triangle_stretch,
+)
 from synthkit.io.images import save_image
 from synthkit.methods.symtex.common import build_objective, build_targets, write_common
 from synthkit.preview import montage_png
@@ -151,7 +158,9 @@ class DeformOptimizer:
     ``rejected_stretch`` counts the moves that bound refused. ``accept(U) -> bool``, when given, is
     a further condition on every move (mode ``tile``: the Lanczos render keeps
     ``SHARPNESS_MIN`` of the input's high-frequency energy); ``rejected_accept`` counts its
-    refusals.
+    refusals. With ``max_gradient``, a move is also refused when the displacement from ``U0`` has
+    a larger gradient on some triangle (:func:`synthkit.core.warp.displacement_gradient`: pattern
+    elements stay in their rows); ``rejected_gradient`` counts those refusals.
     """
 
     def __init__(
@@ -173,6 +182,7 @@ class DeformOptimizer:
         max_stretch=None,
         min_gain=0.0,
         accept=None,
+        max_gradient=None,
     ):
         self.img = np.asarray(img, dtype=np.float32)
         self.loss = loss
@@ -191,6 +201,8 @@ class DeformOptimizer:
         self.rejected_stretch = 0
         self.accept = accept
         self.rejected_accept = 0
+        self.max_gradient = max_gradient
+        self.rejected_gradient = 0
         self.evaluations = 0
         self.history: list[float] = []
 
@@ -198,10 +210,17 @@ class DeformOptimizer:
         if self.max_stretch is not None and self.stretch(U) > self.max_stretch:
             self.rejected_stretch += 1
             return False
+        if self.max_gradient is not None and self.gradient(U) > self.max_gradient:
+            self.rejected_gradient += 1
+            return False
         if self.accept is not None and not self.accept(U):
             self.rejected_accept += 1
             return False
         return True
+
+    def gradient(self, U=None) -> float:
+        """Largest displacement gradient of ``U`` (default the current warp) from ``U0``."""
+        return float(displacement_gradient(self.rest, self.U0, self.U if U is None else U, self.F).max())
 
     def stretch(self, U=None) -> float:
         """Largest triangle stretch of ``U`` (default the current warp) against ``U0``."""
@@ -548,6 +567,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         out_shape=out_shape,
         max_stretch=cfg.tile.max_stretch if cfg.mode == "tile" else dc.max_stretch,
         min_gain=cfg.resolved_min_gain(),
+        max_gradient=dc.max_gradient if cfg.mode == "symmetrize" else None,
     )
     interp = dc.interpolation
     # sharpness reference of the optimized tile: the part of the input it is cut from (the whole
@@ -584,17 +604,46 @@ def run_deform(cfg, ctx, src, tgt) -> None:
         "max_stretch_bound": opt.max_stretch,
         "moves_rejected_by_stretch": opt.rejected_stretch,
         "moves_rejected_by_sharpness": opt.rejected_accept,
+        "moves_rejected_by_gradient": opt.rejected_gradient,
+        "max_displacement_gradient": opt.gradient(),
         "symmetry_crop": None if objective.crop is None else list(objective.crop),
         "min_gain": opt.min_gain,
     }
     tiles = None
     if cfg.mode == "tile":
         image, tiles = _tile_result(cfg, ctx, src, image, objective, hf_view, metrics)
+    if cfg.mode == "symmetrize":
+        reason = symmetrize_refusal(metrics, dc.max_gradient)
+        metrics["status"] = "input returned" if reason else "symmetrized"
+        metrics["status_reason"] = reason
+        if reason:
+            log.warning("symmetrize: %s: returned the input unchanged (%s)", cfg.source, reason)
+            image, mx, my = src, mx0, my0
+            metrics["objective_end"] = metrics["baseline_objective"]
     ctx.metrics.update(metrics)
     with ctx.stage("write"):
         write_common(cfg, ctx, src, image, objective, targets)
         np.save(ctx.path("sample_map", "sample_map.npy"), np.stack([mx, my], axis=2).astype(np.float32))
         _write_deform_images(ctx, src, image, tiles)
+
+
+def symmetrize_refusal(metrics: dict, max_gradient: float | None) -> str | None:
+    """Why mode ``symmetrize`` returns the input instead of the deformed image, or None (issue 24).
+
+    The deformed image is kept only when its E_symm (``metrics.objective_end``, the rendered
+    colour result) is above the input's (``baseline_objective``) and, with ``max_gradient``, its
+    displacement's gradient (``max_displacement_gradient``) is within it. The optimizer refuses
+    moves that break either, but its probes are bilinear renders of the luminance, while the
+    result is a Lanczos render of the colour image: E_symm of the two may differ in the last
+    percent.
+    """
+    end, start = metrics["objective_end"], metrics["baseline_objective"]
+    if not end > start:
+        return f"E_symm {end:.4g} of the deformed image is not above the input's {start:.4g}"
+    grad = metrics["max_displacement_gradient"]
+    if max_gradient is not None and grad > max_gradient:
+        return f"the displacement's gradient {grad:.3g} exceeds deform.max_gradient {max_gradient:g}"
+    return None
 
 
 def _run_tile_unoptimized(cfg, ctx, src) -> None:

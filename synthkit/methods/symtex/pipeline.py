@@ -10,6 +10,7 @@ guided run with that seed.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,8 @@ from synthkit.methods.symtex.config import SymtexConfig
 from synthkit.preview import montage_png, plot_curve_png
 
 MIN_SIZE = 8
+
+log = logging.getLogger("synthkit")
 
 
 def _load(path: Path, what: str) -> np.ndarray:
@@ -192,13 +195,22 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
         k1, history = lens_mod.search_k1(score, k1_min=lc.k1_min, k1_max=lc.k1_max, samples=lc.samples, tol=lc.tol)
         image = lens_mod.undistort(src, k1, center=lc.center)
         end = objective.value(image)
+    # issue 24: symmetrize never returns a worse image (E_symm of the search's k1 may be the
+    # grid's best and still not above k1 = 0 once the colour image is resampled)
+    reason = None if end > start else f"E_symm {end:.4g} at k1 {k1:.4g} is not above the input's {start:.4g}"
+    if reason:
+        log.warning("symmetrize: %s: returned the input unchanged (%s)", cfg.source, reason)
+        image, end = src, start
     ctx.metrics.update(
         objective="E_symm",
         objective_start=start,
         objective_end=end,
         baseline_objective=start,
         iterations=len(history),
-        k1=k1,
+        k1=k1 if reason is None else 0.0,
+        k1_searched=k1,
+        status="input returned" if reason else "symmetrized",
+        status_reason=reason,
     )
     with ctx.stage("write"):
         write_common(cfg, ctx, src, image, objective, None)

@@ -406,6 +406,7 @@ def base_synthkit(folder: Path):
 
     repo = Path(__file__).resolve().parents[1]
     data = subprocess.run(["git", "-C", str(repo), "archive", BASE_COMMIT, "synthkit"], capture_output=True, check=True)
+    folder.mkdir(parents=True, exist_ok=True)
     subprocess.run(["tar", "-x", "-C", str(folder)], input=data.stdout, check=True)
     (folder / "synthkit").rename(folder / "synthkit_base")
     for f in (folder / "synthkit_base").rglob("*.py"):

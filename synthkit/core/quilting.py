@@ -38,6 +38,7 @@ __all__ = [
     "paste",
     "quilt",
     "QuiltResult",
+    "patch_sources",
 ]
 
 
@@ -383,12 +384,22 @@ class QuiltResult:
     image : (H, W[, C]) float32 toroidal texture.
     origins : (ny, nx, 2) int64 source position (row, col) of each tile's patch.
     ys, xs : (ny,), (nx,) tile origins in the output.
+    sources : (H, W, 2) int64 source pixel (row, col) each output pixel shows (its patch's origin
+        plus the offset inside the patch); patch borders are where neighbours do not show
+        neighbouring source pixels (:func:`synthkit.core.tiling.seam_masks`).
     """
 
     image: np.ndarray
     origins: np.ndarray
     ys: np.ndarray
     xs: np.ndarray
+    sources: np.ndarray | None = None
+
+
+def patch_sources(positions: np.ndarray, patch: int) -> np.ndarray:
+    """Source pixel coordinates ``(K, B, B, 2) int64`` of the patches at ``positions (K, 2)``."""
+    grid = np.stack(np.mgrid[0:patch, 0:patch], axis=2)
+    return np.asarray(positions, dtype=np.int64)[:, None, None, :] + grid[None]
 
 
 def source_patches(source: np.ndarray, positions: np.ndarray, patch: int) -> np.ndarray:
@@ -437,6 +448,7 @@ def quilt(
     canvas = np.zeros((H, W) + src.shape[2:], dtype=np.float32)
     filled = np.zeros((H, W), dtype=bool)
     origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
+    sources = np.zeros((H, W, 2), dtype=np.int64)
     matcher = PatchMatcher(src, patch)
     for i, y0 in enumerate(ys):
         for j, x0 in enumerate(xs):
@@ -450,6 +462,7 @@ def quilt(
             ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
             keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
             paste(canvas, p[0], keep, y0, x0)
+            paste(sources, patch_sources(pos[None], patch)[0], keep, y0, x0)
             filled[np.ix_(ry, rx)] = True
             origins[i, j] = pos
-    return QuiltResult(canvas, origins, ys, xs)
+    return QuiltResult(canvas, origins, ys, xs, sources)

@@ -9,7 +9,7 @@ import pytest
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image, save_image
-from synthkit.methods.symtex import lens, synth
+from synthkit.methods.symtex import deform, lens, synth
 from synthkit.runner import run_config
 from synthkit.samples import textures
 
@@ -115,6 +115,12 @@ def test_guided_walk_threads_and_full_evaluation_agree(window):
     np.testing.assert_array_equal(runs[0].image, runs[2].image)
     np.testing.assert_allclose(runs[0].history, runs[2].history, rtol=1e-6)
     assert runs[0].changed > 0
+    # every output pixel is the source pixel the walk's per-pixel source map names
+    sources = runs[0].sources
+    np.testing.assert_array_equal(runs[0].image, src[sources[..., 0], sources[..., 1]])
+    assert synth.seam_visibility(src, np.stack(np.mgrid[0:48, 0:48], axis=2)) == pytest.approx(
+        deform.seam_ratio(src)
+    )
 
 
 @pytest.mark.slow

@@ -3,7 +3,9 @@
 Stages: ``load`` (images, blank/size checks), ``target`` (S(g) or FLT(S(f))), ``baseline``
 (unguided quilting from the same seed, synthesis modes), ``optimize`` (guided walk, ARAP or lens
 search), ``write``. Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
-``iterations`` plus mode-specific values. Randomness: ``ctx.rng`` is split once into a baseline
+``iterations`` plus mode-specific values; the synthesis modes report ``seam_visibility`` (of the
+result) and ``baseline_seam_visibility`` (of unguided quilting), see
+:func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into a baseline
 generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the baseline of a
 guided run with that seed.
 """
@@ -127,11 +129,12 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
     with ctx.stage("baseline"):
         baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams, rng=base_rng)
         baseline_value = objective.value(baseline.image)
+    baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
     if cfg.mode == "quilt":
         image = baseline.image
         start = end = baseline_value
         iterations = len(baseline.ys) * len(baseline.xs)
-        ctx.metrics.update(tiles=iterations)
+        ctx.metrics.update(tiles=iterations, seam_visibility=baseline_seams)
     else:
         with ctx.stage("optimize"):
             if sc.init == "quilt":
@@ -157,6 +160,8 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         start, end = walk.history[0], objective.value(image)
         iterations = walk.iterations
         ctx.metrics.update(
+            seam_visibility=synth_mod.seam_visibility(image, walk.sources),
+            baseline_seam_visibility=baseline_seams,
             sweeps=len(walk.history) - 1,
             tiles_changed=walk.changed,
             candidates_evaluated=walk.candidates_evaluated,

@@ -430,6 +430,7 @@ def quilt(
     tol: float = 0.1,
     seams: str = "dp",
     rng=None,
+    progress=None,
 ) -> QuiltResult:
     """Unguided image quilting of ``source (Hs, Ws[, C])`` into a toroidal ``shape`` ``(H, W)`` image.
 
@@ -437,7 +438,8 @@ def quilt(
     overlap error with the already-filled canvas is within ``(1 + tol)`` of the best (the first
     tile is uniformly random), pasted inside its minimum-error boundary cuts (``seams="dp"``) or
     graph-cut seams (``"graphcut"``). Randomness: ``rng``
-    (anything ``np.random.default_rng`` accepts) picks among the candidates.
+    (anything ``np.random.default_rng`` accepts) picks among the candidates. ``progress``: an
+    optional wrapper ``progress(iterable, total=, desc=)`` of the tiles (a progress bar).
     """
     rng = np.random.default_rng(rng)
     src = np.asarray(source, dtype=np.float32)
@@ -450,19 +452,20 @@ def quilt(
     origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
     sources = np.zeros((H, W, 2), dtype=np.int64)
     matcher = PatchMatcher(src, patch)
-    for i, y0 in enumerate(ys):
-        for j, x0 in enumerate(xs):
-            ry, rx = region_indices(y0, x0, patch, (H, W))
-            region = canvas[np.ix_(ry, rx)]
-            weight = filled[np.ix_(ry, rx)]
-            cost = matcher.costs(region, weight)
-            cands = candidates(cost, tol=tol)
-            pos = cands[rng.integers(len(cands))]
-            p = source_patches(src, pos[None], patch)
-            ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
-            keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
-            paste(canvas, p[0], keep, y0, x0)
-            paste(sources, patch_sources(pos[None], patch)[0], keep, y0, x0)
-            filled[np.ix_(ry, rx)] = True
-            origins[i, j] = pos
+    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    for i, j in progress(tiles, total=len(tiles), desc="quilting") if progress else tiles:
+        y0, x0 = ys[i], xs[j]
+        ry, rx = region_indices(y0, x0, patch, (H, W))
+        region = canvas[np.ix_(ry, rx)]
+        weight = filled[np.ix_(ry, rx)]
+        cost = matcher.costs(region, weight)
+        cands = candidates(cost, tol=tol)
+        pos = cands[rng.integers(len(cands))]
+        p = source_patches(src, pos[None], patch)
+        ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
+        keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
+        paste(canvas, p[0], keep, y0, x0)
+        paste(sources, patch_sources(pos[None], patch)[0], keep, y0, x0)
+        filled[np.ix_(ry, rx)] = True
+        origins[i, j] = pos
     return QuiltResult(canvas, origins, ys, xs, sources)

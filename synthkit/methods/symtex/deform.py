@@ -681,17 +681,22 @@ def _tile_result(cfg, ctx, src, image, objective, hf_view: float | None, metrics
         with ctx.stage("blend"):
             tiles["optimized"] = toroidal_blend(image, spacing=tc.mvc_spacing)
         candidates["optimized"] = _tile_candidate(tiles["optimized"], objective, hf_view, metrics["max_stretch"])
+    overlaps = _cut_overlaps(tc.cut_overlaps, src.shape)
+    bar = ctx.progress(total=1 + len(overlaps), desc="tile candidates")
     with ctx.stage("baseline"):
         tiles["baseline"] = toroidal_blend(src, spacing=tc.mvc_spacing)
+    bar.update()
     tiles["input"] = src
     input_objective = objective.value(src)
     candidates["baseline"] = _tile_candidate(tiles["baseline"], objective, hf_input, 1.0)
     candidates["input"] = _tile_candidate(src, objective, hf_input, 1.0)
-    for ov in _cut_overlaps(tc.cut_overlaps, src.shape):
+    for ov in overlaps:
         with ctx.stage("cut"):
             cut, source = cut_tile(src, ov)
             tiles[f"cut{ov}"] = fix_seams(cut, source, radius=ov // 2)
         candidates[f"cut{ov}"] = _tile_candidate(tiles[f"cut{ov}"], objective, hf_input, 1.0, seams=seam_masks(source))
+        bar.update()
+    bar.close()
     choice = choose_tile(candidates, input_objective)
     result = tiles[choice]
     chosen = candidates[choice]
@@ -742,7 +747,8 @@ def _write_deform_images(ctx, src, image, tiles) -> None:
                 tiled = lambda name=name: np.tile(tiles[name], (3, 3, 1))  # noqa: E731
                 jobs.append((ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), tiled))
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-            list(pool.map(lambda job: save_image(job[0], job[1]()), jobs))
+            written = pool.map(lambda job: save_image(job[0], job[1]()), jobs)
+            list(ctx.progress(written, total=len(jobs), desc="writing tiles"))
     if not ctx.wants_preview("summary"):
         return
     if tiles is None:

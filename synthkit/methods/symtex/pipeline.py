@@ -127,7 +127,16 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         objective = build_objective(cfg, out_shape, targets)
     base_rng, walk_rng = ctx.rng.spawn(2)
     with ctx.stage("baseline"):
-        baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams, rng=base_rng)
+        baseline = q.quilt(
+            src,
+            out_shape,
+            patch=sc.patch,
+            overlap=sc.overlap,
+            tol=sc.tol,
+            seams=sc.seams,
+            rng=base_rng,
+            progress=ctx.progress,
+        )
         baseline_value = objective.value(baseline.image)
     baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
     if cfg.mode == "quilt":
@@ -141,7 +150,13 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
                 init = baseline
             else:
                 init = synth_mod.random_init(
-                    src, out_shape, patch=sc.patch, overlap=sc.overlap, rng=walk_rng, seams=sc.seams
+                    src,
+                    out_shape,
+                    patch=sc.patch,
+                    overlap=sc.overlap,
+                    rng=walk_rng,
+                    seams=sc.seams,
+                    progress=ctx.progress,
                 )
             walk = synth_mod.guided_walk(
                 src,

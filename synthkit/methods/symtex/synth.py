@@ -48,8 +48,11 @@ class WalkResult:
     candidates_evaluated: int = 0
 
 
-def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng, seams: str = "dp") -> q.QuiltResult:
-    """Toroidal tiling with uniformly random source patches, each cut into its filled neighbours."""
+def random_init(
+    source: np.ndarray, shape, *, patch: int, overlap: int, rng, seams: str = "dp", progress=None
+) -> q.QuiltResult:
+    """Toroidal tiling with uniformly random source patches, each cut into its filled neighbours
+    (``progress``: optional wrapper of the tiles, as in :func:`synthkit.core.quilting.quilt`)."""
     src = np.asarray(source, dtype=np.float32)
     q.check_sizes(src.shape, shape, patch, overlap)
     H, W = int(shape[0]), int(shape[1])
@@ -58,19 +61,20 @@ def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng, sea
     filled = np.zeros((H, W), dtype=bool)
     origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
     sources = np.zeros((H, W, 2), dtype=np.int64)
-    for i, y0 in enumerate(ys):
-        for j, x0 in enumerate(xs):
-            pos = np.array([rng.integers(src.shape[0] - patch + 1), rng.integers(src.shape[1] - patch + 1)])
-            ry, rx = q.region_indices(y0, x0, patch, (H, W))
-            p = q.source_patches(src, pos[None], patch)
-            region = canvas[np.ix_(ry, rx)]
-            weight = filled[np.ix_(ry, rx)]
-            ov = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
-            keep = q.seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
-            q.paste(canvas, p[0], keep, y0, x0)
-            q.paste(sources, q.patch_sources(pos[None], patch)[0], keep, y0, x0)
-            filled[np.ix_(ry, rx)] = True
-            origins[i, j] = pos
+    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    for i, j in progress(tiles, total=len(tiles), desc="random start") if progress else tiles:
+        y0, x0 = ys[i], xs[j]
+        pos = np.array([rng.integers(src.shape[0] - patch + 1), rng.integers(src.shape[1] - patch + 1)])
+        ry, rx = q.region_indices(y0, x0, patch, (H, W))
+        p = q.source_patches(src, pos[None], patch)
+        region = canvas[np.ix_(ry, rx)]
+        weight = filled[np.ix_(ry, rx)]
+        ov = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
+        keep = q.seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
+        q.paste(canvas, p[0], keep, y0, x0)
+        q.paste(sources, q.patch_sources(pos[None], patch)[0], keep, y0, x0)
+        filled[np.ix_(ry, rx)] = True
+        origins[i, j] = pos
     return q.QuiltResult(canvas, origins, ys, xs, sources)
 
 

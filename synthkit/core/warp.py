@@ -169,6 +169,19 @@ def arap_deform(V, F, handles, handle_positions) -> np.ndarray:
     return ARAP2D(V, F, handles).solve(handle_positions)
 
 
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _barycentric_coords(verts, bary, U, mx, my):  # pragma: no cover - compiled
+    for p in range(verts.shape[0]):
+        x = 0.0
+        y = 0.0
+        for k in range(3):
+            v = verts[p, k]
+            x += bary[p, k] * U[v, 0]
+            y += bary[p, k] * U[v, 1]
+        mx[p] = x
+        my[p] = y
+
+
 class MeshSampler:
     """Backward warping of images of ``shape`` ``(H, W)`` over the Delaunay mesh of ``V_rest (n, 2)``.
 
@@ -195,12 +208,20 @@ class MeshSampler:
         verts = self.tri.simplices[simplex]
         n_pix = len(pts)
         self.B = sp.csr_matrix((bary.ravel(), (np.repeat(np.arange(n_pix), 3), verts.ravel())), shape=(n_pix, len(V)))
+        self._verts = np.ascontiguousarray(verts, dtype=np.int64)
+        self._bary = np.ascontiguousarray(bary)
 
     def coords(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``."""
-        P = self.B @ np.asarray(U, dtype=np.float64)
+        """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``:
+        ``B @ U`` (``B`` the sparse barycentric matrix), by a compiled loop over the pixels."""
         H, W = self.shape
-        return P[:, 0].reshape(H, W).astype(np.float32), P[:, 1].reshape(H, W).astype(np.float32)
+        U = np.ascontiguousarray(U, dtype=np.float64)
+        if U.shape != (self.B.shape[1], 2):
+            raise ValueError(f"U must be ({self.B.shape[1]}, 2), got {U.shape}")
+        mx = np.empty(H * W, dtype=np.float32)
+        my = np.empty(H * W, dtype=np.float32)
+        _barycentric_coords(self._verts, self._bary, U, mx, my)
+        return mx.reshape(H, W), my.reshape(H, W)
 
     def warp(
         self, img: np.ndarray, U: np.ndarray, *, border: str = "reflect", interpolation: str = "linear"

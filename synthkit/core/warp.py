@@ -253,7 +253,7 @@ def displacement_gradient(rest: np.ndarray, A: np.ndarray, B: np.ndarray, F: np.
     pixel grid) and are linear on each triangle, so the displacement ``B - A`` has one Jacobian
     ``D_t = (E_B - E_A) E_rest^-1`` per triangle; its largest singular value is returned. Two
     points ``d`` px apart inside a triangle move by at most ``|D_t| d`` against each other: with
-    0.2, neighbouring pattern elements one period apart shift by at most a fifth of it.
+    0.15, neighbouring pattern elements one period apart shift by at most 0.15 of it.
     """
     R, A, B = (np.asarray(X, dtype=np.float64) for X in (rest, A, B))
     F = np.asarray(F, dtype=np.int64)

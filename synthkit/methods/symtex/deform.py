@@ -16,7 +16,8 @@ until none moves (or ``max_cycles``), then the step halves until it falls below 
 Tiling (mode ``tile``): the tile is the centre of the input less ``margin`` of each side, at the
 input's resolution (``tile.zoom: crop``; the paper zooms the centre to the input's size, which
 upsamples by 1 / (1 - 2 margin) and blurs: ``zoom: upsample``); the deformation may pull the
-margin in. After optimizing E_symm of the toroidal S_T, :func:`toroidal_blend` makes the image
+margin in (only with ``tile.optimize: true``; by default the candidates below are compared
+without it). After optimizing E_symm of the toroidal S_T, :func:`toroidal_blend` makes the image
 periodic with period ``(H, W)``: the wrap-around step between opposite borders is targeted to an
 interior-like step and the border corrections are spread into the interior by mean value
 coordinates. The baseline (paper Fig. 7, top rows) is the same blend of the untouched input,
@@ -533,14 +534,15 @@ SHARPNESS_MIN = 0.9
 def run_deform(cfg, ctx, src, tgt) -> None:
     """Run ``perturbation: deform`` for transfer / filter / symmetrize / tile.
 
-    ``tile``: the optimized tile (``tile.zoom: crop``, the default, a native-resolution crop of
+    ``tile``: with ``tile.optimize`` (default off: :func:`_run_tile_unoptimized`), the optimized
+    tile (``tile.zoom: crop``, the default, a native-resolution crop of
     the centre that the warp may pull the margin into; ``upsample``, the paper's zoom to the
     input's size) is blended toroidally, and so is the untouched input (the baseline); a cut tile
     per ``tile.cut_overlaps`` entry is cut from the input (``cut<overlap>``). The returned
     ``result.png`` is, of these and the input itself, the one :func:`choose_tile` picks: the
     lowest seam ratio among those meeting every goal of issue 14 (``metrics.tile_choice`` names
-    it, ``metrics.tile_candidates`` holds the figures of all). ``optimized.png`` is always the
-    optimized tile, ``cut<overlap>.png`` the cut tiles.
+    it, ``metrics.tile_candidates`` holds the figures of all). ``optimized.png`` is the optimized
+    tile (with ``tile.optimize``), ``cut<overlap>.png`` the cut tiles.
     """
     if cfg.mode == "tile" and not cfg.tile.optimize:
         _run_tile_unoptimized(cfg, ctx, src)

@@ -327,6 +327,7 @@ def bench_tiling_peer(quick: bool) -> None:
             "mode": "tile",
             "source": "crop.png",
             "symmetry": {"signals": ["lum", "1-lum"], "window": 0.5},
+            "tile": {"optimize": True},
             "deform": {"points": 64 if quick else 128, "max_evaluations": 2000 if quick else 8000},
         }
         report, elapsed = _run_symtex(folder, "tile", cfg)
@@ -390,7 +391,101 @@ def bench_tiling_peer(quick: bool) -> None:
     record(AREA, "  img2texture time (peer)", peer_time, "s")
 
 
-PARTS = ("candidates", "lens", "tile", "symmetrize", "transfer")
+BASE_COMMIT = "bcd5d3c2754bd82710fba4cc42f0fa0ef07883f6"
+"""The code before issue 24 (its goals are measured against it in the same run)."""
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "textures"
+
+
+def base_synthkit(folder: Path):
+    """Import ``synthkit`` as of :data:`BASE_COMMIT` under the name ``synthkit_base`` (its files
+    from ``git archive``, the package's own imports renamed), beside today's ``synthkit``."""
+    import importlib
+    import re
+    import subprocess
+
+    repo = Path(__file__).resolve().parents[1]
+    data = subprocess.run(["git", "-C", str(repo), "archive", BASE_COMMIT, "synthkit"], capture_output=True, check=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=data.stdout, check=True)
+    (folder / "synthkit").rename(folder / "synthkit_base")
+    for f in (folder / "synthkit_base").rglob("*.py"):
+        f.write_text(re.sub(r"\bsynthkit\b(?=[. ])", "synthkit_base", f.read_text()))
+    sys.path.insert(0, str(folder))
+    return importlib.import_module("synthkit_base.runner")
+
+
+def _photo(name: str, shape: tuple[int, int], fallback) -> np.ndarray:
+    """``shape`` (H, W) area-resized shared photo ``name``, or ``fallback(max(shape))`` cropped when absent."""
+    import cv2
+
+    from synthkit.io.images import load_image
+
+    if (REAL / name).is_file():
+        return cv2.resize(load_image(REAL / name), shape[::-1], interpolation=cv2.INTER_AREA)
+    return fallback(max(shape))[: shape[0], : shape[1]]
+
+
+def bench_issue24() -> None:
+    """Issue 24's speed goals, each through the runner with the config's defaults, today's code
+    against :data:`BASE_COMMIT`'s in the same process (new first, then old; one run each: the
+    machine is shared, so the ratio is the figure; the process's CPU time, which other processes'
+    load disturbs less than the wall time, is recorded beside it): ``quilt`` to 512x512 from a 640x480 photo
+    (aerial_rocks; goal 3 s), ``transfer`` 512x512 (noise source, dot lattice target; goal 10 s),
+    ``symmetrize`` 256x256 (a warped dot lattice; goal 5 s), ``tile`` of a 640x480 photo
+    (texture_bricks; goal 10 s). Also the symmetrize result's E_symm, and which tile each returns."""
+    import tempfile
+
+    import yaml
+
+    from synthkit.io.images import save_image
+    from synthkit.runner import run_config
+
+    runs = {
+        "quilt 512x512 from 640x480": ({"mode": "quilt", "source": "rocks.png", "output_size": [512, 512]}, 3.0),
+        "transfer 512x512": (
+            {"mode": "transfer", "source": "noise.png", "target": "dots.png", "output_size": [512, 512]},
+            10.0,
+        ),
+        "symmetrize 256x256": ({"mode": "symmetrize", "source": "warped.png"}, 5.0),
+        "tile 640x480": ({"mode": "tile", "source": "bricks.png"}, 10.0),
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        old_runner = base_synthkit(folder / "base")
+        save_image(folder / "rocks.png", _photo("aerial_rocks_02_diff_1k.jpg", (480, 640), textures.noise))
+        save_image(folder / "bricks.png", _photo("texture_bricks.jpg", (480, 640), textures.bricks))
+        save_image(folder / "noise.png", textures.noise(128))
+        save_image(folder / "dots.png", textures.dots(128))
+        save_image(folder / "warped.png", textures.smooth_warp(textures.dots(256), 5.0))
+        for name, (cfg, goal) in runs.items():
+            path = folder / f"{name.split()[0]}.yaml"
+            path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
+            out = {}
+            for which, fn in (("new", run_config), ("old", old_runner.run_config)):
+                start, cpu = time.perf_counter(), time.process_time()
+                report = fn(path, out_dir=folder / f"{name.split()[0]}-{which}", show_progress=False)
+                out[which] = (time.perf_counter() - start, report["metrics"], time.process_time() - cpu)
+            new, old = out["new"], out["old"]
+            record(AREA, f"issue 24: {name}, defaults (vs before)", new[0], "s", goal=goal, baseline=old[0])
+            record(AREA, f"  {name} CPU time, all threads (vs before)", new[2], "s", baseline=old[2])
+            for key in FIGURES[cfg["mode"]]:
+                if key in new[1] and key in old[1]:
+                    record(AREA, f"  {cfg['mode']} {key} (vs before)", new[1][key], "", baseline=old[1][key])
+            if cfg["mode"] == "tile":
+                print(f"tile returned: {new[1]['tile_choice']} (before: {old[1]['tile_choice']})")
+
+
+FIGURES = {
+    "quilt": [],
+    "transfer": ["objective_end", "seam_visibility", "baseline_seam_visibility"],
+    "symmetrize": ["objective_end", "baseline_objective", "max_displacement_gradient"],
+    "tile": ["seam_ratio", "objective_end"],
+}
+"""Metrics of each issue-24 run recorded beside its time (when both versions have them)."""
+
+
+PARTS = ("candidates", "lens", "tile", "symmetrize", "transfer", "issue24")
 
 
 def main() -> None:
@@ -416,6 +511,8 @@ def main() -> None:
         bench_tiling_peer(args.quick)
     if "symmetrize" in parts:
         bench_symmetrize(args.quick)
+    if "issue24" in parts:
+        bench_issue24()
     if "transfer" in parts:
         bench_transfer(args.quick)
         if not args.quick:

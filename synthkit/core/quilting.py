@@ -8,8 +8,9 @@ at least one patch (steps are made as even as possible; overlaps are ``>= overla
 Building blocks, used by :func:`quilt` and by the symmetry-guided walk:
 
 - :func:`tile_grid`: tile origins along one axis;
-- :func:`overlap_costs`: masked sum of squared differences between the canvas under a tile and
-  every source patch, for all source positions at once (``cv2.matchTemplate`` with a mask);
+- :class:`PatchMatcher` / :func:`overlap_costs`: masked sum of squared differences between the
+  canvas under a tile and every source patch, for all source positions at once, by FFT against
+  the source's spectra computed once (the weight's term is cached per distinct weight);
 - :func:`candidates`: source positions within ``(1 + tol)`` of the best overlap error (or the ``k``
   best);
 - :func:`boundary_masks`: minimum-error boundary cuts by dynamic programming on each side where
@@ -19,14 +20,16 @@ Building blocks, used by :func:`quilt` and by the symmetry-guided walk:
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
+import scipy.fft as sfft
 
 __all__ = [
     "tile_grid",
     "region_indices",
+    "PatchMatcher",
     "overlap_costs",
     "candidates",
     "boundary_masks",
@@ -35,6 +38,7 @@ __all__ = [
     "paste",
     "quilt",
     "QuiltResult",
+    "patch_sources",
 ]
 
 
@@ -64,25 +68,96 @@ def _as3(img: np.ndarray) -> np.ndarray:
     return img[..., None] if img.ndim == 2 else img
 
 
+FFT_WORKERS = min(2, os.cpu_count() or 1)
+"""Threads of the batched FFTs (the channels of a template, the source's spectra)."""
+
+
+class PatchMatcher:
+    """Weighted SSD of ``B x B`` templates against every patch of a fixed ``source (Hs, Ws[, C])``.
+
+    ``cost[v, u] = sum_{p, c} weight[p] (source[v + p, u + p, c] - target[p, c])^2
+    = (weight * |s|^2)[v, u] - 2 sum_c (weight target_c * s_c)[v, u] + sum weight |target|^2``
+    (``*`` correlation). The source's channel spectra and that of ``|s|^2`` (summed over channels)
+    are computed once (float32, padded to a fast FFT size at least the source's: the circular
+    correlation is exact at every valid position); per template one forward transform per channel
+    (pruned: the rows' transforms run on the ``B`` template rows only) and one inverse of their
+    channel sum. The first term depends on the weight only and is cached per distinct weight (a
+    quilting run has a handful: top, left, L-shaped, ring). Float32 round-off (about 1e-6 of
+    ``sum weight |s|^2``) is clipped at 0.
+    """
+
+    def __init__(self, source: np.ndarray, patch: int, *, max_cached: int = 32):
+        src = _as3(source)
+        Hs, Ws, _ = src.shape
+        if patch < 1 or src.shape[0] < patch or src.shape[1] < patch:
+            raise ValueError(f"patch {patch} is larger than the {Hs}x{Ws} source")
+        self.patch = int(patch)
+        self.valid = (Hs - patch + 1, Ws - patch + 1)
+        self.fshape = (sfft.next_fast_len(Hs, real=True), sfft.next_fast_len(Ws, real=True))
+        chans = np.ascontiguousarray(src.transpose(2, 0, 1))
+        self.spectra = sfft.rfft2(chans, s=self.fshape, workers=FFT_WORKERS)
+        self.sq_spectrum = sfft.rfft2((src.astype(np.float32) ** 2).sum(axis=2), s=self.fshape)
+        self.channels = src.shape[2]
+        self._weight_terms: dict[bytes, np.ndarray] = {}
+        self._max_cached = max_cached
+
+    def _spectrum(self, arr: np.ndarray) -> np.ndarray:
+        """Spectrum ``(..., fh, fw // 2 + 1)`` of the flipped ``(..., B, B)`` arrays, zero-padded."""
+        flipped = np.ascontiguousarray(arr[..., ::-1, ::-1], dtype=np.float32)
+        rows = sfft.rfft(flipped, n=self.fshape[1], axis=-1, workers=FFT_WORKERS)
+        return sfft.fft(rows, n=self.fshape[0], axis=-2, workers=FFT_WORKERS)
+
+    def _valid(self, spectrum: np.ndarray) -> np.ndarray:
+        full = sfft.irfft2(spectrum, s=self.fshape, workers=FFT_WORKERS)
+        B = self.patch
+        return full[B - 1 : B - 1 + self.valid[0], B - 1 : B - 1 + self.valid[1]]
+
+    def weight_term(self, weight: np.ndarray) -> np.ndarray:
+        """``(weight * |s|^2)`` at every valid position ``(Hs - B + 1, Ws - B + 1)``, cached."""
+        key = weight.astype(bool).tobytes()
+        term = self._weight_terms.get(key)
+        if term is None:
+            term = self._valid(self.sq_spectrum * self._spectrum(weight.astype(np.float32)))
+            if len(self._weight_terms) >= self._max_cached:
+                self._weight_terms.pop(next(iter(self._weight_terms)))
+            self._weight_terms[key] = term
+        return term
+
+    def costs(self, target: np.ndarray, weight: np.ndarray) -> np.ndarray:
+        """Weighted SSD ``(Hs - B + 1, Ws - B + 1) float32`` of ``target (B, B[, C])`` under
+        ``weight (B, B)`` in {0, 1} (the filled overlap band) against every source patch."""
+        tgt = _as3(target)
+        B = self.patch
+        if tgt.shape != (B, B, self.channels) or weight.shape != (B, B):
+            raise ValueError(
+                f"target and weight must be ({B}, {B}[, {self.channels}]) and ({B}, {B}), "
+                f"got {tgt.shape} and {weight.shape}"
+            )
+        w = weight.astype(np.float32)
+        if not np.any(w):
+            return np.zeros(self.valid, dtype=np.float32)
+        wt = np.ascontiguousarray((tgt * w[..., None]).transpose(2, 0, 1))
+        spec = self._spectrum(wt)
+        spec *= self.spectra
+        acc = spec[0]
+        for c in range(1, self.channels):
+            acc += spec[c]
+        cross = self._valid(acc)
+        cost = self.weight_term(w) - 2.0 * cross + float((wt * tgt.transpose(2, 0, 1)).sum())
+        return np.maximum(cost, 0.0).astype(np.float32, copy=False)
+
+
 def overlap_costs(source: np.ndarray, target: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """Weighted SSD ``(Hs - B + 1, Ws - B + 1)`` between ``target (B, B[, C])`` and every source patch.
 
     ``cost[v, u] = sum_{p, c} weight[p] (source[v + p, u + p, c] - target[p, c])^2`` with ``weight
-    (B, B)`` in {0, 1} (the filled overlap band). All positions at once by ``cv2.matchTemplate``
-    (``TM_SQDIFF`` with a mask); tiny negative round-off is clipped to 0.
+    (B, B)`` in {0, 1} (the filled overlap band): a one-off :class:`PatchMatcher` (callers that
+    match many templates against one source keep the matcher).
     """
-    src = _as3(source)
     tgt = _as3(target)
-    B = tgt.shape[0]
-    if tgt.shape[:2] != (B, B) or weight.shape != (B, B):
+    if tgt.shape[0] != tgt.shape[1] or weight.shape != tgt.shape[:2]:
         raise ValueError(f"target and weight must be (B, B), got {tgt.shape} and {weight.shape}")
-    if src.shape[0] < B or src.shape[1] < B:
-        raise ValueError(f"patch {B} is larger than the {src.shape[0]}x{src.shape[1]} source")
-    if not np.any(weight):
-        return np.zeros((src.shape[0] - B + 1, src.shape[1] - B + 1), dtype=np.float32)
-    mask = np.repeat(weight.astype(np.float32)[..., None], src.shape[2], axis=2)
-    cost = cv2.matchTemplate(src, np.ascontiguousarray(tgt), cv2.TM_SQDIFF, mask=mask)
-    return np.maximum(cost, 0.0)
+    return PatchMatcher(source, tgt.shape[0]).costs(target, weight)
 
 
 def candidates(
@@ -98,10 +173,10 @@ def candidates(
     most the ``k`` cheapest of those (or of all positions when ``tol`` is None). Ties keep
     row-major order, so the result is deterministic.
     """
-    flat = cost.ravel().astype(np.float64)
+    flat = cost.ravel()
     if tol is not None:
-        best = flat.min()
-        limit = best * (1.0 + tol) if best > 0 else 1e-6 * max(flat.mean(), 1e-12)
+        best = float(flat.min())
+        limit = best * (1.0 + tol) if best > 0 else 1e-6 * max(float(flat.mean(dtype=np.float64)), 1e-12)
         idx = np.flatnonzero(flat <= limit)
     else:
         idx = np.arange(flat.size)
@@ -309,12 +384,22 @@ class QuiltResult:
     image : (H, W[, C]) float32 toroidal texture.
     origins : (ny, nx, 2) int64 source position (row, col) of each tile's patch.
     ys, xs : (ny,), (nx,) tile origins in the output.
+    sources : (H, W, 2) int64 source pixel (row, col) each output pixel shows (its patch's origin
+        plus the offset inside the patch); patch borders are where neighbours do not show
+        neighbouring source pixels (:func:`synthkit.core.tiling.seam_masks`).
     """
 
     image: np.ndarray
     origins: np.ndarray
     ys: np.ndarray
     xs: np.ndarray
+    sources: np.ndarray | None = None
+
+
+def patch_sources(positions: np.ndarray, patch: int) -> np.ndarray:
+    """Source pixel coordinates ``(K, B, B, 2) int64`` of the patches at ``positions (K, 2)``."""
+    grid = np.stack(np.mgrid[0:patch, 0:patch], axis=2)
+    return np.asarray(positions, dtype=np.int64)[:, None, None, :] + grid[None]
 
 
 def source_patches(source: np.ndarray, positions: np.ndarray, patch: int) -> np.ndarray:
@@ -345,6 +430,7 @@ def quilt(
     tol: float = 0.1,
     seams: str = "dp",
     rng=None,
+    progress=None,
 ) -> QuiltResult:
     """Unguided image quilting of ``source (Hs, Ws[, C])`` into a toroidal ``shape`` ``(H, W)`` image.
 
@@ -352,7 +438,8 @@ def quilt(
     overlap error with the already-filled canvas is within ``(1 + tol)`` of the best (the first
     tile is uniformly random), pasted inside its minimum-error boundary cuts (``seams="dp"``) or
     graph-cut seams (``"graphcut"``). Randomness: ``rng``
-    (anything ``np.random.default_rng`` accepts) picks among the candidates.
+    (anything ``np.random.default_rng`` accepts) picks among the candidates. ``progress``: an
+    optional wrapper ``progress(iterable, total=, desc=)`` of the tiles (a progress bar).
     """
     rng = np.random.default_rng(rng)
     src = np.asarray(source, dtype=np.float32)
@@ -363,18 +450,22 @@ def quilt(
     canvas = np.zeros((H, W) + src.shape[2:], dtype=np.float32)
     filled = np.zeros((H, W), dtype=bool)
     origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
-    for i, y0 in enumerate(ys):
-        for j, x0 in enumerate(xs):
-            ry, rx = region_indices(y0, x0, patch, (H, W))
-            region = canvas[np.ix_(ry, rx)]
-            weight = filled[np.ix_(ry, rx)]
-            cost = overlap_costs(src, region, weight.astype(np.float32))
-            cands = candidates(cost, tol=tol)
-            pos = cands[rng.integers(len(cands))]
-            p = source_patches(src, pos[None], patch)
-            ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
-            keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
-            paste(canvas, p[0], keep, y0, x0)
-            filled[np.ix_(ry, rx)] = True
-            origins[i, j] = pos
-    return QuiltResult(canvas, origins, ys, xs)
+    sources = np.zeros((H, W, 2), dtype=np.int64)
+    matcher = PatchMatcher(src, patch)
+    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    for i, j in progress(tiles, total=len(tiles), desc="quilting") if progress else tiles:
+        y0, x0 = ys[i], xs[j]
+        ry, rx = region_indices(y0, x0, patch, (H, W))
+        region = canvas[np.ix_(ry, rx)]
+        weight = filled[np.ix_(ry, rx)]
+        cost = matcher.costs(region, weight)
+        cands = candidates(cost, tol=tol)
+        pos = cands[rng.integers(len(cands))]
+        p = source_patches(src, pos[None], patch)
+        ov = tile_overlaps(ys, xs, i, j, patch, (H, W))
+        keep = seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
+        paste(canvas, p[0], keep, y0, x0)
+        paste(sources, patch_sources(pos[None], patch)[0], keep, y0, x0)
+        filled[np.ix_(ry, rx)] = True
+        origins[i, j] = pos
+    return QuiltResult(canvas, origins, ys, xs, sources)

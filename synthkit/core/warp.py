@@ -23,13 +23,23 @@ weights of points with respect to a closed polygon.
 from __future__ import annotations
 
 import cv2
+import numba
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.lsq import LeastSquares
 
-__all__ = ["ARAP2D", "MeshSampler", "mean_value_coordinates", "arap_deform", "triangle_stretch"]
+__all__ = [
+    "ARAP2D",
+    "MeshSampler",
+    "mean_value_coordinates",
+    "mvc_interpolate",
+    "arap_deform",
+    "triangle_stretch",
+    "displacement_gradient",
+]
 
 _R90 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -159,6 +169,19 @@ def arap_deform(V, F, handles, handle_positions) -> np.ndarray:
     return ARAP2D(V, F, handles).solve(handle_positions)
 
 
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _barycentric_coords(verts, bary, U, mx, my):  # pragma: no cover - compiled
+    for p in range(verts.shape[0]):
+        x = 0.0
+        y = 0.0
+        for k in range(3):
+            v = verts[p, k]
+            x += bary[p, k] * U[v, 0]
+            y += bary[p, k] * U[v, 1]
+        mx[p] = x
+        my[p] = y
+
+
 class MeshSampler:
     """Backward warping of images of ``shape`` ``(H, W)`` over the Delaunay mesh of ``V_rest (n, 2)``.
 
@@ -185,12 +208,20 @@ class MeshSampler:
         verts = self.tri.simplices[simplex]
         n_pix = len(pts)
         self.B = sp.csr_matrix((bary.ravel(), (np.repeat(np.arange(n_pix), 3), verts.ravel())), shape=(n_pix, len(V)))
+        self._verts = np.ascontiguousarray(verts, dtype=np.int64)
+        self._bary = np.ascontiguousarray(bary)
 
     def coords(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``."""
-        P = self.B @ np.asarray(U, dtype=np.float64)
+        """Per-pixel sample positions ``(map_x, map_y)``, each ``(H, W) float32``, for ``U (n, 2)``:
+        ``B @ U`` (``B`` the sparse barycentric matrix), by a compiled loop over the pixels."""
         H, W = self.shape
-        return P[:, 0].reshape(H, W).astype(np.float32), P[:, 1].reshape(H, W).astype(np.float32)
+        U = np.ascontiguousarray(U, dtype=np.float64)
+        if U.shape != (self.B.shape[1], 2):
+            raise ValueError(f"U must be ({self.B.shape[1]}, 2), got {U.shape}")
+        mx = np.empty(H * W, dtype=np.float32)
+        my = np.empty(H * W, dtype=np.float32)
+        _barycentric_coords(self._verts, self._bary, U, mx, my)
+        return mx.reshape(H, W), my.reshape(H, W)
 
     def warp(
         self, img: np.ndarray, U: np.ndarray, *, border: str = "reflect", interpolation: str = "linear"
@@ -213,6 +244,28 @@ class MeshSampler:
         if interpolation != "linear":
             out = np.clip(out, float(src.min()), float(src.max()))
         return out
+
+
+def displacement_gradient(rest: np.ndarray, A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Gradient ``(m,)`` of the displacement from map ``A (n, 2)`` to map ``B (n, 2)`` per triangle.
+
+    Both maps are given at the vertices of the ``rest (n, 2)`` mesh ``F (m, 3)`` (the output's
+    pixel grid) and are linear on each triangle, so the displacement ``B - A`` has one Jacobian
+    ``D_t = (E_B - E_A) E_rest^-1`` per triangle; its largest singular value is returned. Two
+    points ``d`` px apart inside a triangle move by at most ``|D_t| d`` against each other: with
+    0.15, neighbouring pattern elements one period apart shift by at most 0.15 of it.
+    """
+    R, A, B = (np.asarray(X, dtype=np.float64) for X in (rest, A, B))
+    F = np.asarray(F, dtype=np.int64)
+
+    def edges(X):
+        return np.stack([X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]], axis=2)  # (m, 2, 2) columns
+
+    ER = edges(R)
+    if np.any(np.abs(np.linalg.det(ER)) <= 1e-12):
+        raise ValueError("rest mesh has a degenerate triangle")
+    D = (edges(B) - edges(A)) @ np.linalg.inv(ER)
+    return np.linalg.svd(D, compute_uv=False)[:, 0]
 
 
 def triangle_stretch(A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -238,36 +291,97 @@ def triangle_stretch(A: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=NUMBA_CACHE)
+def _mvc_row(x, y, P, w):  # pragma: no cover - compiled
+    """Floater's weights of the point ``(x, y)`` in polygon ``P (n, 2)`` written to ``w (n,)``.
+
+    One pass over the edges ``a -> b``: the distance of ``b`` is carried to the next edge, and
+    ``w[b]`` is completed there; vertex 0 is completed after the last edge."""
+    n = P.shape[0]
+    dx, dy = P[0, 0] - x, P[0, 1] - y
+    r = np.sqrt(dx * dx + dy * dy)
+    r0 = r
+    first_tan = 0.0
+    prev_tan = 0.0
+    for a in range(n):
+        b = a + 1 if a + 1 < n else 0
+        if r <= 1e-12:  # on vertex a
+            w[:] = 0.0
+            w[a] = 1.0
+            return
+        ex, ey = P[b, 0] - x, P[b, 1] - y
+        rn = np.sqrt(ex * ex + ey * ey)
+        cross = dx * ey - dy * ex
+        dot = dx * ex + dy * ey
+        if abs(cross) <= 1e-12 * max(r * rn, 1e-300) and dot < 0:  # on the edge a -> b
+            t = r / (r + rn)
+            w[:] = 0.0
+            w[a], w[b] = 1.0 - t, t
+            return
+        denom = r * rn + dot
+        tan_half = cross / denom if abs(denom) > 1e-300 else 0.0
+        if a == 0:
+            first_tan = tan_half
+        else:
+            w[a] = (prev_tan + tan_half) / r
+        prev_tan = tan_half
+        dx, dy, r = ex, ey, rn
+    w[0] = (prev_tan + first_tan) / r0
+    total = 0.0
+    for i in range(n):
+        total += w[i]
+    for i in range(n):
+        w[i] /= total
+
+
+@numba.njit(parallel=True, cache=NUMBA_CACHE)
+def _mvc_rows_kernel(X, P, out):  # pragma: no cover - compiled
+    for k in numba.prange(X.shape[0]):
+        _mvc_row(X[k, 0], X[k, 1], P, out[k])
+
+
+@numba.njit(parallel=True, cache=NUMBA_CACHE)
+def _mvc_interpolate_kernel(X, P, C, out):  # pragma: no cover - compiled
+    n = P.shape[0]
+    for k in numba.prange(X.shape[0]):
+        w = np.empty(n)
+        _mvc_row(X[k, 0], X[k, 1], P, w)
+        for c in range(C.shape[1]):
+            acc = 0.0
+            for i in range(n):
+                acc += w[i] * C[i, c]
+            out[k, c] = acc
+
+
+def _mvc_inputs(points, polygon):
+    X = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    P = np.ascontiguousarray(polygon, dtype=np.float64).reshape(-1, 2)
+    if len(P) < 3:
+        raise ValueError(f"the polygon needs at least 3 vertices, got {len(P)}")
+    return X, P
+
+
 def mean_value_coordinates(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Floater's mean value coordinates ``(k, n)`` of ``points (k, 2)`` inside ``polygon (n, 2)``.
 
     ``w_i = (tan(a_{i-1} / 2) + tan(a_i / 2)) / |v_i - x|`` with ``a_i`` the angle at ``x`` between
-    ``v_i`` and ``v_{i+1}``, normalized to sum 1. A point on a polygon vertex gets that vertex's
-    unit weight; points on an edge get the linear interpolation of its two end points.
+    ``v_i`` and ``v_{i+1}`` (``tan(a / 2) = cross / (r r' + dot)``), normalized to sum 1. A point on
+    a polygon vertex gets that vertex's unit weight; points on an edge get the linear
+    interpolation of its two end points. Compiled, points shared by both cores.
     """
-    X = np.asarray(points, dtype=np.float64)
-    P = np.asarray(polygon, dtype=np.float64)
-    d = P[None, :, :] - X[:, None, :]  # (k, n, 2)
-    r = np.hypot(d[..., 0], d[..., 1])
-    dn = np.roll(d, -1, axis=1)
-    rn = np.roll(r, -1, axis=1)
-    cross = d[..., 0] * dn[..., 1] - d[..., 1] * dn[..., 0]
-    dot = (d * dn).sum(axis=2)
-    # tan(a/2) = sin a / (1 + cos a) = cross / (r rn + dot)
-    denom = r * rn + dot
-    on_edge = (np.abs(cross) <= 1e-12 * np.maximum(r * rn, 1e-300)) & (dot < 0)
-    tan_half = np.divide(cross, denom, out=np.zeros_like(cross), where=np.abs(denom) > 1e-300)
-    w = (np.roll(tan_half, 1, axis=1) + tan_half) / np.maximum(r, 1e-300)
-    weights = w / w.sum(axis=1, keepdims=True)
-    at_vertex = r <= 1e-12
-    rows_v = at_vertex.any(axis=1)
-    if rows_v.any():
-        weights[rows_v] = at_vertex[rows_v].astype(np.float64)
-    rows_e = on_edge.any(axis=1) & ~rows_v
-    for k in np.flatnonzero(rows_e):
-        i = int(np.argmax(on_edge[k]))
-        j = (i + 1) % len(P)
-        t = r[k, i] / (r[k, i] + r[k, j])
-        weights[k] = 0.0
-        weights[k, i], weights[k, j] = 1.0 - t, t
-    return weights
+    X, P = _mvc_inputs(points, polygon)
+    out = np.empty((len(X), len(P)))
+    _mvc_rows_kernel(X, P, out)
+    return out
+
+
+def mvc_interpolate(points: np.ndarray, polygon: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``mean_value_coordinates(points, polygon) @ values``, ``(k, C)``, without the ``(k, n)`` matrix.
+
+    ``values (n, C)`` are given at the polygon's vertices.
+    """
+    X, P = _mvc_inputs(points, polygon)
+    C = np.ascontiguousarray(values, dtype=np.float64).reshape(len(P), -1)
+    out = np.empty((len(X), C.shape[1]))
+    _mvc_interpolate_kernel(X, P, C, out)
+    return out

@@ -139,3 +139,26 @@ def test_quilt_with_graphcut_seams(rng):
     assert all(tuple(v) in values for v in a.image.reshape(-1, 3)[::5])
     with pytest.raises(ValueError, match="seam method"):
         q.seam_masks(src[None, :16, :16], src[:16, :16], np.ones((16, 16), bool), overlaps=(6, 6, 6, 6), method="x")
+
+
+def test_quilt_sources_name_the_source_pixel_of_every_output_pixel(rng):
+    src = rng.random((40, 44, 3)).astype(np.float32)
+    res = q.quilt(src, (50, 47), patch=12, overlap=4, rng=0)
+    np.testing.assert_array_equal(res.image, src[res.sources[..., 0], res.sources[..., 1]])
+    assert res.sources.shape == (50, 47, 2)
+
+
+def test_patch_matcher_reuses_the_weight_term_and_checks_shapes(rng):
+    src = rng.random((20, 18, 3)).astype(np.float32)
+    m = q.PatchMatcher(src, 5)
+    w = np.zeros((5, 5), dtype=bool)
+    w[:2] = True
+    tgt = rng.random((5, 5, 3)).astype(np.float32)
+    np.testing.assert_allclose(m.costs(tgt, w), q.overlap_costs(src, tgt, w.astype(np.float32)), rtol=1e-5, atol=1e-5)
+    assert len(m._weight_terms) == 1
+    m.costs(tgt * 0.5, w)
+    assert len(m._weight_terms) == 1
+    with pytest.raises(ValueError, match=r"target and weight must be \(5, 5"):
+        m.costs(tgt[:4], w)
+    with pytest.raises(ValueError, match="larger than the 20x18 source"):
+        q.PatchMatcher(src, 19)

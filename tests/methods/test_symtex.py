@@ -9,7 +9,7 @@ import pytest
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image, save_image
-from synthkit.methods.symtex import lens, synth
+from synthkit.methods.symtex import deform, lens, synth
 from synthkit.runner import run_config
 from synthkit.samples import textures
 
@@ -115,6 +115,12 @@ def test_guided_walk_threads_and_full_evaluation_agree(window):
     np.testing.assert_array_equal(runs[0].image, runs[2].image)
     np.testing.assert_allclose(runs[0].history, runs[2].history, rtol=1e-6)
     assert runs[0].changed > 0
+    # every output pixel is the source pixel the walk's per-pixel source map names
+    sources = runs[0].sources
+    np.testing.assert_array_equal(runs[0].image, src[sources[..., 0], sources[..., 1]])
+    assert synth.seam_visibility(src, np.stack(np.mgrid[0:48, 0:48], axis=2)) == pytest.approx(
+        deform.seam_ratio(src)
+    )
 
 
 @pytest.mark.slow
@@ -159,6 +165,7 @@ TILE = dict(
     mode="tile",
     source="c.png",
     symmetry={"signals": ["lum", "1-lum"], "window": 0.5},
+    tile={"optimize": True},
     deform={"points": 16, "levels": 2, "step": 4.0, "max_cycles": 1, "max_evaluations": 200},
 )
 
@@ -271,7 +278,7 @@ FIG14 = {
     "fig9b S_R edge": dict(mode="symmetrize", symmetry={"kind": "rotational", "signals": ["edge"]}),
     "fig9c S_T edge": dict(mode="symmetrize", symmetry={"kind": "translational", "signals": ["edge"]}),
     "fig10 transfer deform": dict(mode="transfer", target="dots.png", perturbation="deform"),
-    "fig7 tile": dict(mode="tile", symmetry={"signals": ["lum", "1-lum"]}),
+    "fig7 tile": dict(mode="tile", symmetry={"signals": ["lum", "1-lum"]}, tile={"optimize": True}),
     "graph-cut seams": dict(
         mode="transfer",
         target="dots.png",
@@ -470,14 +477,33 @@ def test_signals_auto_picks_inverted_luminance_for_line_art(tmp_path, write_conf
 def test_tile_upsample_zoom_keeps_input_size(tmp_path, write_config):
     save_image(tmp_path / "c.png", textures.wavy(160)[13:77, 7:71])
     quick = {"points": 8, "levels": 1, "max_cycles": 1, "max_evaluations": 20}
-    cfg = dict(TILE, tile={"zoom": "upsample"}, deform=quick)
+    cfg = dict(TILE, tile={"zoom": "upsample", "optimize": True}, deform=quick)
     report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
     m = report["metrics"]
     assert m["tile_candidates"]["optimized"]["size"] == [64, 64]
-    crop = dict(cfg, tile={"zoom": "crop"})
+    crop = dict(cfg, tile={"zoom": "crop", "optimize": True})
     m2 = run_config(write_config(tmp_path, "c", **crop), out_dir=tmp_path / "out2", show_progress=False)["metrics"]
     assert m2["tile_candidates"]["optimized"]["size"] == [38, 38]
     assert m2["max_stretch"] <= 1.1 and m2["max_stretch_bound"] == 1.1
+
+
+def test_tile_default_skips_the_optimization(tmp_path, write_config):
+    """Issue 24: without ``tile.optimize`` no ARAP runs (no mesh or optimize stage, no optimized
+    candidate); result.png is the chosen one of the blend, the cut tiles and the input."""
+    save_image(tmp_path / "c.png", textures.wavy(160)[13:109, 7:103])
+    cfg = dict(TILE, tile={"cut_overlaps": [8, 16]})
+    report = run_config(write_config(tmp_path, "t", **cfg), out_dir=tmp_path / "out", show_progress=False)
+    m = report["metrics"]
+    assert m["tile_optimized"] is False and m["iterations"] == 0
+    assert set(m["tile_candidates"]) == {"baseline", "input", "cut8", "cut16"}
+    assert "optimize" not in report["timings"] and "mesh" not in report["timings"]
+    assert not (tmp_path / "out" / "optimized.png").exists()
+    choice = m["tile_choice"]
+    assert m["seam_ratio"] == m["tile_candidates"][choice]["seam_ratio"]
+    assert m["seam_ratio"] <= min(m["baseline_seam_ratio"], m["seam_ratio_input"])
+    out = load_image(tmp_path / "out" / "result.png")
+    file = tmp_path / ("c.png" if choice == "input" else f"out/{choice}.png")
+    np.testing.assert_array_equal(out, load_image(file))
 
 
 def test_symmetry_crop_auto_is_periods_for_symmetrize_by_deform_only():

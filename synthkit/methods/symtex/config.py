@@ -132,6 +132,21 @@ class DeformSection(StrictModel):
             "null = unbounded (the paper's model, which smeared bark and bent brick courses)."
         ),
     )
+    max_gradient: float | None = Field(
+        0.15,
+        gt=0.0,
+        le=10.0,
+        description=(
+            "Mode symmetrize: bound of the displacement field's gradient (largest singular value of "
+            "its Jacobian per mesh triangle): two points d px apart move by at most this times d "
+            "against each other, so neighbouring pattern elements one period apart shift by at most "
+            "0.15 of it and stay in their rows (a smooth 3 px warp of a 128 px image has 0.147; at 0.2 "
+            "the rows of a photographed facade of cars came out wavy). Moves beyond it are refused, "
+            "and a result beyond it, or whose E_symm is not above the input's by deform.min_gain, is "
+            "not returned: the input comes back (metrics.status, metrics.status_reason). null: "
+            "unbounded gradient (E_symm still checked)."
+        ),
+    )
     min_gain: float | None = Field(
         None,
         ge=0.0,
@@ -169,6 +184,15 @@ class LensSection(StrictModel):
 class TileSection(StrictModel):
     """Toroidal tiling by symmetrization (mode: tile)."""
 
+    optimize: bool = Field(
+        False,
+        description=(
+            "Run the paper's optimization (ARAP warp of the centre maximizing E_symm, then blended) "
+            "for one more candidate, the optimized tile. Off (the default): the blended input and "
+            "the cut tiles are compared with the input, in seconds; on a 640x477 photo the "
+            "optimization took 140 s and its tile was worse than the blend on 4 of 4 photos (issue 24)."
+        ),
+    )
     margin: float = Field(
         0.2, ge=0.0, le=0.45, description="Start on the centre leaving this fraction as margin (paper: 20%)."
     )

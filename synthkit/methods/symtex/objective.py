@@ -65,12 +65,16 @@ class Objective:
     def represent(self, f: np.ndarray, *, standardize: bool) -> np.ndarray:
         """Representation of one signal ``f (H, W)``."""
         if self.representation == "translational":
-            if self.crop is not None:
-                (h, w), (H, W) = self.crop, f.shape
-                f = f[(H - h) // 2 : (H - h) // 2 + h, (W - w) // 2 : (W - w) // 2 + w]
-            return sy.translational(f, mode=self.mode, window=self.window, standardize=standardize)
+            return sy.translational(self._cropped(f), mode=self.mode, window=self.window, standardize=standardize)
         fn = sy.rotational if self.representation == "rotational" else sy.reflective
         return fn(f, center=self.center, n_angles=self.n_angles, standardize=standardize)
+
+    def _cropped(self, f: np.ndarray) -> np.ndarray:
+        """The centred ``crop`` of one signal ``f (H, W)`` (``f`` itself without a crop)."""
+        if self.crop is None:
+            return f
+        (h, w), (H, W) = self.crop, f.shape
+        return f[(H - h) // 2 : (H - h) // 2 + h, (W - w) // 2 : (W - w) // 2 + w]
 
     def representations(self, img: np.ndarray) -> list[np.ndarray]:
         """Per-signal representations of ``img`` (standardized for E_L2, raw for E_symm)."""
@@ -87,6 +91,11 @@ class Objective:
 
     def value(self, img: np.ndarray) -> float:
         """The objective of ``img``: summed E_L2 (lower is better) or summed E_symm (higher is better)."""
+        if self.kind == "symm" and (self.representation, self.mode) == ("translational", "toroidal"):
+            # E_symm of the toroidal S_T from the power spectrum (no inverse transform), float64
+            img64 = np.asarray(img, dtype=np.float64)
+            fs = [self._cropped(sy.signal(img64, s)) for s in self.signals]
+            return float(sum(sy.e_symm_toroidal(f, window=self.window) for f in fs))
         reps = self.representations(img)
         if self.kind == "l2":
             return float(sum(sy.e_l2(S, T) for S, T in zip(reps, self.targets, strict=True)))

@@ -3,13 +3,16 @@
 Stages: ``load`` (images, blank/size checks), ``target`` (S(g) or FLT(S(f))), ``baseline``
 (unguided quilting from the same seed, synthesis modes), ``optimize`` (guided walk, ARAP or lens
 search), ``write``. Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
-``iterations`` plus mode-specific values. Randomness: ``ctx.rng`` is split once into a baseline
+``iterations`` plus mode-specific values; the synthesis modes report ``seam_visibility`` (of the
+result) and ``baseline_seam_visibility`` (of unguided quilting), see
+:func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into a baseline
 generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the baseline of a
 guided run with that seed.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +28,8 @@ from synthkit.methods.symtex.config import SymtexConfig
 from synthkit.preview import montage_png, plot_curve_png
 
 MIN_SIZE = 8
+
+log = logging.getLogger("synthkit")
 
 
 def _load(path: Path, what: str) -> np.ndarray:
@@ -122,20 +127,36 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         objective = build_objective(cfg, out_shape, targets)
     base_rng, walk_rng = ctx.rng.spawn(2)
     with ctx.stage("baseline"):
-        baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams, rng=base_rng)
+        baseline = q.quilt(
+            src,
+            out_shape,
+            patch=sc.patch,
+            overlap=sc.overlap,
+            tol=sc.tol,
+            seams=sc.seams,
+            rng=base_rng,
+            progress=ctx.progress,
+        )
         baseline_value = objective.value(baseline.image)
+    baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
     if cfg.mode == "quilt":
         image = baseline.image
         start = end = baseline_value
         iterations = len(baseline.ys) * len(baseline.xs)
-        ctx.metrics.update(tiles=iterations)
+        ctx.metrics.update(tiles=iterations, seam_visibility=baseline_seams)
     else:
         with ctx.stage("optimize"):
             if sc.init == "quilt":
                 init = baseline
             else:
                 init = synth_mod.random_init(
-                    src, out_shape, patch=sc.patch, overlap=sc.overlap, rng=walk_rng, seams=sc.seams
+                    src,
+                    out_shape,
+                    patch=sc.patch,
+                    overlap=sc.overlap,
+                    rng=walk_rng,
+                    seams=sc.seams,
+                    progress=ctx.progress,
                 )
             walk = synth_mod.guided_walk(
                 src,
@@ -154,6 +175,8 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         start, end = walk.history[0], objective.value(image)
         iterations = walk.iterations
         ctx.metrics.update(
+            seam_visibility=synth_mod.seam_visibility(image, walk.sources),
+            baseline_seam_visibility=baseline_seams,
             sweeps=len(walk.history) - 1,
             tiles_changed=walk.changed,
             candidates_evaluated=walk.candidates_evaluated,
@@ -192,13 +215,22 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
         k1, history = lens_mod.search_k1(score, k1_min=lc.k1_min, k1_max=lc.k1_max, samples=lc.samples, tol=lc.tol)
         image = lens_mod.undistort(src, k1, center=lc.center)
         end = objective.value(image)
+    # issue 24: symmetrize never returns a worse image (E_symm of the search's k1 may be the
+    # grid's best and still not above k1 = 0 once the colour image is resampled)
+    reason = None if end > start else f"E_symm {end:.4g} at k1 {k1:.4g} is not above the input's {start:.4g}"
+    if reason:
+        log.warning("symmetrize: %s: returned the input unchanged (%s)", cfg.source, reason)
+        image, end = src, start
     ctx.metrics.update(
         objective="E_symm",
         objective_start=start,
         objective_end=end,
         baseline_objective=start,
         iterations=len(history),
-        k1=k1,
+        k1=k1 if reason is None else 0.0,
+        k1_searched=k1,
+        status="input returned" if reason else "symmetrized",
+        status_reason=reason,
     )
     with ctx.stage("write"):
         write_common(cfg, ctx, src, image, objective, None)

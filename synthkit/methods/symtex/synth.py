@@ -35,19 +35,24 @@ from synthkit.core import symmetry as sy
 @dataclass
 class WalkResult:
     """Result of :func:`guided_walk`: ``image (H, W, C)``, per-tile source ``origins (ny, nx, 2)``,
+    per-pixel source ``sources (H, W, 2)`` (see :class:`synthkit.core.quilting.QuiltResult`),
     objective ``history`` (start, then after each sweep), tile visits ``iterations``, tiles
     ``changed`` in total, evaluated ``candidates_evaluated``."""
 
     image: np.ndarray
     origins: np.ndarray
+    sources: np.ndarray | None = None
     history: list[float] = field(default_factory=list)
     iterations: int = 0
     changed: int = 0
     candidates_evaluated: int = 0
 
 
-def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng, seams: str = "dp") -> q.QuiltResult:
-    """Toroidal tiling with uniformly random source patches, each cut into its filled neighbours."""
+def random_init(
+    source: np.ndarray, shape, *, patch: int, overlap: int, rng, seams: str = "dp", progress=None
+) -> q.QuiltResult:
+    """Toroidal tiling with uniformly random source patches, each cut into its filled neighbours
+    (``progress``: optional wrapper of the tiles, as in :func:`synthkit.core.quilting.quilt`)."""
     src = np.asarray(source, dtype=np.float32)
     q.check_sizes(src.shape, shape, patch, overlap)
     H, W = int(shape[0]), int(shape[1])
@@ -55,19 +60,22 @@ def random_init(source: np.ndarray, shape, *, patch: int, overlap: int, rng, sea
     canvas = np.zeros((H, W) + src.shape[2:], dtype=np.float32)
     filled = np.zeros((H, W), dtype=bool)
     origins = np.zeros((len(ys), len(xs), 2), dtype=np.int64)
-    for i, y0 in enumerate(ys):
-        for j, x0 in enumerate(xs):
-            pos = np.array([rng.integers(src.shape[0] - patch + 1), rng.integers(src.shape[1] - patch + 1)])
-            ry, rx = q.region_indices(y0, x0, patch, (H, W))
-            p = q.source_patches(src, pos[None], patch)
-            region = canvas[np.ix_(ry, rx)]
-            weight = filled[np.ix_(ry, rx)]
-            ov = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
-            keep = q.seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
-            q.paste(canvas, p[0], keep, y0, x0)
-            filled[np.ix_(ry, rx)] = True
-            origins[i, j] = pos
-    return q.QuiltResult(canvas, origins, ys, xs)
+    sources = np.zeros((H, W, 2), dtype=np.int64)
+    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    for i, j in progress(tiles, total=len(tiles), desc="random start") if progress else tiles:
+        y0, x0 = ys[i], xs[j]
+        pos = np.array([rng.integers(src.shape[0] - patch + 1), rng.integers(src.shape[1] - patch + 1)])
+        ry, rx = q.region_indices(y0, x0, patch, (H, W))
+        p = q.source_patches(src, pos[None], patch)
+        region = canvas[np.ix_(ry, rx)]
+        weight = filled[np.ix_(ry, rx)]
+        ov = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
+        keep = q.seam_masks(p, region, weight, overlaps=ov, method=seams)[0]
+        q.paste(canvas, p[0], keep, y0, x0)
+        q.paste(sources, q.patch_sources(pos[None], patch)[0], keep, y0, x0)
+        filled[np.ix_(ry, rx)] = True
+        origins[i, j] = pos
+    return q.QuiltResult(canvas, origins, ys, xs, sources)
 
 
 def l2_of_autocorrelations(acs: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -127,6 +135,7 @@ def guided_walk(
     src = np.asarray(source, dtype=np.float32)
     canvas = init.image.copy()
     origins = init.origins.copy()
+    sources = init.sources.copy()
     ys, xs = init.ys, init.xs
     H, W = canvas.shape[:2]
     if 2 * patch > min(H, W):
@@ -161,6 +170,7 @@ def guided_walk(
     value = current_value()
     result.history.append(value)
     tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    matcher = q.PatchMatcher(src, patch)
     for _ in range(sweeps):
         changed = 0
         iterator = progress(tiles, total=len(tiles), desc="guided walk") if progress else tiles
@@ -170,7 +180,7 @@ def guided_walk(
             region = canvas[np.ix_(ry, rx)]
             overlaps = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
             band = _band(patch, overlaps)
-            cost = q.overlap_costs(src, region, band.astype(np.float32))
+            cost = matcher.costs(region, band)
             pos = q.candidates(cost, tol=None, k=candidates)
             patches = q.source_patches(src, pos, patch)
             keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
@@ -198,6 +208,7 @@ def guided_walk(
             best = int(np.argmin(values))
             if values[best] < value - 1e-12 * max(1.0, abs(value)):
                 canvas[np.ix_(ry, rx)] = news[best]
+                q.paste(sources, q.patch_sources(pos[best][None], patch)[0], keep[best], y0, x0)
                 origins[i, j] = pos[best]
                 for st, (halves, deltas) in zip(states, grids if states else [], strict=False):
                     # the spectral evaluation (window = the whole torus) keeps no windows: apply computes it
@@ -214,4 +225,18 @@ def guided_walk(
             break
     result.image = canvas
     result.origins = origins
+    result.sources = sources
     return result
+
+
+def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:
+    """Seam visibility of a quilted ``image (H, W[, C])``: the mean squared luminance step across
+    patch borders over that inside patches (each direction averaged on its own, then the two).
+
+    Patch borders are the toroidal steps between pixels that do not show neighbouring source
+    pixels (``sources (H, W, 2)``, :func:`synthkit.core.tiling.seam_masks`); about 1 when the
+    borders cannot be told from the patches' insides, above 1 when edges show."""
+    from synthkit.core.tiling import seam_masks
+    from synthkit.methods.symtex.deform import seam_ratio
+
+    return seam_ratio(image, seams=seam_masks(sources))

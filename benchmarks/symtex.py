@@ -154,6 +154,7 @@ def bench_transfer_end_to_end(window: float | None = None) -> None:
             "source": "noise.png",
             "target": "dots.png",
             "output_size": [512, 512],
+            "baseline": True,
         }
         if window is not None:
             cfg["symmetry"] = {"window": window}

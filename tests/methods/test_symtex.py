@@ -39,6 +39,7 @@ TRANSFER = dict(
     output_size=[96, 96],
     symmetry={"window": 0.25},
     synth={"patch": 16, "overlap": 6, "candidates": 12, "sweeps": 3},
+    baseline=True,
 )
 
 

@@ -37,6 +37,7 @@ def test_gravel_guided_by_dot_lattice_takes_its_period(tmp_path, write_config):
         mode="transfer",
         source="gravel.png",
         target="dots.png",
+        baseline=True,
         output_size=[96, 96],
         symmetry={"window": 0.25},
         synth={"patch": 16, "overlap": 6, "candidates": 12, "sweeps": 3},

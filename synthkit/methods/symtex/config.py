@@ -269,6 +269,10 @@ class SymtexConfig(RunConfig):
     deform: DeformSection = Field(default_factory=DeformSection, description="ARAP warping parameters.")
     lens: LensSection = Field(default_factory=LensSection, description="Lens undistortion search.")
     tile: TileSection = Field(default_factory=TileSection, description="Tiling parameters (mode: tile).")
+    baseline: bool = Field(
+        False, description="Modes transfer and filter: also quilt the source unguided with the same seed and "
+        "report its E_L2 and seam visibility beside the result (baseline.png, comparison.png); off by default: "
+        "a comparison, not part of the result.")
 
     @model_validator(mode="after")
     def _check_combination(self):

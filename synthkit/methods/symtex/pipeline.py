@@ -126,19 +126,13 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         targets = build_targets(cfg, src, tgt, out_shape)
         objective = build_objective(cfg, out_shape, targets)
     base_rng, walk_rng = ctx.rng.spawn(2)
-    with ctx.stage("baseline"):
-        baseline = q.quilt(
-            src,
-            out_shape,
-            patch=sc.patch,
-            overlap=sc.overlap,
-            tol=sc.tol,
-            seams=sc.seams,
-            rng=base_rng,
-            progress=ctx.progress,
-        )
-        baseline_value = objective.value(baseline.image)
-    baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
+    baseline = baseline_value = baseline_seams = None
+    if cfg.mode == "quilt" or cfg.baseline or sc.init == "quilt":
+        with ctx.stage("baseline"):
+            baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams,
+                               rng=base_rng, progress=ctx.progress)
+            baseline_value = objective.value(baseline.image)
+        baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
     if cfg.mode == "quilt":
         image = baseline.image
         start = end = baseline_value
@@ -176,7 +170,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         iterations = walk.iterations
         ctx.metrics.update(
             seam_visibility=synth_mod.seam_visibility(image, walk.sources),
-            baseline_seam_visibility=baseline_seams,
+            **({"baseline_seam_visibility": baseline_seams} if cfg.baseline else {}),
             sweeps=len(walk.history) - 1,
             tiles_changed=walk.changed,
             candidates_evaluated=walk.candidates_evaluated,
@@ -186,7 +180,7 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         objective="E_L2",
         objective_start=start,
         objective_end=end,
-        baseline_objective=baseline_value,
+        **({"baseline_objective": baseline_value} if cfg.mode == "quilt" or cfg.baseline else {}),
         iterations=iterations,
         output_size=list(out_shape),
         window=list(objective.window),
@@ -194,13 +188,12 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
     with ctx.stage("write"):
         write_common(cfg, ctx, src, image, objective, targets)
         if cfg.mode != "quilt":
-            save_image(ctx.path("baseline", "baseline.png"), baseline.image)
+            shown = [src, image] if not cfg.baseline else [src, baseline.image, image]
+            if cfg.baseline:
+                save_image(ctx.path("baseline", "baseline.png"), baseline.image)
             if ctx.wants_preview("summary"):
-                montage_png(
-                    ctx.path("comparison", "comparison.png"),
-                    [src, baseline.image, image],
-                    titles=["source", "unguided", "guided"],
-                )
+                titles = ["source", "guided"] if not cfg.baseline else ["source", "unguided", "guided"]
+                montage_png(ctx.path("comparison", "comparison.png"), shown, titles=titles)
 
 
 def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:

@@ -33,6 +33,7 @@ import trimesh
 
 from synthkit import preview
 from synthkit.core.mesh import face_areas, face_normals
+from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError
 from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_mesh, save_mesh
@@ -690,6 +691,21 @@ def _previews(cfg, ctx, work: WorkMesh, layout: Layout, preps, results, ext: Ext
                             titles=[f"patch {k}: source grey, target blue" for k in range(len(tiles))], height=size)
 
 
+def _check_quality(cfg, ctx, mesh: trimesh.Trimesh, work: WorkMesh, ext: Extracted) -> None:
+    """``ctx.check_quality`` of the transferred mesh against the target as read. Its faces are the
+    target's, refined: each subdivision or refinement step at most doubles the open and non-manifold
+    edges and quadruples the faces, so the limits scale the input's figures by that much; no new
+    degenerate or duplicate face beyond the input's, scaled alike."""
+    ex = cfg.transfer.extraction
+    steps = ex.subdivide + (ex.refine_levels if ex.refine_tolerance is not None else 0)
+    before = mesh_quality(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    after = mesh_quality(ext.positions, np.asarray(work.mesh.faces))
+    edges, faces = 2**steps, 4**steps
+    limits = {key: before[key] * edges for key in ("open_edges", "nonmanifold_edges")}
+    limits |= {key: before[key] * faces for key in ("degenerate_faces", "duplicate_faces")}
+    ctx.check_quality("transferred", before, after, limits)
+
+
 def run_transfer(cfg, ctx) -> None:
     """Run ``cfg`` (mode transfer) into ``ctx.out_dir``."""
     with ctx.stage("load"):
@@ -706,5 +722,6 @@ def run_transfer(cfg, ctx) -> None:
     _metrics(cfg, ctx, preps, results)
     with ctx.stage("export"):
         _export(cfg, ctx, work, preps, ext)
+        _check_quality(cfg, ctx, mesh, work, ext)
     with ctx.stage("previews"):
         _previews(cfg, ctx, work, layout, preps, results, ext)

@@ -574,6 +574,29 @@ def test_periods_and_extend_surface_repeat_whole_stripes():
     assert extend_surface(img, unfolded, F, u_shape, u_shape) is None  # not affine: left to the paper's reshape
 
 
+def test_extend_surface_quilts_stochastic_content_from_its_own_texels():
+    from synthkit.methods.reshape.texture.extend import PERIODIC, QUILT_PATCH, extend_surface, lattice, patch_mask
+
+    rng = np.random.default_rng(3)
+    noise = rng.random((96, 96, 3)).astype(np.float32)
+    img = np.zeros((96, 96, 3), np.float32)
+    img[16:80, 16:80] = noise[16:80, 16:80]  # plaster-like: no period; outside the surface black
+    C = np.array([[16.0, 80.0], [80.0, 80.0], [80.0, 16.0], [16.0, 16.0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    P0 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    P1 = P0 * [1.5, 1.0, 1.0]
+    assert lattice(img, patch_mask(C, F, img.shape))[3] < PERIODIC
+    ext = extend_surface(img, C, F, P0, P1, rng=7)
+    assert ext.metrics["quilted"] and ext.metrics["texel_scale_error"] < 1e-12 and ext.texture.shape[:2] == (64, 96)
+    keep = QUILT_PATCH // 4 + 2  # the input's texels deeper than the overlap stay
+    inner = (slice(keep, 64 - keep), slice(keep, 64 - keep))
+    np.testing.assert_array_equal(ext.texture[inner], img[16:80, 16:80][inner])
+    new = ext.texture[:, 66:].reshape(-1, 3)
+    source = {tuple(v) for v in img[17:79, 17:79].reshape(-1, 3)}  # every new texel is one of the surface's own
+    assert all(tuple(v) in source for v in new)
+    np.testing.assert_array_equal(extend_surface(img, C, F, P0, P1, rng=7).texture, ext.texture)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
 @pytest.mark.parametrize("name, axis, factor", [("house1_baked.obj", "x", 1.3), ("house4_baked.obj", "y", 1.5)])

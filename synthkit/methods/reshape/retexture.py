@@ -232,7 +232,7 @@ def reshape_jobs(cfg, jobs, images, rng):
         if cfg.texture == "continue":
             img = images[job.texture]
             ext = (extend_tiled(job.C, job.F, job.P0, job.P1, img.shape) if job.toroidal
-                   else extend_surface(img, job.C, job.F, job.P0, job.P1))
+                   else extend_surface(img, job.C, job.F, job.P0, job.P1, rng))
             if ext is not None:
                 results[job.name] = (job, ext, None)
                 continue

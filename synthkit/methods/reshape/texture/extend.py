@@ -25,6 +25,11 @@ from scipy.ndimage import distance_transform_edt
 
 __all__ = ["Extended", "affine_map", "patch_mask", "periods", "lattice", "extend_surface", "extend_tiled"]
 
+EDGE = 8
+"""Texels along a patch's border that continued texels are read from only when its interior has no
+texel at a whole period: the border often holds a strip that is not the material (the ridge
+flashing of house4's roof, 8 texels, repeated every course made a band of flatter rows)."""
+
 SHIFTS = 12
 """Whole periods tried each way when continuing a texel."""
 
@@ -124,7 +129,8 @@ def _first_peak(values, min_period: int, n: int, line=None) -> int:
 def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     """Patch ``(h, w, 3)`` over the texel box ``box_new = (x0, y0, w, h)`` (source texel frame):
     texels inside ``mask`` copied, each other one read at the shortest lattice offset
-    ``i (px, 0) + j (qx, py)`` (``period``, :func:`periods`) that lands inside it (the nearest
+    ``i (px, 0) + j (qx, py)`` (``period``, :func:`periods`) that lands inside it, at least
+    ``EDGE`` texels from its border when one does (the nearest
     texel of the mask when none of up to ``SHIFTS`` periods each way does); returns it and the
     share of texels continued."""
     x0, y0, w, h = box_new
@@ -138,13 +144,15 @@ def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     offsets = np.array([(i * px + j * qx, j * py) for i in k for j in k])
     offsets = offsets[np.argsort(np.hypot(offsets[:, 0], offsets[:, 1]), kind="stable")][1:]
     todo = np.flatnonzero(~inside)
-    for dx, dy in offsets:
-        if not len(todo):
-            break
-        hit = _inside(mask, sx[todo] + dx, sy[todo] + dy)
-        sx[todo[hit]] += dx
-        sy[todo[hit]] += dy
-        todo = todo[~hit]
+    core = cv2.erode(mask.astype(np.uint8), np.ones((2 * EDGE + 1, 2 * EDGE + 1), np.uint8)).astype(bool)
+    for source in (core, mask):
+        for dx, dy in offsets:
+            if not len(todo):
+                break
+            hit = _inside(source, sx[todo] + dx, sy[todo] + dy)
+            sx[todo[hit]] += dx
+            sy[todo[hit]] += dy
+            todo = todo[~hit]
     sx, sy = np.clip(sx, 0, W - 1), np.clip(sy, 0, H - 1)
     if len(todo):
         near = distance_transform_edt(~mask, return_distances=False, return_indices=True)

@@ -347,7 +347,8 @@ class ReshapeConfig(RunConfig):
     baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
     texture: Literal["continue", "reshape", "stretch"] = Field(
         "continue", description="continue: brick, siding and roof tiles keep their texel scale, the patch continued "
-        "by whole periods (surfaces whose map is not affine take reshape); reshape: the paper's section 4; "
+        "by whole periods or, without a clear period (plaster), quilted from its own texels (surfaces whose map is not "
+        "affine take reshape); reshape: the paper's section 4; "
         "stretch: UVs kept, the texture follows the geometry (the naive baseline).",
     )
     texture_reshape: TextureSection = Field(default_factory=TextureSection)

@@ -776,3 +776,59 @@ def test_same_seed_same_bytes(tmp_path):
     _, a = reshape(tmp_path, "one", **wall_config())
     _, b = reshape(tmp_path, "two", **wall_config())
     assert (a / "reshape-wall.obj").read_bytes() == (b / "reshape-wall.obj").read_bytes()
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` with its bytes (folders as b'dir')."""
+    return {p.relative_to(root).as_posix(): b"dir" if p.is_dir() else p.read_bytes() for p in sorted(root.rglob("*"))}
+
+
+def _refused_alone(runner, tmp_path, cfg: dict) -> tuple[int, str]:
+    """Run ``cfg`` with its output folder three levels down; returns the exit code and the one stderr
+    line after checking that nothing under ``tmp_path`` changed (no output folder, no escaped file)."""
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump({"method": "reshape", **cfg}))
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    before = _tree(tmp_path)
+    result = runner.invoke(cli, ["reshape", str(path), "--out", str(tmp_path / "a" / "b" / "o")])
+    assert _tree(tmp_path) == before
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    return result.exit_code, lines[0]
+
+
+@pytest.mark.parametrize("name", ["../../escaped", "sub/piece", "..", "a\\b"])
+def test_piece_name_with_a_folder_part_exit_2(runner, tmp_path, name):
+    cfg = road_chain_config(str(SAMPLES / "reshape-road-a.obj"), str(SAMPLES / "reshape-road-b.obj"),
+                            handles=[{"piece": "b", **above("x", 3.49), "displacement": [1.0, 0, 0]}])
+    cfg["pieces"][0]["name"] = name
+    cfg["chain"][0]["a"] = name
+    code, line = _refused_alone(runner, tmp_path, cfg)
+    assert code == 2
+    assert f"bad.yaml: pieces.0.name: must be a plain file name (no '/', '\\', '..' or surrounding spaces) " \
+           f"(got {name!r})" in line
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"handles": [above("y", 2.99, displacement=[0, 1e30, 0])]},
+         "handles[0].displacement: [0.0, 1e+30, 0.0] moves vertices by 1.49e+29 model sizes; at most 100"),
+        ({"handles": [above("y", 2.99, target=[0, 1e4, 0])]},
+         "handles[0].target: [0.0, 10000.0, 0.0] moves vertices by 1.49e+03 model sizes; at most 100"),
+        ({"handles": [], "fixed": [], "scale": {"x": 1e6}},
+         "scale.x: 1000000.0 moves vertices by 8.94e+05 model sizes; at most 100"),
+        ({"handles": [], "fixed": [], "size": {"x": 1e5}},
+         "size.x: 100000.0 moves vertices by 1.49e+04 model sizes; at most 100"),
+    ],
+    ids=["displacement-1e30", "target-far", "scale-1e6", "size-1e5"],
+)
+def test_motion_out_of_the_model_range_exit_2(runner, tmp_path, change, message):
+    code, line = _refused_alone(runner, tmp_path, {**wall_config(), **change})
+    assert code == 2 and message in line
+
+
+def test_motion_of_a_hundred_model_sizes_is_still_exact(tmp_path):
+    report, _ = reshape(tmp_path, "far", **wall_config(handles=[above("y", 2.99, displacement=[0, 671.0, 0])]))
+    m = report["metrics"]
+    assert m["status"] == "ok" and max(m["strict_residuals"].values()) < STRICT_TOL

@@ -292,6 +292,45 @@ def run(tmp_path, name="facade", previews="all", **cfg):
     return run_config(path, out_dir=out, show_progress=False, previews=previews), out
 
 
+def _centroid_texels(asset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Texel ``(#F, 3)`` (nearest, UVs wrapped) at each face's UV centroid, whether the 5 x 5 texels
+    around it are all black (the fill of unused texels; dark grout is black at single texels)
+    ``(#F,)`` and whether the face has a material with a texture and finite UVs ``(#F,)``."""
+    texel, black = np.zeros((len(asset.F), 3), np.int64), np.zeros(len(asset.F), bool)
+    textured = np.zeros(len(asset.F), bool)
+    uv = asset.corner_uv.mean(axis=1)
+    for k, m in enumerate(asset.materials):
+        f = np.flatnonzero(asset.face_material == k)
+        if m.image is None or not len(f):
+            continue
+        H, W = m.image.shape[:2]
+        x = np.clip(((uv[f, 0] % 1.0) * W).astype(int), 0, W - 1)
+        y = np.clip(((1.0 - uv[f, 1] % 1.0) * H).astype(int), 0, H - 1)
+        texel[f] = m.image[y, x, :3]
+        around = [m.image[np.clip(y + dy, 0, H - 1), np.clip(x + dx, 0, W - 1), :3]
+                  for dy in range(-2, 3) for dx in range(-2, 3)]
+        black[f] = (np.max(around, axis=0) == 0).all(axis=1)
+        textured[f] = np.isfinite(asset.corner_uv[f]).all(axis=(1, 2))
+    return texel, black, textured
+
+
+def assert_every_face_textured(out: Path, mesh: str, source: Path) -> float:
+    """The written OBJ opens with every face textured, none on the black fill of unused texels where
+    the input has none; every map the written MTLs name is written and every PNG written is named. Returns
+    the share of faces whose centroid texel is the input's (within 2 / 255)."""
+    from synthkit.io.assets import load_asset
+
+    after, before = load_asset(out / mesh), load_asset(source)
+    (a, black_a, has_a), (b, black_b, has_b) = _centroid_texels(after), _centroid_texels(before)
+    assert len(after.F) == len(before.F) and has_a.all() and has_b.all()
+    assert not (black_a & ~black_b).any(), np.flatnonzero(black_a & ~black_b)
+    named = {line.split()[-1] for mtl in out.glob("*.mtl") for line in mtl.read_text().splitlines()
+             if line.lower().startswith("map_kd")}
+    assert all((out / n).is_file() for n in named) and {p.name for p in out.glob("*.png")} - {
+        "before.png", "after.png", "baseline.png", "comparison.png"} <= named
+    return float((np.abs(a - b).max(axis=1) <= 2).mean())
+
+
 def test_pipeline_writes_reshaped_mesh_textures_and_report(tmp_path):
     report, out = run(tmp_path)
     m = report["metrics"]
@@ -304,14 +343,15 @@ def test_pipeline_writes_reshaped_mesh_textures_and_report(tmp_path):
     assert m["detail_energy_ratio"] >= 0.8 and m["texture_factor_ms"] < 1000
     mesh = load_textured(out / "reshape-facade.obj")
     assert mesh.materials == ["facade_atlas", "facade_end"] and m["texture_images"] == 1
+    assert assert_every_face_textured(out, "reshape-facade.obj", SAMPLES / "reshape-facade.obj") >= 0.5
     end = mesh.face_material == 1
     src = load_textured(SAMPLES / "reshape-facade.obj")
     np.testing.assert_array_equal(mesh.UV[np.unique(mesh.F[end])], src.UV[np.unique(src.F[src.face_material == 1])])
     x, y, w, h = surf["atlas_box"]
     atlas = load_image(out / surf["atlas"])
-    assert atlas.shape[0] == FACADE["size"] + h + 2 * PAD and atlas.shape[1] == max(FACADE["size"], w + 2 * PAD)
-    baked = atlas[y:y + h, x:x + w]
     n = FACADE["size"]
+    assert atlas.shape[0] * atlas.shape[1] <= 1.1 * ((n + 2 * PAD) ** 2 + (w + 2 * PAD) * (h + 2 * PAD))
+    baked = atlas[y:y + h, x:x + w]
     assert baked.shape[1] == pytest.approx(2 * n, abs=2)
     x0, _, x1, _ = FACADE["door"]
     door_world = door_width(baked, 330, 0, baked.shape[1]) / baked.shape[1] * 8.0
@@ -492,17 +532,19 @@ def test_real_house_door_and_window_surfaces(tmp_path, name, mode):
     assert report["metrics"]["texture_images"] == 1 and len(list(out.glob("*_atlas.png"))) == 1
 
 
-def test_atlas_packs_source_on_top_and_patches_on_shelves():
+def test_atlas_packs_source_and_patches_on_shelves_of_the_smallest_width():
     from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 
     src = np.zeros((8, 8, 3))
     a, b = np.full((4, 10, 3), 0.5), np.full((6, 3, 3), 1.0)
     atlas, top, (pa, pb) = pack_atlas(src, [a, b])
-    assert atlas.shape == (8 + 10 + 8, 14, 3)  # b is taller: first shelf; a does not fit beside it
-    assert (pb.x, pb.y, pb.w, pb.h) == (PAD, 8 + PAD, 3, 6) and (pa.x, pa.y) == (PAD, 8 + 10 + PAD)
+    # padded 12x12, 8x14, 10x7; widths 14 (3 shelves, 420 texels), 19 (380), 23, 28 (2 shelves), 37 (1 shelf, 444)
+    assert atlas.shape == (20, 19, 3)
+    assert (top.x, top.y) == (PAD, PAD) and (pb.x, pb.y, pb.w, pb.h) == (12 + PAD, PAD, 3, 6)
+    assert (pa.x, pa.y) == (PAD, 12 + PAD)
     assert atlas[pb.y - PAD, pb.x - PAD, 0] == 1.0 and atlas[pa.y + 3, pa.x + 9, 0] == 0.5
     np.testing.assert_allclose(to_atlas(np.array([[0.0, 1.0], [1.0, 0.0]]), top, atlas.shape),
-                               [[0, 1], [8 / 14, 1 - 8 / 26]])
+                               [[2 / 19, 1 - 2 / 20], [10 / 19, 1 - 10 / 20]])
 
 
 # ---------------------------------------------------------------- materials continue (texture: continue)
@@ -532,6 +574,29 @@ def test_periods_and_extend_surface_repeat_whole_stripes():
     assert extend_surface(img, unfolded, F, u_shape, u_shape) is None  # not affine: left to the paper's reshape
 
 
+def test_extend_surface_quilts_stochastic_content_from_its_own_texels():
+    from synthkit.methods.reshape.texture.extend import PERIODIC, QUILT_PATCH, extend_surface, lattice, patch_mask
+
+    rng = np.random.default_rng(3)
+    noise = rng.random((96, 96, 3)).astype(np.float32)
+    img = np.zeros((96, 96, 3), np.float32)
+    img[16:80, 16:80] = noise[16:80, 16:80]  # plaster-like: no period; outside the surface black
+    C = np.array([[16.0, 80.0], [80.0, 80.0], [80.0, 16.0], [16.0, 16.0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    P0 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    P1 = P0 * [1.5, 1.0, 1.0]
+    assert lattice(img, patch_mask(C, F, img.shape))[3] < PERIODIC
+    ext = extend_surface(img, C, F, P0, P1, rng=7)
+    assert ext.metrics["quilted"] and ext.metrics["texel_scale_error"] < 1e-12 and ext.texture.shape[:2] == (64, 96)
+    keep = QUILT_PATCH // 4 + 2  # the input's texels deeper than the overlap stay
+    inner = (slice(keep, 64 - keep), slice(keep, 64 - keep))
+    np.testing.assert_array_equal(ext.texture[inner], img[16:80, 16:80][inner])
+    new = ext.texture[:, 66:].reshape(-1, 3)
+    source = {tuple(v) for v in img[17:79, 17:79].reshape(-1, 3)}  # every new texel is one of the surface's own
+    assert all(tuple(v) in source for v in new)
+    np.testing.assert_array_equal(extend_surface(img, C, F, P0, P1, rng=7).texture, ext.texture)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not HOUSES.is_dir(), reason="../shared/data/architecture not present")
 @pytest.mark.parametrize("name, axis, factor", [("house1_baked.obj", "x", 1.3), ("house4_baked.obj", "y", 1.5)])
@@ -542,6 +607,7 @@ def test_real_house_materials_continue(tmp_path, name, axis, factor):
     m = report["metrics"]
     continued = [s for s in m["surfaces"].values() if "texel_scale_error" in s]
     assert len(continued) >= 0.7 * m["texture_surfaces"] and m["texture_images"] == 1
+    assert assert_every_face_textured(out, name, source) >= 0.6  # house1 widened: 0.74
     big = [s["texel_scale_error"] for s in continued if min(s["atlas_box"][2:]) >= 32]
     assert max(big) < 0.05, big  # brick, siding, roof tiles keep their texel scale
     src, again = load_textured(source), load_textured(out / name)

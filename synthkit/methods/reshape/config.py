@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
 
@@ -157,6 +157,14 @@ class PieceSpec(StrictModel):
         description="Extra portals by file vertex index; end planes 'x-', 'x+', ... and boundary loops "
         "'loop0', 'loop1', ... are detected.",
     )
+
+    @field_validator("name")
+    @classmethod
+    def _plain_file_name(cls, name: str) -> str:
+        """The name becomes output file names (``<name>.obj``): a plain file name, no folder part."""
+        if name in (".", "..") or any(c in name for c in "/\\\0") or name != name.strip():
+            raise ValueError("must be a plain file name (no '/', '\\', '..' or surrounding spaces)")
+        return name
 
 
 class Join(StrictModel):
@@ -340,7 +348,8 @@ class ReshapeConfig(RunConfig):
     baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
     texture: Literal["continue", "reshape", "stretch"] = Field(
         "continue", description="continue: brick, siding and roof tiles keep their texel scale, the patch continued "
-        "by whole periods (surfaces whose map is not affine take reshape); reshape: the paper's section 4; "
+        "by whole periods or, without a clear period (plaster), quilted from its own texels (surfaces whose map is not "
+        "affine take reshape); reshape: the paper's section 4; "
         "stretch: UVs kept, the texture follows the geometry (the naive baseline).",
     )
     texture_reshape: TextureSection = Field(default_factory=TextureSection)

@@ -48,6 +48,12 @@ log = logging.getLogger("synthkit")
 _BYTES_PER_NNZ = 400.0
 """Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
 
+MAX_MOTION = 100.0
+"""Largest motion of a handle or of a resized end, in model sizes (bounding-box diagonals). The
+strict residuals grow with the motion (1.2e-10 of the model size per model size moved on the wall
+sample, direction rows): past about 800 sizes they exceed the 1e-7 the tests accept, and at 1e30
+float64 loses the model itself. Farther motions are refused (ConfigError, issue 28)."""
+
 _BYTES_PER_TEXEL = 160.0
 """Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
 
@@ -225,6 +231,27 @@ def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) ->
     return f"vertex {int(p.position_index[r - p.start])} of {p.name}"
 
 
+def _check_motion(key: str, value, motion: float, size: float) -> None:
+    """Refuse (ConfigError naming ``key`` and ``value``) a motion past ``MAX_MOTION`` model sizes."""
+    if not motion <= MAX_MOTION * size:
+        raise ConfigError(
+            f"{key}: {value} moves vertices by {motion / size:.3g} model sizes; at most {MAX_MOTION:g} "
+            "(farther, the solve leaves the model's numeric range)"
+        )
+
+
+def _handle_motions(cfg, graph, size: float) -> None:
+    """Every handle's ``displacement`` (its length), or its ``target`` (the distance to the model's
+    bounding box), within ``MAX_MOTION`` model sizes."""
+    lo, hi = graph.X0.min(axis=0), graph.X0.max(axis=0)
+    for i, h in enumerate(cfg.handles):
+        if h.displacement is not None:
+            _check_motion(f"handles[{i}].displacement", h.displacement, float(np.linalg.norm(h.displacement)), size)
+        else:
+            t = np.asarray(h.target)
+            _check_motion(f"handles[{i}].target", h.target, float(np.linalg.norm(t - np.clip(t, lo, hi))), size)
+
+
 def _selections(cfg, graph, V, ranges, resize=None):
     """Handles ``(k,)`` with targets ``(k, 3)``, fixed ``(f,)`` and link pairs, as ConfigErrors. A
     resize's end nodes are handles where its rest shape moves them and fixed elsewhere."""
@@ -251,6 +278,10 @@ def _resize(cfg, graph, sc) -> Resize | None:
         factors, asked = axis_factors(cfg.scale, cfg.size, extent)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
+    key = "scale" if cfg.scale is not None else "size"
+    for a, value in enumerate((cfg.scale or cfg.size).values()):
+        if value is not None:
+            _check_motion(f"{key}.{'xyz'[a]}", value, abs(factors[a] - 1.0) * extent[a], sc.size)
     p = cfg.parts
     return plan_resize(graph.X0, graph.Fn, factors, asked, rigid_share=p.rigid_share, end_tol=p.end_tol)
 
@@ -597,6 +628,7 @@ def run(cfg, ctx) -> None:
     graph = _graph(cfg, ctx, sc)
     with ctx.stage("constraints"):
         resize = _resize(cfg, graph, sc)
+        _handle_motions(cfg, graph, sc.size)
         handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges, resize)
         ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
                            60.0 * len(graph.edges) + 30.0 * graph.n_nodes,

@@ -17,17 +17,19 @@ below one texel (ConfigError on ``texture_reshape.spacing``). GLB inputs keep th
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import re
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
-from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled
+from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled, patch_mask
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
 __all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
@@ -230,7 +232,7 @@ def reshape_jobs(cfg, jobs, images, rng):
         if cfg.texture == "continue":
             img = images[job.texture]
             ext = (extend_tiled(job.C, job.F, job.P0, job.P1, img.shape) if job.toroidal
-                   else extend_surface(img, job.C, job.F, job.P0, job.P1))
+                   else extend_surface(img, job.C, job.F, job.P0, job.P1, rng))
             if ext is not None:
                 results[job.name] = (job, ext, None)
                 continue
@@ -256,11 +258,12 @@ def _job_key(job) -> tuple:
     return (job.texture, job.toroidal, np.round(job.C, 6).tobytes(), job.F.tobytes(), ratio.tobytes())
 
 
-def _own_entry(job, res, k: int) -> Retexture:
-    """A surface written with its own material and PNG (toroidal: its UVs repeat the baked tile)."""
+def _own_entry(job, res) -> Retexture:
+    """A surface written with its own material and PNG named by its surface number (toroidal: its
+    UVs repeat the baked tile)."""
     UV = np.zeros((int(job.vertices.max()) + 1, 2))
     UV[job.vertices] = res.UV
-    material = _safe(f"{job.material}_retex{k}")
+    material = _safe(f"{job.material}_retex{job.name.rsplit('.', 1)[1]}")
     return Retexture(job.faces, UV, material, f"{material}.png", res.texture)
 
 
@@ -273,43 +276,70 @@ def _untouched_faces(mesh, material, done, taken) -> np.ndarray:
     return faces[ok]
 
 
+def _source_in_use(mesh, faces, shape) -> np.ndarray:
+    """``(H, W) bool``: the texels of a texture of ``shape`` that the ``faces`` of ``mesh`` map,
+    grown by two texels (bilinear sampling at their edges reads them)."""
+    H, W = shape[:2]
+    C = np.column_stack([mesh.UV[:, 0] * W, (1.0 - mesh.UV[:, 1]) * H])
+    used = patch_mask(C, mesh.F[faces], shape, erode=False).astype(np.uint8)
+    return cv2.dilate(used, np.ones((5, 5), np.uint8)).astype(bool)
+
+
+def _content(img: np.ndarray) -> tuple:
+    """Key of an image's content: equal patches (a roof's front and back slopes) are packed once."""
+    return img.shape, hashlib.sha256(np.ascontiguousarray(img).tobytes()).hexdigest()
+
+
+def _material_atlas(mesh, material, items, source) -> tuple[Retexture, list, dict]:
+    """One input material's atlas: the Retexture of its packed and untouched faces, the entries of
+    surfaces that keep their own PNG (sharing a render vertex with one already packed) and per
+    packed surface its atlas box. Source texels no untouched face maps are black (they compress);
+equal patches are packed once."""
+    res_of = {_content(res.texture): res for _, _, res in items}
+    taken, faces, own = np.zeros(len(mesh.V), bool), [], []
+    packed = []
+    for name, job, res in items:
+        if taken[job.vertices].any():
+            own.append(_own_entry(job, res))
+            continue
+        taken[job.vertices] = True
+        faces.append(job.faces)
+        packed.append((name, job, res))
+    rest = _untouched_faces(mesh, material, np.concatenate(faces), taken)
+    source = np.where(_source_in_use(mesh, rest, source.shape)[..., None], source, 0).astype(source.dtype)
+    atlas, spot0, spots = pack_atlas(source, [r.texture for r in res_of.values()])
+    slot = {key: spots[i] for i, key in enumerate(res_of)}
+    UV, boxes, file = np.zeros((len(mesh.V), 2)), {}, f"{_safe(material)}_atlas.png"
+    for name, job, res in packed:
+        spot = slot[_content(res.texture)]
+        UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
+        boxes[name] = ([spot.x, spot.y, spot.w, spot.h], file)
+    corners = np.unique(mesh.F[rest])
+    UV[corners] = to_atlas(mesh.UV[corners], spot0, atlas.shape)
+    return Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas), own, boxes
+
+
 def atlas_entries(sc, results, images) -> tuple[dict, dict]:
-    """The Retexture entries per piece index: per (piece, input material) one atlas (source on top,
-    every non-toroidal reshaped surface's patch below, :func:`texture.atlas.pack_atlas`) holding
+    """The Retexture entries per piece index: per (piece, input material) one atlas (the source, its
+    texels no untouched face maps black, and every non-toroidal reshaped surface's patch,
+    :func:`texture.atlas.pack_atlas`) holding
     the material's reshaped and untouched faces; toroidal surfaces continued by their UVs share one
     copy of their tile per material (``<material>_tiled``); other toroidal surfaces (and a surface
     sharing a render vertex with one already packed) keep their own PNG. Also per surface name its ``[x, y, w, h]``
     box in its atlas (texels) and the atlas file."""
     entries, boxes, groups = {}, {}, {}
     tiled = {}
-    for k, (name, (job, res, _)) in enumerate(results.items()):
+    for name, (job, res, _) in results.items():
         if job.toroidal and res.texture is None:
             tiled.setdefault((job.piece, job.material), []).append((job, res))
         elif job.toroidal:
-            entries.setdefault(job.piece, []).append(_own_entry(job, res, k))
+            entries.setdefault(job.piece, []).append(_own_entry(job, res))
         else:
             groups.setdefault((job.piece, job.material), []).append((name, job, res))
     for (p, material), items in groups.items():
-        mesh = sc.meshes[p]
-        patches = list({id(res): res.texture for _, _, res in items}.values())
-        atlas, spot0, spots = pack_atlas(images[items[0][1].texture], patches)
-        slot = {id(res): spots[i] for i, res in enumerate({id(r): r for _, _, r in items}.values())}
-        UV, taken, faces = np.zeros((len(mesh.V), 2)), np.zeros(len(mesh.V), bool), []
-        file = f"{_safe(material)}_atlas.png"
-        for name, job, res in items:
-            spot = slot[id(res)]
-            if taken[job.vertices].any():
-                entries.setdefault(p, []).append(_own_entry(job, res, len(boxes)))
-                continue
-            UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
-            taken[job.vertices] = True
-            faces.append(job.faces)
-            boxes[name] = ([spot.x, spot.y, spot.w, spot.h], file)
-        rest = _untouched_faces(mesh, material, np.concatenate(faces), taken)
-        corners = np.unique(mesh.F[rest])
-        UV[corners] = to_atlas(mesh.UV[corners], spot0, atlas.shape)
-        entries.setdefault(p, []).append(
-            Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas))
+        entry, own, placed = _material_atlas(sc.meshes[p], material, items, images[items[0][1].texture])
+        entries.setdefault(p, []).extend(own + [entry])
+        boxes.update(placed)
     for (p, material), items in tiled.items():
         UV = np.zeros((len(sc.meshes[p].V), 2))
         for job, res in items:

@@ -23,10 +23,22 @@ import cv2
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-__all__ = ["Extended", "affine_map", "patch_mask", "periods", "extend_surface", "extend_tiled"]
+__all__ = ["Extended", "affine_map", "patch_mask", "periods", "lattice", "extend_surface", "extend_tiled"]
+
+EDGE = 8
+"""Texels along a patch's border that continued texels are read from only when its interior has no
+texel at a whole period: the border often holds a strip that is not the material (the ridge
+flashing of house4's roof, 8 texels, repeated every course made a band of flatter rows)."""
 
 SHIFTS = 12
 """Whole periods tried each way when continuing a texel."""
+
+PERIODIC = 0.05
+"""Lattice strength (:func:`lattice`) under which content counts as stochastic and is quilted: the
+plaster walls of house1 measure 0.008-0.033, its brick and roof tiles 0.36-0.99."""
+
+QUILT_PATCH = 32
+"""Side (texels) of the quilting patches of stochastic content (overlap a quarter of it)."""
 
 AFFINE_TOL = 0.75
 """Largest misfit (texels) of the world-to-texel affine map of a surface that still counts as affine."""
@@ -61,6 +73,11 @@ def patch_mask(C: np.ndarray, F: np.ndarray, shape, *, erode: bool = True) -> np
 
 
 def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int, int]:
+    """The repetition lattice ``(px, qx, py)`` of :func:`lattice`."""
+    return lattice(img, mask, min_period=min_period)[:3]
+
+
+def lattice(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[int, int, int, float]:
     """The repetition lattice ``(px, qx, py)`` (texels) of ``img (H, W, 3)`` inside ``mask``: the
     content repeats by ``(px, 0)`` along a row and by ``(qx, py)`` to the next course (``qx`` half a
     brick in a running bond, 0 in a stack). From the masked, normalised autocorrelation of the
@@ -68,10 +85,12 @@ def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[
     along each axis its largest value past its first negative value (a whole course, not the
     smoothness of neighbouring texels) and ``min_period``, up to half the box (half the box when
     it never turns negative); ``py`` and ``qx`` maximise it over the horizontal offsets too, ``qx``
-    reduced modulo ``px``."""
+    reduced modulo ``px``; and its strength, the smaller normalised autocorrelation at ``(px, 0)``
+    and ``(qx, py)`` (1: the content repeats exactly, or never decorrelates along that axis, as
+    siding boards along their length; plaster: under :data:`PERIODIC`)."""
     ys, xs = np.nonzero(mask)
     if not len(ys):
-        return 1, 0, 1
+        return 1, 0, 1, 0.0
     box = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
     lum = img[box].mean(axis=2) if img.ndim == 3 else img[box]
     m = mask[box].astype(np.float64)
@@ -88,7 +107,10 @@ def periods(img: np.ndarray, mask: np.ndarray, *, min_period: int = 4) -> tuple[
     py = _first_peak(np.where(np.isfinite(best), best, -np.inf), min_period, h, line=r[:h, 0])
     j = int(dx[np.argmax(r[py, dx])])
     qx = j - shape[1] if j >= shape[1] // 2 else j
-    return px, (qx + px // 2) % px - px // 2, py
+    sx = r[0, px] if (r[0, :max(w // 2, 1)] < 0).any() else 1.0
+    sy = r[py, j] if (r[:max(h // 2, 1), 0] < 0).any() else 1.0
+    strength = float(min(sx, sy))
+    return px, (qx + px // 2) % px - px // 2, py, strength if np.isfinite(strength) else 0.0
 
 
 def _first_peak(values, min_period: int, n: int, line=None) -> int:
@@ -107,7 +129,8 @@ def _first_peak(values, min_period: int, n: int, line=None) -> int:
 def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     """Patch ``(h, w, 3)`` over the texel box ``box_new = (x0, y0, w, h)`` (source texel frame):
     texels inside ``mask`` copied, each other one read at the shortest lattice offset
-    ``i (px, 0) + j (qx, py)`` (``period``, :func:`periods`) that lands inside it (the nearest
+    ``i (px, 0) + j (qx, py)`` (``period``, :func:`periods`) that lands inside it, at least
+    ``EDGE`` texels from its border when one does (the nearest
     texel of the mask when none of up to ``SHIFTS`` periods each way does); returns it and the
     share of texels continued."""
     x0, y0, w, h = box_new
@@ -121,18 +144,66 @@ def _fill(img, mask, box_new, period) -> tuple[np.ndarray, float]:
     offsets = np.array([(i * px + j * qx, j * py) for i in k for j in k])
     offsets = offsets[np.argsort(np.hypot(offsets[:, 0], offsets[:, 1]), kind="stable")][1:]
     todo = np.flatnonzero(~inside)
-    for dx, dy in offsets:
-        if not len(todo):
-            break
-        hit = _inside(mask, sx[todo] + dx, sy[todo] + dy)
-        sx[todo[hit]] += dx
-        sy[todo[hit]] += dy
-        todo = todo[~hit]
+    core = cv2.erode(mask.astype(np.uint8), np.ones((2 * EDGE + 1, 2 * EDGE + 1), np.uint8)).astype(bool)
+    for source in (core, mask):
+        for dx, dy in offsets:
+            if not len(todo):
+                break
+            hit = _inside(source, sx[todo] + dx, sy[todo] + dy)
+            sx[todo[hit]] += dx
+            sy[todo[hit]] += dy
+            todo = todo[~hit]
     sx, sy = np.clip(sx, 0, W - 1), np.clip(sy, 0, H - 1)
     if len(todo):
         near = distance_transform_edt(~mask, return_distances=False, return_indices=True)
         sy[todo], sx[todo] = near[0][sy[todo], sx[todo]], near[1][sy[todo], sx[todo]]
     return img[sy, sx].reshape(h, w, -1), continued
+
+
+def _source_positions(mask: np.ndarray, B: int) -> np.ndarray:
+    """``(H - B + 1, W - B + 1) bool``: top-left corners of the ``B x B`` windows inside ``mask``."""
+    inside = cv2.erode(mask.astype(np.uint8), np.ones((B, B), np.uint8), anchor=(0, 0),
+                       borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return inside[:mask.shape[0] - B + 1, :mask.shape[1] - B + 1].astype(bool)
+
+
+def _quilt_fill(img, mask, box_new, rng) -> tuple[np.ndarray, float] | None:
+    """Patch ``(h, w, 3)`` over ``box_new = (x0, y0, w, h)`` for stochastic content: texels inside
+    ``mask`` copied, the others quilted (Efros and Freeman, :mod:`synthkit.core.quilting`) from
+    ``QUILT_PATCH``-texel windows of the surface's own texels, each tile matching the texels already
+    there and cut along its minimum-error boundary; tiles go most-covered first so each joins what is
+    known. The original texels deeper than the overlap stay. None when no window fits the mask."""
+    from synthkit.core.quilting import boundary_masks, candidates, overlap_costs, source_patches
+
+    x0, y0, w, h = box_new
+    B = min(QUILT_PATCH, w, h)
+    ov = max(B // 4, 1)
+    ys, xs = np.nonzero(mask)
+    crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+    src = img[crop]
+    valid = _source_positions(mask[crop], B) if B >= 4 and min(src.shape[:2]) >= B else np.zeros((0, 0), bool)
+    if not valid.any():
+        return None
+    X, Y = np.meshgrid(np.arange(x0, x0 + w), np.arange(y0, y0 + h))
+    known = _inside(mask, X, Y)
+    canvas = np.zeros((h, w, img.shape[2]), np.float32)
+    canvas[known] = img[Y[known], X[known]]
+    locked = distance_transform_edt(known) > ov
+    filled = known.copy()
+    rows = np.unique(np.r_[np.arange(0, h - B, B - ov), h - B])
+    cols = np.unique(np.r_[np.arange(0, w - B, B - ov), w - B])
+    tiles = [(ty, tx) for ty in rows for tx in cols if not filled[ty:ty + B, tx:tx + B].all()]
+    while tiles:
+        k = int(np.argmax([filled[ty:ty + B, tx:tx + B].sum() for ty, tx in tiles]))
+        ty, tx = tiles.pop(k)
+        region, weight = canvas[ty:ty + B, tx:tx + B], filled[ty:ty + B, tx:tx + B]
+        cost = np.where(valid, overlap_costs(src, region, weight.astype(np.float32)), np.inf)
+        cands = candidates(cost, tol=0.1)
+        patch = source_patches(src, cands[rng.integers(len(cands))][None], B)
+        keep = boundary_masks(patch, region, weight, overlaps=(ov, ov, ov, ov))[0] & ~locked[ty:ty + B, tx:tx + B]
+        region[keep] = patch[0][keep]
+        filled[ty:ty + B, tx:tx + B] = True
+    return canvas, float(1 - known.mean())
 
 
 def _normal(P: np.ndarray) -> np.ndarray:
@@ -158,10 +229,13 @@ def _inside(mask, x, y) -> np.ndarray:
     return out
 
 
-def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray, P1: np.ndarray) -> Extended | None:
+def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray, P1: np.ndarray,
+                   rng=None) -> Extended | None:
     """The continued patch of a surface with texel corners ``C (c, 2)`` (x right, y down, in
     ``img (H, W, 3)``), triangles ``F (k, 3)``, corner positions before ``P0 (c, 3)`` and after
-    ``P1 (c, 3)``; None when its world-to-texel map is not affine within :data:`AFFINE_TOL`."""
+    ``P1 (c, 3)``; None when its world-to-texel map is not affine within :data:`AFFINE_TOL`.
+    Content with a lattice strength under :data:`PERIODIC` is quilted (:func:`_quilt_fill`, random
+    choices from ``rng``), other content repeated by whole periods (:func:`_fill`)."""
     C1 = _kept_map(C, P0, P1)
     if C1 is None:
         return None
@@ -171,12 +245,15 @@ def extend_surface(img: np.ndarray, C: np.ndarray, F: np.ndarray, P0: np.ndarray
     mask = patch_mask(C, F, img.shape)
     if not mask.any():
         return None
-    period = periods(img, mask)
-    patch, continued = _fill(img, mask, (int(lo[0]), int(lo[1]), w, h), period)
+    *period, strength = lattice(img, mask)
+    box = (int(lo[0]), int(lo[1]), w, h)
+    quilted = _quilt_fill(img, mask, box, np.random.default_rng(rng)) if strength < PERIODIC else None
+    patch, continued = quilted if quilted is not None else _fill(img, mask, box, period)
     used = cv2.dilate(patch_mask(C1 - lo, F, (h + 2, w + 2), erode=False).astype(np.uint8), np.ones((5, 5), np.uint8))
     patch[~used[:h, :w].astype(bool)] = 0.0
     UV = np.column_stack([(C1[:, 0] - lo[0]) / w, 1.0 - (C1[:, 1] - lo[1]) / h])
-    return Extended(UV, patch, {**_scale_error(C, C1, F, P0, P1), "periods": list(period), "continued": continued})
+    return Extended(UV, patch, {**_scale_error(C, C1, F, P0, P1), "periods": list(period), "continued": continued,
+                                "lattice_strength": strength, "quilted": quilted is not None})
 
 
 def _kept_map(C, P0, P1) -> np.ndarray | None:

@@ -10,7 +10,7 @@ HEADLINE_METRICS = ("n_principal", "sparsity_top7", "graph_nodes", "graph_labels
                     "baseline_objective")
 """Metrics shown in the one-line run summary, batch rows and the review page, when a method reports them."""
 
-SUMMARY_KEYS = ("comparison", "before_after", "preview_montage", "preview_regions", "preview_transfer",
+SUMMARY_KEYS = ("before_after", "comparison", "preview_montage", "preview_regions", "preview_transfer",
                 "labels_preview", "result", "after", "before")
 """Output keys of the image that shows a run's result best, most telling first (every method
 registers one of them)."""

@@ -345,7 +345,8 @@ class ReshapeConfig(RunConfig):
     groups: GroupSection = Field(default_factory=GroupSection)
     parts: PartsSection = Field(default_factory=PartsSection)
     solver: SolverSection = Field(default_factory=SolverSection)
-    baseline: bool = Field(True, description="Also run the Laplacian (edge-vector) baseline with the same handles.")
+    baseline: bool = Field(False, description="Also run the Laplacian (edge-vector) baseline with the same handles "
+                           "(off by default: a comparison, not part of the result).")
     texture: Literal["continue", "reshape", "stretch"] = Field(
         "continue", description="continue: brick, siding and roof tiles keep their texel scale, the patch continued "
         "by whole periods or, without a clear period (plaster), quilted from its own texels (surfaces whose map is not "

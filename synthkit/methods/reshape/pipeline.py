@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.errors import ConfigError, InputError
+from synthkit.io.assets import load_asset
 from synthkit.io.images import save_image
 from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
@@ -39,7 +40,7 @@ from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_dis
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
 from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
-from synthkit.preview import montage_png
+from synthkit.preview import Appearance, before_after_png, montage_png
 
 __all__ = ["run", "System", "build_system"]
 
@@ -385,6 +386,21 @@ def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
     montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
 
 
+def _textured_summary(ctx, cfg, sc) -> None:
+    """``before_after.png`` (the summary): the input above the written result, textured as a DCC
+    shows them (read back from the files), from three views framed alike. For a single textured
+    input; chains of pieces keep ``comparison.png`` as their summary."""
+    if len(sc.meshes) != 1 or not ctx.wants_preview("summary"):
+        return
+    before = load_asset(sc.meshes[0].source)
+    if not before.textured and before.corner_color is None:
+        return
+    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{sc.names[0]}"])
+    before_after_png(ctx.path("before_after", "before_after.png"),
+                     *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
+                     size=cfg.preview_size)
+
+
 def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
     """Each piece in its input's format, with its companion files and, with ``retex`` (piece index
     -> :class:`~synthkit.io.textured.Retexture` entries), its reshaped surfaces' MTL and textures."""
@@ -663,5 +679,6 @@ def run(cfg, ctx) -> None:
     with ctx.stage("outputs"):
         _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X, retex)
         _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
+        _textured_summary(ctx, cfg, sc)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)

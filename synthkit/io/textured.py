@@ -222,6 +222,7 @@ class _Companion:
     source: Path
     name: str
     rewrites: dict = field(default_factory=dict)
+    keep: set | None = None  # an MTL's materials to write (None: all)
 
 
 def _safe_name(name: str, taken: set[str]) -> str:
@@ -234,10 +235,31 @@ def _safe_name(name: str, taken: set[str]) -> str:
     return safe
 
 
-def _companions(mesh: TexturedMesh) -> list[_Companion]:
+def _used_materials(mesh: TexturedMesh, retexture=()) -> set[str]:
+    """Names of the input's materials that faces still use once ``retexture`` entries moved theirs."""
+    moved = np.zeros(len(mesh.F), bool)
+    for entry in retexture:
+        moved[entry.faces] = True
+    return {mesh.materials[k] for k in np.unique(mesh.face_material[~moved])}
+
+
+def _mtl_blocks(mtl: Path) -> list[tuple[str | None, str]]:
+    """``(material the line belongs to, line)`` for every line of an MTL (None before any newmtl)."""
+    current, out = None, []
+    for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+        parts = line.split()
+        if parts and parts[0] == "newmtl":
+            current = " ".join(parts[1:])
+        out.append((current, line))
+    return out
+
+
+def _companions(mesh: TexturedMesh, used: set[str] | None = None) -> list[_Companion]:
     """The MTL files and existing texture images an OBJ names, resolved as DCC tools do (relative to
     the OBJ / MTL folder, in sibling or parent folders, or absolute), each with a safe output name.
-    Raises InputError naming the MTL when a texture it names is not an image file."""
+    With ``used`` (material names), only the materials faces use and the images they name: an MTL
+    none of whose materials is used is left out. Raises InputError naming the MTL when a texture it
+    names is not an image file."""
     import cv2
 
     if mesh.source.suffix.lower() != ".obj":
@@ -248,10 +270,13 @@ def _companions(mesh: TexturedMesh) -> list[_Companion]:
         mtl = resolve_named_file(name, mesh.source.parent)
         if not mtl.is_file():
             continue
-        entry = _Companion(mtl, _safe_name(name, taken))
+        blocks = _mtl_blocks(mtl)
+        if used is not None and not {b for b, _ in blocks} & used:
+            continue
+        entry = _Companion(mtl, _safe_name(name, taken), keep=used)
         found.append(entry)
-        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
-            if not _MAP_KEY.match(line):
+        for block, line in blocks:
+            if not _MAP_KEY.match(line) or (used is not None and block is not None and block not in used):
                 continue
             written = map_file_name(line)
             image = resolve_named_file(written, mtl.parent)
@@ -266,11 +291,11 @@ def _companions(mesh: TexturedMesh) -> list[_Companion]:
     return found
 
 
-def companion_files(mesh: TexturedMesh) -> list[str]:
+def companion_files(mesh: TexturedMesh, retexture=()) -> list[str]:
     """Names (plain file names, safe, unique) under which the files an OBJ needs -- its MTL files
-    and the images they name that exist -- are written beside the output; empty for a GLB
-    (textures are embedded)."""
-    return [c.name for c in _companions(mesh)]
+    and the images they name that exist, for the materials its faces still use once ``retexture``
+    entries moved theirs -- are written beside the output; empty for a GLB (textures are embedded)."""
+    return [c.name for c in _companions(mesh, _used_materials(mesh, retexture))]
 
 
 def material_textures(mesh: TexturedMesh) -> dict[str, Path]:
@@ -295,14 +320,17 @@ def material_textures(mesh: TexturedMesh) -> dict[str, Path]:
     return found
 
 
-def _copy_companions(mesh: TexturedMesh, folder: Path) -> None:
-    """Write the OBJ's companions into ``folder`` under their safe names, MTL texture names rewritten."""
-    for c in _companions(mesh):
+def _copy_companions(companions: list[_Companion], folder: Path) -> None:
+    """Write ``companions`` into ``folder`` under their safe names: images as they are, MTLs with
+    their texture names rewritten and only the materials they ``keep``."""
+    for c in companions:
         if not c.rewrites and c.source.suffix.lower() != ".mtl":
             write_bytes_atomic(folder / c.name, c.source.read_bytes())
             continue
         lines = []
-        for line in c.source.read_text(encoding="utf-8", errors="replace").splitlines():
+        for block, line in _mtl_blocks(c.source):
+            if c.keep is not None and block is not None and block not in c.keep:
+                continue
             if _MAP_KEY.match(line) and map_file_name(line) in c.rewrites:
                 head = line.rstrip()[: len(line.rstrip()) - len(map_file_name(line))]
                 line = head + c.rewrites[map_file_name(line)]
@@ -325,11 +353,14 @@ def save_textured(mesh: TexturedMesh, positions: np.ndarray, path: Path | str, *
     if retexture and suffix != ".obj":
         raise ValueError("retextured surfaces can only be written to an OBJ")
     if suffix == ".obj":
-        mtl_names = {c.source: c.name for c in _companions(mesh) if c.source.suffix.lower() == ".mtl"}
-        mtllibs = {name: mtl_names.get(resolve_named_file(name, mesh.source.parent), name)
-                   for name in _mtl_files(mesh.source)}
+        companions = _companions(mesh, _used_materials(mesh, retexture))
+        mtl_names = {c.source: c.name for c in companions if c.source.suffix.lower() == ".mtl"}
+        mtllibs = {}
+        for name in _mtl_files(mesh.source):
+            resolved = resolve_named_file(name, mesh.source.parent)
+            mtllibs[name] = mtl_names.get(resolved) if resolved.is_file() else name  # None: no face uses it
         _write_obj(mesh.source, positions, path, _retexture_plan(mesh, list(retexture), path), mtllibs)
-        _copy_companions(mesh, path.parent)
+        _copy_companions(companions, path.parent)
     else:
         scene = trimesh.Scene()
         start = 0
@@ -409,7 +440,9 @@ def _write_obj(source: Path, positions: np.ndarray, target: Path, plan: _Plan | 
             out.append(f"v {x:.17g} {y:.17g} {z:.17g}" + (f" {extra}" if extra else ""))
             i += 1
         elif parts and parts[0] == "mtllib":
-            out.append("mtllib " + " ".join((mtllibs or {}).get(name, name) for name in parts[1:]))
+            names = [(mtllibs or {}).get(name, name) for name in parts[1:]]
+            if any(names):
+                out.append("mtllib " + " ".join(n for n in names if n))
             if retex and plan.mtllib:
                 out.append(f"mtllib {plan.mtllib}")
                 plan.mtllib = None

@@ -55,3 +55,25 @@ def test_missing_texture_is_one_warning(tmp_path, caplog):
     assert [r.getMessage() for r in caplog.records] == [
         f"{tmp_path / 'materials' / 'wall.mtl'}: texture file ../textures/gone.png is missing; written without it"]
     assert companion_files(mesh) == ["wall.mtl"]
+
+
+def test_a_material_no_face_uses_any_more_is_not_copied(tmp_path):
+    from synthkit.io.assets import load_asset
+    from synthkit.io.textured import Retexture
+
+    mesh = load_textured(_studio_layout(tmp_path))
+    uv = np.nan_to_num(mesh.UV)
+    entry = Retexture(faces=np.arange(len(mesh.F)), UV=uv, material="bricks_atlas", image_name="atlas.png",
+                      image=np.full((4, 4, 3), 0.5, np.float32))
+    assert companion_files(mesh, [entry]) == []
+    out = tmp_path / "out"
+    out.mkdir()
+    save_textured(mesh, mesh.positions, out / "wall.obj", retexture=[entry])
+    assert sorted(p.name for p in out.iterdir()) == ["atlas.png", "wall.obj", "wall.retex.mtl"]
+    assert [line for line in (out / "wall.obj").read_text().splitlines() if line.startswith("mtllib")] == [
+        "mtllib wall.retex.mtl"]
+    written = load_asset(out / "wall.obj")
+    assert [m.name for m in written.materials] == ["bricks_atlas"] and written.materials[0].image is not None
+    half = Retexture(faces=np.arange(1), UV=uv, material="bricks_atlas", image_name="atlas.png",
+                     image=np.full((4, 4, 3), 0.5, np.float32))
+    assert companion_files(mesh, [half]) == ["wall.mtl", "bricks_wall.png"]

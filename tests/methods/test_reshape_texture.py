@@ -327,7 +327,7 @@ def assert_every_face_textured(out: Path, mesh: str, source: Path) -> float:
     named = {line.split()[-1] for mtl in out.glob("*.mtl") for line in mtl.read_text().splitlines()
              if line.lower().startswith("map_kd")}
     assert all((out / n).is_file() for n in named) and {p.name for p in out.glob("*.png")} - {
-        "before.png", "after.png", "baseline.png", "comparison.png"} <= named
+        "before.png", "after.png", "baseline.png", "comparison.png", "before_after.png"} <= named
     return float((np.abs(a - b).max(axis=1) <= 2).mean())
 
 

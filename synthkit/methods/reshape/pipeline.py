@@ -411,11 +411,11 @@ def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
         P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
         suffix = m.source.suffix.lower()
         target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
-        for extra in companion_files(m):
+        entries = retex.get(i, [])
+        for extra in companion_files(m, entries):
             if extra not in written:
                 ctx.path(f"file_{extra}", extra)
                 written.add(extra)
-        entries = retex.get(i, [])
         if entries:
             ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
             for e in entries:

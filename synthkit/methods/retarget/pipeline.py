@@ -418,10 +418,11 @@ def _save_result(res: Retargeted, asset: Asset, center, scale, suffix: str, cfg,
     fl, Fl = res.face_label[lab_keep], res.labelled_F[lab_keep]
     save_mesh(trimesh.Trimesh(Vm, Fl, process=False), ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply"),
               face_labels=fl, face_colors=label_colours(fl, res.problem.n_labels))
+    look = Appearance.of(asset, uv, mat, col)
     if ctx.wants_preview("all"):
-        look = Appearance.of(asset, uv, mat, col)
         render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, F, size=cfg.preview_size,
                         appearance=look)
+    if (asset.textured or asset.corner_color is not None) and ctx.wants_preview("summary" if not prefix else "all"):
         before_after_png(ctx.path(f"{prefix}before_after", f"{prefix}before_after.png"),
                          (asset.V, asset.F, Appearance.of(asset, like_input=True)), (Vm, F, look),
                          size=cfg.preview_size)

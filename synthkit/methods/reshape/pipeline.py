@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.assets import load_asset
 from synthkit.io.images import save_image
@@ -421,6 +422,17 @@ def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
             for e in entries:
                 ctx.path(f"texture_{e.material}", e.image_name)
         save_textured(m, P, target, retexture=entries)
+        _check_quality(ctx, name, m, P)
+
+
+def _check_quality(ctx, name: str, mesh, P) -> None:
+    """``ctx.check_quality`` of a written piece against its input: a reshape moves vertices and
+    keeps the faces, so no figure may exceed the input's (a face collapsed by the move shows as a
+    new degenerate face)."""
+    before = mesh_quality(mesh.V, mesh.F)
+    after = mesh_quality(P[mesh.position_index], mesh.F)
+    limits = {key: before[key] for key in ("open_edges", "nonmanifold_edges", "degenerate_faces", "duplicate_faces")}
+    ctx.check_quality(f"mesh_{name}", before, after, limits)
 
 
 def _refuse(cfg, result: DragResult, graph, ranges, steps: int) -> None:

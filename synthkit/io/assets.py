@@ -41,7 +41,7 @@ import trimesh
 from synthkit.errors import InputError
 from synthkit.io._capture import check_readable
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
-from synthkit.io.meshes import _report_trimesh_records, _trimesh_records, check_mesh
+from synthkit.io.meshes import check_mesh, trimesh_load
 
 log = logging.getLogger(__name__)
 
@@ -295,12 +295,7 @@ def _as_uint8_rgb(img: np.ndarray) -> np.ndarray:
 
 
 def _read_trimesh(path: Path) -> Asset:
-    with _trimesh_records() as records:
-        try:
-            loaded = trimesh.load(path, process=False)
-        except Exception as exc:  # trimesh raises many types for corrupt files
-            raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
-    _report_trimesh_records(records, path)
+    loaded = trimesh_load(path)
     if isinstance(loaded, trimesh.Scene):
         names = list(loaded.graph.nodes_geometry)
         geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]

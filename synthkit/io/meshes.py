@@ -59,12 +59,7 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
     check_readable(path, "mesh")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise InputError(f"{path}: unsupported mesh format {path.suffix!r} (use {', '.join(MESH_SUFFIXES)})")
-    with _trimesh_records() as records:
-        try:
-            loaded = trimesh.load(path, process=process)
-        except Exception as exc:  # trimesh raises many types for corrupt files
-            raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
-    _report_trimesh_records(records, path)
+    loaded = trimesh_load(path, process=process)
     if isinstance(loaded, trimesh.Scene):
         geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         if not geoms:
@@ -80,6 +75,18 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
         raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
     check_mesh(mesh.vertices, mesh.faces, source=path)
     return mesh
+
+
+def trimesh_load(path: Path, *, process: bool = False):
+    """``trimesh.load(path)`` with trimesh's log records held and reported in our words (module
+    docstring); a file trimesh cannot read is an InputError naming it."""
+    with _trimesh_records() as records:
+        try:
+            loaded = trimesh.load(path, process=process)
+        except Exception as exc:  # trimesh raises many types for corrupt files
+            raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    _report_trimesh_records(records, path)
+    return loaded
 
 
 class _Collect(logging.Handler):

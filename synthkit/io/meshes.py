@@ -205,6 +205,10 @@ def save_mesh(
                 raise ValueError(f"face_colors has shape {colors.shape}, expected ({len(mesh.faces)}, 3)")
             colors = colors.astype(np.uint8)
         data = _ply_with_face_labels(mesh, labels.astype(np.int32), colors)
+    elif suffix == ".obj":  # an OBJ's material and texture files go beside it, as trimesh writes them
+        data, companions = trimesh.exchange.obj.export_obj(mesh, return_texture=True, write_texture=False)
+        for name, content in companions.items():
+            write_bytes_atomic(path.parent / name, content)
     else:
         data = mesh.export(file_type=suffix.lstrip("."))
     write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)

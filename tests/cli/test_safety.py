@@ -523,13 +523,12 @@ def _huge_png(path: Path, width: int, height: int) -> Path:
 
 
 def test_huge_image_input_refused_from_its_header(runner, tmp_path):
+    """The PNG holds one row of pixels: only its header can have said 30000x30000."""
     png = _huge_png(tmp_path / "huge.png", 30000, 30000)
     cfg = tmp_path / "q.yaml"
     cfg.write_text(f"method: symmetry-texture\nmode: quilt\nsource: {png}\noutput_size: [64, 64]\n")
     before = snapshot(tmp_path)
-    start = time.perf_counter()
     result = runner.invoke(cli, ["symmetry-texture", str(cfg), "--out", str(tmp_path / "o")])
-    assert time.perf_counter() - start < 5
     assert result.exit_code == 2
     assert re.search(r"source: \S+huge.png \(30000x30000\) needs about 9e\+08 pixels \(limit ", one_error_line(result))
     assert snapshot(tmp_path) == before
@@ -553,9 +552,7 @@ def test_big_mesh_refused_from_its_header_under_max_memory(runner, tmp_path):
                     b"property float z\nelement face 2000000\nproperty list uchar int vertex_indices\nend_header\n")
     cfg = tmp_path / "s.yaml"
     cfg.write_text(f"method: surface-by-numbers\ninput: {ply}\n{TWO_REGIONS}")
-    start = time.perf_counter()
     result = runner.invoke(cli, ["--max-memory", "0.1", "surface-by-numbers", str(cfg), "--out", str(tmp_path / "o")])
-    assert time.perf_counter() - start < 5
     assert result.exit_code == 2
     assert re.search(r"input: \S+big.ply \(2000000 faces\) needs about 2e\+06 faces \(limit ", one_error_line(result))
 
@@ -579,10 +576,8 @@ def test_config_with_too_many_values_has_its_own_reason(runner, tmp_path, echo_c
 
 
 def test_sweeps_counted_before_expansion(runner, tmp_path, echo_config):
-    start = time.perf_counter()
     result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(tmp_path / "o"), "--sweep", "seed=0..9999",
                                  "--sweep", "gain=1..1024", "--sweep", "filter.sigma=1..10"])
-    assert time.perf_counter() - start < 5
     assert result.exit_code == 2
     assert "the configs and sweeps make 102400000 runs; the limit is 100000" in one_error_line(result)
 

@@ -74,11 +74,14 @@ def _numba_cache_usable() -> bool:
 NUMBA_CACHE = _numba_cache_usable()
 """``cache=`` of every numba kernel in synthkit.core (see :func:`_numba_cache_usable`)."""
 
-numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
-"""Parallel kernels (``parallel=True``) run on OpenMP, else numba's own workqueue: numba tries TBB
-first by default, and pymeshlab ships an older libtbb that, once pymeshlab is imported, makes numba
-warn that "the TBB threading layer is disabled" on every process's first parallel call. Set here,
-in the module every kernel takes its cache setting from, before any parallel call."""
+os.environ.setdefault("NUMBA_THREADING_LAYER_PRIORITY", "omp workqueue tbb")
+numba.config.THREADING_LAYER_PRIORITY = os.environ["NUMBA_THREADING_LAYER_PRIORITY"].split()
+"""Parallel kernels (``parallel=True``) run on OpenMP, else numba's own workqueue, unless the user's
+environment says otherwise: numba tries TBB first by default, and pymeshlab ships an older libtbb
+that, once pymeshlab is imported, makes numba warn that "the TBB threading layer is disabled" on the
+first parallel compile. The environment variable, not only numba's config, carries the choice:
+numba reloads its config from the environment whenever the environment changed (a batch sets
+thread counts), which would put TBB first again."""
 
 
 @dataclass

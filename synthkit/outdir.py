@@ -141,14 +141,20 @@ def _gone(marker: Path) -> bool:
 
 
 def _pid_gone(pid: int) -> bool:
-    """Whether no process ``pid`` exists on this host."""
+    """Whether no process ``pid`` runs on this host: none exists, or it is a zombie (killed, not yet
+    reaped by its parent: a Dask nanny reaps a killed worker a moment later, and a batch cleaning
+    the worker's staging folder must not wait for that)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return True
     except (PermissionError, OverflowError):
         return False
-    return False
+    try:
+        stat_line = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat_line.rsplit(")", 1)[-1].split()[:1] == ["Z"]
 
 
 def remove_leftovers(target: Path) -> list[Path]:

@@ -99,3 +99,24 @@ def test_pipeline_errors_name_the_config(echo_config, tmp_path):
     assert line.startswith(f"{echo_config}: ") and line.count(str(echo_config)) == 1
     assert line.endswith("in.png: deliberately refused")
     assert not (tmp_path / "o").exists()
+
+
+def test_a_killed_unreaped_process_counts_as_gone():
+    """A zombie (killed, not yet reaped: a Dask nanny reaps its killed worker a moment later) no
+    longer runs, so its staging folder may be removed; a live process is kept."""
+    import subprocess
+    import time
+
+    from synthkit.outdir import _pid_gone
+
+    proc = subprocess.Popen(["sleep", "30"])
+    try:
+        assert not _pid_gone(proc.pid)
+        proc.kill()
+        deadline = time.monotonic() + 10
+        while not _pid_gone(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert _pid_gone(proc.pid)  # a zombie until wait() below reaps it
+    finally:
+        proc.wait()
+    assert _pid_gone(proc.pid)

@@ -84,6 +84,8 @@ def collect_runs(root: Path | str) -> list[RunEntry]:
         folder = Path(out) if out else None
         if folder is not None and not folder.is_absolute():
             folder = Path(os.path.abspath(folder))
+        if folder is not None and not (folder / "report.json").is_file():  # written from another folder
+            folder = root.absolute() / folder.name
         if folder is not None and (folder / "report.json").is_file() and folder.parent == root.absolute():
             entries.append(_entry_of_folder(root.absolute(), folder, row))
             seen.add(folder.name)

@@ -117,3 +117,17 @@ def test_browser_draws_the_cards_and_their_thumbnails(runs, tmp_path):
     for name, colour in COLOURS.items():
         drawn = (np.abs(img - np.array(colour, np.float32)) < 0.1).all(axis=2).sum()
         assert drawn > 5000, f"the {name} thumbnail is not drawn ({drawn} pixels of its colour)"
+
+
+def test_rows_written_from_another_folder_find_their_runs(runs, monkeypatch, tmp_path):
+    """batch.json rows name their folders as the batch was given them (relative to where it ran);
+    the page finds them in OUT_ROOT wherever `synthkit report` runs."""
+    rows = json.loads((runs / "batch.json").read_text())
+    for row in rows["runs"]:
+        if row["out"]:
+            row["out"] = f"elsewhere/{Path(row['out']).name}"
+    (runs / "batch.json").write_text(json.dumps(rows))
+    monkeypatch.chdir(tmp_path)
+    page = _Links()
+    page.feed(write_review(runs).read_text())
+    assert [c["data-status"] for c in page.cards] == ["ok", "refused", "failed", "ok"]

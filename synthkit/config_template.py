@@ -55,7 +55,12 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
             continue
         sub = _sub_model(field.annotation)
         item = _list_item_model(field.annotation)
-        if values.get(dotted) is _REQUIRED:
+        if item is not None and field.is_required() and dotted not in values:
+            lines.append(f"{pad}{key}:  # REQUIRED: {_comment(field)}; a list of items like this one:")
+            body = _model_lines(item, values, prefix=dotted + ".", depth=depth + 1, method=method)
+            lines += [f"{pad}  - {body[0].strip()}"]
+            lines += [f"{pad}    {line[len(pad) + len(INDENT):]}" for line in body[1:]]
+        elif values.get(dotted) is _REQUIRED:
             lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
         elif dotted in values:
             lines.append(f"{pad}{key}: {_flow(values[dotted])}  # example value; {_comment(field)}")

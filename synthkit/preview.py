@@ -38,7 +38,7 @@ class Appearance:
     ----------
     corner_uv : (#F, 3, 2) texture coordinates per face corner, or None
     face_image : (#F,) int64 index into ``images`` (-1: untextured)
-    images : base-colour textures, each (H, W, 3) float32 in [0, 1] (row 0 = top, v = 1)
+    images : base-colour textures, each (H, W, 3) float in [0, 1] or uint8 (row 0 = top, v = 1)
     face_tint : (#F, 3) material colour in [0, 1]
     corner_color : (#F, 3, 3) vertex colours in [0, 1] per corner, or None
     """
@@ -59,7 +59,7 @@ class Appearance:
         n = len(face_material) if face_material is not None else (len(corner_uv) if corner_uv is not None else 0)
         fm = np.zeros(n, np.int64) if face_material is None else np.asarray(face_material, np.int64)
         mats = asset.materials
-        images = [None if m.image is None else m.image[..., :3].astype(np.float32) / 255.0 for m in mats]
+        images = [None if m.image is None else m.image[..., :3] for m in mats]  # uint8: texels converted as sampled
         tints = np.array([m.color[:3] for m in mats] + [[1.0, 1.0, 1.0]], np.float64)
         face_image = np.where(fm >= 0, fm, -1)
         if corner_uv is None:
@@ -200,7 +200,8 @@ def _surface_colors(app: Appearance, tri_pix: np.ndarray, pixels: np.ndarray, fa
             u, v = (np.where((c >= 0) & (c <= 1), c, np.mod(c, 1.0)) for c in (uv[at, 0], uv[at, 1]))
             col = np.minimum(np.floor(u * w), w - 1).astype(np.int64)
             row = np.minimum(np.floor((1.0 - v) * h), h - 1).astype(np.int64)
-            color[at] *= image[row, col]
+            texels = image[row, col]
+            color[at] *= texels / 255.0 if texels.dtype == np.uint8 else texels
     return (color / _BASE_COLOR).astype(np.float32)
 
 

@@ -364,9 +364,10 @@ def _baseline(graph, known, X_known, backend) -> np.ndarray:
     return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
 
 
-def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
-    """before.png, after.png, baseline.png and comparison.png (the summary preview)."""
-    if not ctx.wants_preview("summary"):
+def _write_previews(ctx, cfg, F, graph, X, Xb, handles, level: str = "summary"):
+    """before.png, after.png, baseline.png and comparison.png (the summary preview unless ``level``
+    is "all": a textured before_after.png is the summary then)."""
+    if not ctx.wants_preview(level):
         return
 
     def image(Xn, key, name):
@@ -387,19 +388,20 @@ def _write_previews(ctx, cfg, F, graph, X, Xb, handles):
     montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
 
 
-def _textured_summary(ctx, cfg, sc) -> None:
+def _textured_summary(ctx, cfg, sc) -> bool:
     """``before_after.png`` (the summary): the input above the written result, textured as a DCC
     shows them (read back from the files), from three views framed alike. For a single textured
     input; chains of pieces keep ``comparison.png`` as their summary."""
     if len(sc.meshes) != 1 or not ctx.wants_preview("summary"):
-        return
+        return False
     before = load_asset(sc.meshes[0].source)
     if not before.textured and before.corner_color is None:
-        return
+        return False
     after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{sc.names[0]}"])
     before_after_png(ctx.path("before_after", "before_after.png"),
                      *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
                      size=cfg.preview_size)
+    return True
 
 
 def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
@@ -690,7 +692,7 @@ def run(cfg, ctx) -> None:
     retex = _textures(cfg, ctx, sc, graph, result.X)
     with ctx.stage("outputs"):
         _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X, retex)
-        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles)
-        _textured_summary(ctx, cfg, sc)
+        textured = _textured_summary(ctx, cfg, sc)
+        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles, level="all" if textured else "summary")
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)

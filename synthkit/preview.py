@@ -190,7 +190,9 @@ def _surface_colors(app: Appearance, tri_pix: np.ndarray, pixels: np.ndarray, fa
     if app.corner_color is not None:
         color = color * np.einsum("kc,kcj->kj", W, app.corner_color[faces])
     if app.corner_uv is not None:
-        uv = np.einsum("kc,kcj->kj", W, np.nan_to_num(app.corner_uv[faces]))
+        corner_uv = app.corner_uv[faces]
+        corner_uv[np.isnan(corner_uv)] = 0.0  # a copy: faces without UVs sample texel (0, 0)
+        uv = np.einsum("kc,kcj->kj", W, corner_uv)
         for index in np.unique(app.face_image[faces]):
             if index < 0:
                 continue

@@ -122,7 +122,9 @@ def save_image(path: Path | str, img: np.ndarray) -> None:
     if arr.ndim not in (2, 3) or arr.size == 0:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
     if arr.dtype not in (np.uint8, np.uint16):
-        wide = np.nan_to_num(arr.astype(np.float64), copy=False)  # one float64 copy, then in place
+        wide = arr.astype(np.float64)  # one float64 copy, then in place
+        if not np.isfinite(wide).all():  # the common case skips nan_to_num's slow infinity scans
+            np.nan_to_num(wide, copy=False)
         np.clip(wide, 0.0, 1.0, out=wide)
         np.multiply(wide, 255.0, out=wide)
         arr = np.round(wide, out=wide).astype(np.uint8)

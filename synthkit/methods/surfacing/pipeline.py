@@ -249,7 +249,7 @@ def _export(cfg: SurfacingConfig, ctx, mesh, seg: Segmentation, cut: np.ndarray)
 
 def _invented_material(path, mesh: trimesh.Trimesh) -> bool:
     """Whether ``mesh`` (loaded from the OBJ ``path``) carries a material trimesh made up: its UVs
-    come with a placeholder material when the OBJ names no material file (warned here, once) or one
+    come with a default material trimesh makes up when the OBJ names no material file (warned here, once) or one
     that is missing (the loader has warned)."""
     if getattr(mesh.visual, "kind", None) != "texture":
         return False

@@ -1,3 +1,39 @@
-"""synthkit: example-based 3D model and texture synthesis from five graphics papers."""
+"""synthkit: example-based 3D model and texture synthesis from five graphics papers.
+
+Each method is one function over meshes and images in memory (:mod:`synthkit.api`):
+
+- :func:`synthkit.retarget` -- retarget a mesh by offset statistics;
+- :func:`synthkit.segment` and :func:`synthkit.transfer` -- surfacing by numbers;
+- :func:`synthkit.reshape` -- reshape textured architecture;
+- :func:`synthkit.petri_synth` -- Petri-net synthesis;
+- :func:`synthkit.symmetry_texture` -- symmetry-guided texture synthesis.
+
+They are imported on first use, so that ``import synthkit`` stays fast.
+"""
+
+import importlib
 
 __version__ = "0.1.0"
+
+API_FUNCTIONS = {
+    "retarget": "synthkit.methods.retarget.api",
+    "segment": "synthkit.methods.surfacing.api",
+    "transfer": "synthkit.methods.surfacing.api",
+    "reshape": "synthkit.methods.reshape.api",
+    "petri_synth": "synthkit.methods.petri.api",
+    "symmetry_texture": "synthkit.methods.symtex.api",
+}
+"""Public function name -> the module that defines it."""
+
+__all__ = ["__version__", *API_FUNCTIONS]
+
+
+def __getattr__(name: str):
+    module = API_FUNCTIONS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'synthkit' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *API_FUNCTIONS})

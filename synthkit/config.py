@@ -45,8 +45,12 @@ class MissingInputFile(ValueError):
 
 
 def _resolve_input_file(value: Path, info: ValidationInfo) -> Path:
-    """Resolve ``value`` against the config's folder (``context['base_dir']``); it must exist."""
+    """Resolve ``value`` against the config's folder (``context['base_dir']``); it must exist. A name
+    in ``context['memory_inputs']`` stands for an object given in memory (:mod:`synthkit.api`) and is
+    kept as it is."""
     context = info.context or {}
+    if str(value) in context.get("memory_inputs", ()):
+        return Path(value)
     base_dir = context.get("base_dir")
     path = Path(value).expanduser()
     if not path.is_absolute() and base_dir is not None:
@@ -257,16 +261,18 @@ def validate_config(
     inputs: list[Path] | None = None,
     named_inputs: list[Path] | None = None,
     input_fields: list[str] | None = None,
+    memory_inputs: typing.Collection[str] = (),
 ) -> RunConfig:
     """Validate ``data`` into ``model``; raise one ConfigError line naming ``source`` and the key.
 
     Config problems come first: only when every problem is an input file that does not exist is
     the line an InputError (about the first such file). ``inputs``, when given, collects the
     resolved paths of every :data:`InputFile` field; ``named_inputs`` their absolute paths as the
-    config names them (symbolic links not followed).
+    config names them (symbolic links not followed). ``memory_inputs`` are the names that stand for
+    objects given in memory (kept as they are, never looked up).
     """
     context = {"base_dir": base_dir, "check_files": check_files, "inputs": inputs, "named_inputs": named_inputs,
-               "input_fields": input_fields}
+               "input_fields": input_fields, "memory_inputs": frozenset(memory_inputs)}
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
@@ -318,15 +324,15 @@ def _describe(err: dict[str, Any], model: type[BaseModel]) -> str:
     return f"{dotted}: {text}{shown}"
 
 
-def _unwrap(annotation: Any) -> list[Any]:
+def sub_models(annotation: Any) -> list[Any]:
     """Candidate model classes inside an annotation (Optional, Union, list, dict, Annotated)."""
     origin = typing.get_origin(annotation)
     if origin is Annotated:
-        return _unwrap(typing.get_args(annotation)[0])
+        return sub_models(typing.get_args(annotation)[0])
     if origin in (typing.Union, types.UnionType, list, tuple, dict):
         found = []
         for arg in typing.get_args(annotation):
-            found.extend(_unwrap(arg))
+            found.extend(sub_models(arg))
         return found
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return [annotation]
@@ -344,7 +350,7 @@ def schema_has_key(model: type[BaseModel], dotted: str) -> bool:
             return False
         if i == len(parts) - 1:
             return True
-        candidates = [m for f in fields for m in _unwrap(f.annotation)]
+        candidates = [m for f in fields for m in sub_models(f.annotation)]
     return False
 
 
@@ -358,7 +364,7 @@ def _field_names(model: type[BaseModel], loc: tuple) -> list[str]:
         for cls in candidates:
             field = cls.model_fields.get(part)
             if field is not None:
-                nxt.extend(_unwrap(field.annotation))
+                nxt.extend(sub_models(field.annotation))
         if not nxt:
             # a discriminated-union tag or list index: keep the current candidates
             continue

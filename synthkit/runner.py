@@ -40,8 +40,9 @@ class RunContext:
 
     Attributes
     ----------
-    out_dir : Path
-        Staging folder; every output goes here (through :meth:`path`).
+    out_dir : Path or None
+        Staging folder; every output goes here (through :meth:`path`). None for a run in memory
+        (:mod:`synthkit.api`), which writes nothing.
     seed : int
         The run's seed. ``rng`` is ``np.random.default_rng(seed)``; pass it down, never reseed.
     metrics : dict
@@ -70,14 +71,14 @@ class RunContext:
 
     def __init__(
         self,
-        out_dir: Path,
+        out_dir: Path | None,
         *,
         seed: int,
         show_progress: bool = True,
         budget: Budget | None = None,
         previews: str = "all",
     ):
-        self.out_dir = Path(out_dir)
+        self.out_dir = None if out_dir is None else Path(out_dir)
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
         self.show_progress = show_progress
@@ -152,7 +153,10 @@ class RunContext:
         return tqdm(iterable, total=total, desc=desc, file=sys.stderr, disable=not self._progress_on(), leave=False)
 
     def path(self, key: str, filename: str) -> Path:
-        """Register output ``key`` as ``filename`` and return the path to write it to."""
+        """Register output ``key`` as ``filename`` and return the path to write it to. An in-memory
+        run (``out_dir`` None, :mod:`synthkit.api`) writes no files: asking for a path is a bug."""
+        if self.out_dir is None:
+            raise RuntimeError(f"in-memory run asked for output file {filename}; outputs are written by Result.save")
         if Path(filename).is_absolute() or ".." in Path(filename).parts:
             raise ValueError(f"output file name must be relative to the output folder: {filename}")
         self.outputs[key] = filename
@@ -295,7 +299,28 @@ def run_config(
     check_input_sizes(inputs, fields, budget if budget is not None else Budget())
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
     config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
-    target = outdir.check_target(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite)
+    with staged_output(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite) as staging:
+        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
+        name = Path(os.path.abspath(out_dir)).name
+        ctx.label = f"{method} {name}"
+        ctx.name_outputs_as = name if name_outputs else None
+        report = _run_staged(method, cfg, ctx, config_path)
+    log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
+    if strict and report["status"] == "degraded":
+        raise QualityError(f"{config_path}: output degraded (--strict): {ctx.quality_warnings[0]}")
+    return report
+
+
+@contextlib.contextmanager
+def staged_output(out_dir: Path, protected: list[Path], *, overwrite: bool) -> Iterator[Path]:
+    """Yield a staging folder for ``out_dir`` and move it into place when the block ends normally.
+
+    ``protected`` are files the output folder may not hold or replace (the run's inputs and config).
+    The folder is locked for the block (:func:`synthkit.outdir.target_lock`); any exception removes
+    the staging folder, except a refusal that keeps its outputs (:class:`_RefusalKept`), whose
+    folder is moved into place before its error is raised.
+    """
+    target = outdir.check_target(out_dir, protected, overwrite=overwrite)
     target.parent.mkdir(parents=True, exist_ok=True)
     with outdir.target_lock(target):
         for leftover in outdir.remove_leftovers(target):
@@ -305,11 +330,8 @@ def run_config(
         outdir.clear_staging(staging, target)
         try:
             outdir.make_staging(staging)
-            ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
-            ctx.label = f"{method} {target.name}"
-            ctx.name_outputs_as = target.name if name_outputs else None
             try:
-                report = _run_staged(method, cfg, ctx, config_path)
+                yield staging
             except _RefusalKept as kept:
                 raise_if_terminated()
                 outdir.move_into_place(staging, target, overwrite=overwrite)
@@ -319,10 +341,31 @@ def run_config(
         except BaseException:
             shutil.rmtree(staging, ignore_errors=True)
             raise
-    log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
-    if strict and report["status"] == "degraded":
-        raise QualityError(f"{config_path}: output degraded (--strict): {ctx.quality_warnings[0]}")
+
+
+def save_result(result: Any, folder: Path | str, *, overwrite: bool = False, previews: str = "all") -> dict[str, Any]:
+    """Write an in-memory run's ``result`` (a :class:`synthkit.api.Result`) into ``folder`` as the
+    command line would: its output files and previews, ``report.json`` (with ``config_file: null``),
+    atomically (:func:`staged_output`). The result's input files are protected as a run's are."""
+    folder = Path(folder)
+    with staged_output(folder, list(result.input_files), overwrite=overwrite) as staging:
+        ctx = RunContext(staging, seed=result.config.seed, show_progress=False, previews=previews)
+        ctx.label = f"{result.method} {folder.name}"
+        ctx.metrics = dict(result.metrics)
+        ctx.timings = {k: v for k, v in result.timings.items() if k != "total"}
+        ctx.status = result.status
+        ctx.quality_warnings = list(result.quality_warnings)
+        start = time.perf_counter() - result.timings.get("total", 0.0)
+        result.write(ctx)
+        _check_previews(result.method, ctx)
+        report = _write_report(result.method, result.config, ctx, None, start, ctx.status)
     return report
+
+
+def _check_previews(method: str, ctx: RunContext) -> None:
+    """A run that keeps previews must have written a PNG (every method renders a summary image)."""
+    if ctx.previews != "none" and not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
+        raise RuntimeError(f"method {method} wrote no PNG preview")
 
 
 def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path) -> dict[str, Any]:
@@ -336,8 +379,7 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
         pipeline_module(method).run(cfg, ctx)
         if ctx.name_outputs_as:
             _name_outputs(ctx, ctx.name_outputs_as)
-        if ctx.previews != "none" and not any(name.lower().endswith(".png") for name in ctx.outputs.values()):
-            raise RuntimeError(f"method {method} wrote no PNG preview")
+        _check_previews(method, ctx)
         return _write_report(method, cfg, ctx, config_path, start, ctx.status)
     except SynthkitError as exc:
         named = _naming_config(exc, config_path)
@@ -373,7 +415,7 @@ class _RefusalKept(Exception):
 
 
 def _write_report(
-    method: str, cfg: RunConfig, ctx: RunContext, config_path: Path, start: float, status: str,
+    method: str, cfg: RunConfig, ctx: RunContext, config_path: Path | None, start: float, status: str,
     error: str | None = None,
 ) -> dict[str, Any]:
     """Write ``report.json`` into the staging folder and return it."""
@@ -385,7 +427,7 @@ def _write_report(
         "seed": cfg.seed,
         "previews": ctx.previews,
         "config": cfg.model_dump(mode="json"),
-        "config_file": str(Path(config_path).resolve()),
+        "config_file": None if config_path is None else str(Path(config_path).resolve()),
         "timings": ctx.timings,
         "metrics": ctx.metrics,
         "outputs": {**ctx.outputs, "report": "report.json"},

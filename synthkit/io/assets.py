@@ -45,8 +45,8 @@ from synthkit.io.meshes import check_mesh, trimesh_load
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Asset", "Material", "load_asset", "save_asset", "resolve_named_file", "map_file_name", "corner_normals",
-           "CREASE_DEG", "ASSET_SUFFIXES"]
+__all__ = ["Asset", "Material", "load_asset", "asset_from_trimesh", "save_asset", "resolve_named_file",
+           "map_file_name", "corner_normals", "CREASE_DEG", "ASSET_SUFFIXES"]
 
 ASSET_SUFFIXES = (".obj", ".glb", ".gltf", ".ply", ".off", ".stl")
 WRITE_SUFFIXES = (".obj", ".glb", ".ply", ".off", ".stl")
@@ -338,6 +338,25 @@ def _trimesh_material(obj) -> Material:
         color = np.append(color, 1.0)
     return Material(name=name, color=color, image=None if image is None else _as_uint8_rgb(np.asarray(image)),
                     pbr=obj)
+
+
+def asset_from_trimesh(mesh: trimesh.Trimesh | trimesh.Scene, name: str = "mesh") -> Asset:
+    """An :class:`Asset` from a mesh or scene in memory: its UVs, vertex colours, materials and
+    textures read out as :func:`load_asset` reads them from a file (``source`` is ``Path(name)``).
+
+    Raises
+    ------
+    ValueError : the scene holds no triangle mesh with faces.
+    """
+    if isinstance(mesh, trimesh.Scene):
+        names = list(mesh.graph.nodes_geometry)
+        geoms = [g for g in mesh.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        name = names[0] if len(names) == 1 else name
+    else:
+        geoms = [mesh] if len(mesh.faces) else []
+    if not geoms:
+        raise ValueError(f"{name}: mesh has no faces")
+    return _assemble(Path(name), geoms, name)
 
 
 def _assemble(path: Path, geoms: list, name: str) -> Asset:

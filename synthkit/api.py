@@ -1,0 +1,174 @@
+"""synthkit from Python: each method as one function over meshes and images in memory.
+
+``synthkit.retarget``, ``synthkit.segment``, ``synthkit.transfer``, ``synthkit.reshape``,
+``synthkit.petri_synth`` and ``synthkit.symmetry_texture`` take their inputs as objects
+(``trimesh.Trimesh``, ``(V, F)`` arrays, :class:`~synthkit.io.assets.Asset`, image arrays; paths
+are read as from a config) and the config's keys as keyword arguments, validated by the method's
+config schema with the command line's messages (a section is a ``dict``:
+``segment(mesh, regions=[...], boundary={"eta": 2.0})``). They run the same pipeline as the
+command line, write nothing, and return a :class:`Result` with the outputs in memory, the
+``metrics``, ``timings`` and ``status`` that ``report.json`` would hold, and :meth:`Result.save`,
+which writes the command line's output folder.
+
+This module holds what the six have in common: :func:`prepare` (keys and objects to a validated
+config and an :class:`~synthkit.io.inputs.Inputs`), :func:`run_in_memory` and the :class:`Result`
+base class. Each method's own function lives in ``synthkit/methods/<method>/api.py``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from synthkit.config import RunConfig, sub_models, validate_config
+from synthkit.errors import SynthkitError
+from synthkit.io.inputs import Inputs, is_memory_object, memory_name
+from synthkit.methods import config_module
+
+__all__ = ["Result", "prepare", "run_in_memory", "result_fields"]
+
+
+@dataclass(kw_only=True)
+class Result:
+    """What a method run in memory gives back; each method's subclass adds its outputs.
+
+    Attributes
+    ----------
+    config : the validated config (every key with its default filled in)
+    metrics : what ``report.json`` holds under ``metrics``
+    timings : seconds per stage, with ``total``
+    status : ``"ok"``, ``"degraded"`` (an output mesh over its quality limits, see
+        ``quality_warnings``) or ``"partial"``
+    quality_warnings : one line per quality figure over its limit
+    input_files : the files the run read (a later :meth:`save` never writes over them)
+    """
+
+    method: ClassVar[str] = ""
+    config: RunConfig
+    metrics: dict[str, Any] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+    status: str = "ok"
+    quality_warnings: list[str] = field(default_factory=list)
+    input_files: list[Path] = field(default_factory=list)
+
+    def write(self, ctx) -> None:
+        """Write the output files and previews through ``ctx.path`` (a
+        :class:`synthkit.runner.RunContext` with a staging folder); each method implements it."""
+        raise NotImplementedError(f"{type(self).__name__} does not write its outputs")
+
+    def save(self, folder: Path | str, *, overwrite: bool = False, previews: str = "all") -> dict[str, Any]:
+        """Write the outputs into ``folder`` as the command line writes them, with ``report.json``;
+        return the report. The folder is written whole or not at all; an existing folder is replaced
+        only with ``overwrite`` and only when a synthkit run wrote it.
+
+        Parameters
+        ----------
+        folder : the output folder
+        overwrite : replace an earlier synthkit output folder
+        previews : ``"all"``, ``"summary"`` (the one summary image) or ``"none"``
+        """
+        from synthkit.runner import save_result
+
+        return save_result(self, folder, overwrite=overwrite, previews=previews)
+
+
+def result_fields(cfg: RunConfig, ctx, inputs: Inputs | None = None) -> dict[str, Any]:
+    """The :class:`Result` fields every method fills the same way, from the run's context."""
+    files = [] if inputs is None else list(inputs.files)
+    return {"config": cfg, "metrics": ctx.metrics, "timings": ctx.timings, "status": ctx.status,
+            "quality_warnings": ctx.quality_warnings, "input_files": files}
+
+
+def prepare(method: str, call: str, given: Mapping[str, object], keys: Mapping[str, Any]) -> tuple[RunConfig, Inputs]:
+    """Validate a method's keyword arguments into its config; return it with the run's inputs.
+
+    Parameters
+    ----------
+    method : the subcommand name (``"retarget"``)
+    call : what error lines start with (``"synthkit.retarget()"``)
+    given : config key (dotted) -> object, for the function's positional inputs (``{"input": mesh}``)
+    keys : the keyword arguments: config keys, sections as dicts, lists of sections as lists. A mesh
+        or image object (see :mod:`synthkit.io.inputs`) may stand wherever the config names an input
+        file; other arrays (points, colours) are read as lists.
+
+    Raises
+    ------
+    ConfigError : a key is unknown or a value is out of range (the command line's message,
+        naming the key and value).
+    InputError : a file named by a path does not exist.
+    """
+    model = config_module(method).CONFIG
+    data: dict[str, Any] = {**keys, "method": method}
+    for dotted, obj in given.items():
+        _put(data, dotted.split("."), obj)
+    objects: dict[str, object] = {}
+    data = _stand_ins(data, [model], (), objects)
+    files: list[Path] = []
+    cfg = validate_config(model, data, source=call, base_dir=Path.cwd(), inputs=files,
+                          memory_inputs=objects.keys())
+    inputs = Inputs(objects)
+    inputs.files = files
+    return cfg, inputs
+
+
+def _put(data: dict, parts: list[str], obj: object) -> None:
+    """Set ``data[parts[0]][parts[1]]... = obj``, creating the sections on the way."""
+    for part in parts[:-1]:
+        data = data.setdefault(part, {})
+    data[parts[-1]] = obj
+
+
+def _is_input_file(annotation: Any, metadata: list) -> bool:
+    """Whether a schema field holds an input file (:data:`synthkit.config.InputFile`)."""
+    return "_resolve_input_file" in repr(annotation) + repr(metadata)
+
+
+def _stand_ins(value: Any, models: list, loc: tuple, objects: dict[str, object]) -> Any:
+    """``value`` with every mesh or image object at an input-file key replaced by its stand-in name
+    (recorded in ``objects``) and every other array turned into lists; ``models`` are the schema
+    classes the value may be validated as."""
+    if isinstance(value, Mapping):
+        out = {}
+        for key, item in value.items():
+            fields = [m.model_fields[key] for m in models if key in getattr(m, "model_fields", {})]
+            if fields and is_memory_object(item) and any(_is_input_file(f.annotation, f.metadata) for f in fields):
+                name = memory_name(".".join(str(p) for p in (*loc, key)))
+                objects[name] = item
+                out[key] = name
+                continue
+            inner = [m for f in fields for m in sub_models(f.annotation)]
+            out[key] = _stand_ins(item, inner, (*loc, key), objects)
+        return out
+    if isinstance(value, list | tuple) and not is_memory_object(value):
+        return [_stand_ins(item, models, (*loc, i), objects) for i, item in enumerate(value)]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def run_in_memory(method: str, call: str, compute: Callable, cfg: RunConfig, inputs: Inputs, *,
+                  progress: bool = False) -> Result:
+    """Run ``compute(cfg, inputs, ctx)`` (a method pipeline's compute step) with a context that
+    writes nothing; return its :class:`Result` with ``timings["total"]``. An error's line starts
+    with ``call`` instead of a config file's name."""
+    from synthkit.runner import RunContext
+
+    ctx = RunContext(None, seed=cfg.seed, show_progress=progress, previews="none")
+    ctx.label = method
+    start = time.perf_counter()
+    try:
+        result = compute(cfg, inputs, ctx)
+    except SynthkitError as exc:
+        line = str(exc)
+        if line.startswith(call):
+            raise
+        raise type(exc)(f"{call}: {line}", keep_outputs=False) from None
+    result.timings["total"] = time.perf_counter() - start
+    return result

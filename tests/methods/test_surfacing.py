@@ -747,7 +747,7 @@ def test_render_views_flag_writes_every_view_with_its_camera(samples, tmp_path):
 
 def test_colours_come_from_the_texture_at_the_uvs():
     from synthkit.io.meshes import load_mesh
-    from synthkit.methods.surfacing.pipeline import mesh_colors
+    from synthkit.methods.surfacing.prepare import mesh_colors
 
     mesh = load_mesh(Path(__file__).resolve().parents[2] / "data-samples" / "wall_door.obj")
     colors = mesh_colors(mesh)

@@ -1,19 +1,10 @@
 """``mode: transfer`` of ``synthkit surface-by-numbers``: read the target and its regions, each
-pair's source and signal, synthesize (:mod:`.synth`), extract and write.
+pair's source and signal, synthesize (:mod:`.synth`) and extract; :mod:`.outputs` writes.
 
 Stages (``report.json`` ``timings``): ``load``, ``strokes`` and the segmentation's own stages (when
 a region is given by strokes), ``sources``, ``precompute`` (grading, edge tables), ``precompute_fans``,
 ``position``, ``match``, ``parameterize``, ``trim`` (the step kinds, summed over pairs), ``baseline``,
-``extract``, ``export``, ``previews``.
-
-Outputs: ``transferred.ply`` (the target mesh with vertex colours, displaced positions and, for
-``signal: attribute``, the transferred property), ``transferred<suffix>`` in the input's format
-for displacement when the input is not PLY, ``transferred.obj`` + ``.mtl`` for texture signals
-(the target's material, with ``original.png`` when it has a texture, and one material per texture
-pair whose faces have UVs into ``source_<k>.png``), ``patches.ply`` (int32 ``label`` = patch id per face,
--1 outside every target region; ids count on over the pairs), and the previews ``transfer.png``
-(before and after from three views: the summary), ``patches.png``, ``seams.png`` (seam cost per
-edge on its faces) and ``params.png`` (the first patches' source and target domains, Fig. 4).
+``extract``, then, writing, ``export`` and ``previews``.
 
 Errors (one line, nothing written): an empty target or source region, a region name or label
 that does not exist, a source without the requested signal, a source region smaller than one
@@ -31,21 +22,14 @@ from types import SimpleNamespace
 import numpy as np
 import trimesh
 
-from synthkit import preview
-from synthkit.core.mesh import face_areas, face_normals
+from synthkit.api import result_fields
+from synthkit.core.mesh import face_areas, face_normals, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError
-from synthkit.io.images import load_image, save_image
-from synthkit.io.meshes import load_mesh, save_mesh
-from synthkit.io.signals import (
-    image_grid,
-    read_face_labels,
-    texture_of,
-    vertex_attribute,
-    vertex_colors,
-    write_signal_ply,
-    write_textured_obj,
-)
+from synthkit.io.inputs import Inputs
+from synthkit.io.signals import image_grid, read_face_labels, texture_of, vertex_attribute, vertex_colors
+from synthkit.methods.surfacing import prepare
+from synthkit.methods.surfacing.options import synthesis_options
 from synthkit.methods.surfacing.transfer import refine
 from synthkit.methods.surfacing.transfer.extract import (
     corner_sources,
@@ -55,19 +39,16 @@ from synthkit.methods.surfacing.transfer.extract import (
     transfer_displacement,
     vertex_values,
 )
+from synthkit.methods.surfacing.transfer.outputs import TransferResult, transferred_asset
 from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface
-from synthkit.methods.surfacing.transfer.synth import Options, Result, Synthesis
+from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
+from synthkit.methods.surfacing.transfer.synth import Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
 
-__all__ = ["run_transfer", "Prepared", "WorkMesh", "prefiltered"]
+__all__ = ["compute", "Prepared", "WorkMesh", "prefiltered", "STEP_KINDS"]
 
 log = logging.getLogger("synthkit")
 
-PALETTE = np.array(
-    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
-     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165], [141, 160, 203], [231, 138, 195]],
-    dtype=np.uint8,
-)
 BYTES_PER_FACE = 18000
 """Peak bytes per target face of a whole transfer (log-map factorizations, edge samples, grading
 neighbourhoods, fan matrix, patches): 18.0 kB measured on the benchmark's 20k-face sphere from a
@@ -88,25 +69,25 @@ class Prepared:
     texture: np.ndarray | None = None
 
 
-def _segmentation(cfg, ctx, mesh) -> np.ndarray:
+def _segmentation(cfg, ctx, mesh, inputs: Inputs) -> np.ndarray:
     """Face labels of ``mesh`` segmented by ``cfg.regions`` (mode segment's stages)."""
-    from synthkit.methods.surfacing.pipeline import ViewCache, _segment, resolve_strokes
-
     with ctx.stage("strokes"):
-        vertex_owner, face_owner = resolve_strokes(cfg, mesh, ViewCache(mesh, cfg.views.size))
-    seg = _segment(cfg, ctx, mesh, vertex_owner, face_owner)
-    for name, seconds in seg.timings.items():
-        ctx.timings[name] = ctx.timings.get(name, 0.0) + seconds
-    return seg.face_labels
+        owners = prepare.stroke_owners(cfg, mesh, prepare.ViewCache(mesh, cfg.views.size), inputs)
+    return prepare.segmentation(cfg, ctx, mesh, *owners).face_labels
 
 
-def _faces(labels, names, region, label_file, label, n_faces: int, key: str) -> np.ndarray:
+def _label_file(inputs: Inputs, path, n_faces: int) -> np.ndarray:
+    """``(#F,)`` face labels of a ``.seg`` or ``labels.ply`` file, or given in memory for ``path``."""
+    return inputs.face_labels(path, n_faces) if inputs.is_memory(path) else read_face_labels(path, n_faces)
+
+
+def _faces(labels, names, region, label_file, label, n_faces: int, key: str, inputs: Inputs) -> np.ndarray:
     """Faces of a region given by name (in ``labels`` of the stroked ``names``) or by label file."""
     if region is not None:
         faces = np.flatnonzero(labels == names.index(region))
         what = f"region {region!r}"
     elif label_file is not None:
-        file_labels = read_face_labels(label_file, n_faces)
+        file_labels = _label_file(inputs, label_file, n_faces)
         faces = np.flatnonzero(file_labels == label)
         what = f"label {label} of {label_file}"
     else:
@@ -142,12 +123,12 @@ def _mesh_signal(kind: str, attribute, mesh: trimesh.Trimesh, path, key: str, sm
     return Signal("displacement", values=np.c_[d, (d * n).sum(axis=1)][F]), [3], 0.0
 
 
-def _image_source(src, key: str) -> Surface:
+def _image_source(src, key: str, inputs: Inputs) -> Surface:
     """The image region as a flat textured grid (Fig. 6)."""
-    img = load_image(src.image)
+    img = inputs.image(src.image)
     H, W = img.shape[:2]
     if src.mask is not None:
-        mask = load_image(src.mask, mode="gray")
+        mask = inputs.image(src.mask, mode="gray")
         if mask.shape[:2] != (H, W):
             raise ConfigError(f"{key}.mask: {src.mask} is {mask.shape[1]}x{mask.shape[0]} pixels, the image "
                               f"{W}x{H}")
@@ -165,23 +146,24 @@ def _image_source(src, key: str) -> Surface:
     return make_surface(V, F, np.arange(len(F)), Signal("texture", uv=uv[F], texture=img[..., :3]))
 
 
-def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float) -> tuple[Surface, list[int] | None]:
+def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float,
+            inputs: Inputs) -> tuple[Surface, list[int] | None]:
     pair = cfg.transfer.pairs[k]
     src, key = pair.source, f"transfer.pairs[{k}]"
     if src.image is not None:
         if pair.signal not in ("color", "texture"):
             raise ConfigError(f"{key}.signal: {pair.signal}: an image source carries colour only (color or texture)")
-        return _image_source(src, f"{key}.source"), None
+        return _image_source(src, f"{key}.source", inputs), None
     mesh, path, names, labels = target_mesh, cfg.input, [r.name for r in cfg.regions], target_labels
     if src.mesh is not None:
-        mesh, path, names = load_mesh(src.mesh), src.mesh, [r.name for r in src.regions]
+        mesh, path, names = inputs.mesh(src.mesh), src.mesh, [r.name for r in src.regions]
         if src.region is not None and src.region not in names:
             raise ConfigError(f"{key}.source.region: {src.region!r} is not a source region "
                               f"(regions: {', '.join(names) or 'none'})")
         if src.region is not None:
             sub = cfg.model_copy(update={"regions": src.regions, "images": [], "input": src.mesh, "mode": "segment"})
-            labels = _segmentation(sub, ctx, mesh)
-    faces = _faces(labels, names, src.region, src.labels, src.label, len(mesh.faces), f"{key}.source")
+            labels = _segmentation(sub, ctx, mesh, inputs)
+    faces = _faces(labels, names, src.region, src.labels, src.label, len(mesh.faces), f"{key}.source", inputs)
     smoothing = cfg.transfer.extraction.smoothing
     signal, channels, weld = _mesh_signal(pair.signal, pair.attribute, mesh, path, key, smoothing)
     try:
@@ -279,10 +261,7 @@ def _child_uvs(P: np.ndarray, uv: np.ndarray, C: np.ndarray) -> np.ndarray:
 
 
 def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
-    from synthkit.core.mesh import weld
-    from synthkit.methods.surfacing.pipeline import mesh_colors
-
-    colors = mesh_colors(mesh)
+    colors = prepare.mesh_colors(mesh)
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
     tex = texture_of(mesh)
     original, texture = (tex[0][F], tex[1]) if tex is not None else (None, None)
@@ -308,17 +287,17 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors, original, texture)
 
 
-def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
+def _prepare(cfg, ctx, mesh, work: WorkMesh, inputs: Inputs) -> list[Prepared]:
     names = [r.name for r in cfg.regions]
     strokes = any(p.target.region is not None or (p.source.mesh is None and p.source.region is not None)
                   for p in cfg.transfer.pairs)
-    labels = _segmentation(cfg, ctx, mesh) if strokes else None
+    labels = _segmentation(cfg, ctx, mesh, inputs) if strokes else None
     out = []
     with ctx.stage("sources"):
         for k, pair in enumerate(cfg.transfer.pairs):
             key = f"transfer.pairs[{k}]"
             faces = _faces(labels, names, pair.target.region, pair.target.labels, pair.target.label,
-                           len(mesh.faces), f"{key}.target")
+                           len(mesh.faces), f"{key}.target", inputs)
             faces = np.flatnonzero(np.isin(work.parent, faces))
             ctx.budget.require(f"{key}.target", len(faces), len(faces), "target faces", bytes_each=BYTES_PER_FACE)
             margin = _margin(cfg, k, mesh)
@@ -326,7 +305,7 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
                 target = make_surface(work.mesh.vertices, work.mesh.faces, faces, None, largest=False, margin=margin)
             except ValueError as exc:
                 raise ConfigError(f"{key}.target: {exc}") from None
-            source, channels = _source(cfg, ctx, k, mesh, labels, margin)
+            source, channels = _source(cfg, ctx, k, mesh, labels, margin, inputs)
             sharp = source.signal.texture
             if source.signal.texture is not None and cfg.transfer.extraction.sampling == "linear":
                 source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
@@ -340,18 +319,10 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh) -> list[Prepared]:
 STEP_KINDS = ("precompute", "precompute_fans", "position", "match", "parameterize", "trim")
 
 
-def _options(cfg, k: int, prep: Prepared) -> Options:
-    syn, pair = cfg.transfer.synthesis, cfg.transfer.pairs[k]
-    return Options(patch_radius=prep.radius, scale=pair.scale, bound=syn.bound, matching=syn.matching,
-                   trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
-                   tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
-                   patience=syn.patience, fixed_orientation=syn.orientation == "up")
-
-
-def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Result, Result | None]]:
+def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Synthesized, Synthesized | None]]:
     out = []
     for k, prep in enumerate(preps):
-        opt = _options(cfg, k, prep)
+        opt = synthesis_options(cfg, k, prep.radius)
         try:
             res = Synthesis(prep.target, prep.source, opt, rng=ctx.rng, channels=prep.channels).run()
         except ValueError as exc:
@@ -403,7 +374,7 @@ class Layout:
     uv: np.ndarray
     origin: np.ndarray
 
-    def result(self, k: int, res: Result) -> SimpleNamespace:
+    def result(self, k: int, res: Synthesized) -> SimpleNamespace:
         """Pair ``k``'s patches over the whole work mesh, in the form the extract stages read."""
         return SimpleNamespace(patch_of=np.where(self.pair == k, self.patch, -1), corner_uv=self.uv,
                                patches=res.patches)
@@ -506,7 +477,7 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
     return ext
 
 
-def _seam_figures(prep: Prepared, res: Result, base: Result | None, blend: str) -> dict:
+def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, blend: str) -> dict:
     """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``blend``) and,
     with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
     colour, texture and attribute signals."""
@@ -524,7 +495,7 @@ def _seam_figures(prep: Prepared, res: Result, base: Result | None, blend: str) 
     return out
 
 
-def _pair_metrics(prep: Prepared, res: Result, base: Result | None) -> dict:
+def _pair_metrics(prep: Prepared, res: Synthesized, base: Synthesized | None) -> dict:
     cov = res.patch_of >= 0
     used = np.unique(res.patch_of[cov])
     src_max = max((float(res.patches[p].src_distortion.max()) for p in used), default=0.0)
@@ -572,47 +543,6 @@ def _metrics(cfg, ctx, preps, results) -> None:
         log.warning("%d target faces stayed uncovered (report.json metrics.uncovered_faces)", len(m["uncovered_faces"]))
 
 
-def _export_obj(cfg, ctx, work: WorkMesh, preps, ext: Extracted) -> None:
-    """``transferred.obj`` + ``.mtl``: the target's own material (its texture as ``original.png``
-    when it has one) and one material per texture pair with its source texture (``source_<k>.png``)."""
-    materials = [("original", None)]
-    if work.texture is not None:
-        save_image(ctx.path("texture_original", "original.png"), work.texture)
-        materials[0] = ("original", "original.png")
-    for k, pair in enumerate(cfg.transfer.pairs):
-        name = f"source_{k}.png"
-        tex = preps[k].texture if pair.signal == "texture" else None
-        if tex is not None:
-            save_image(ctx.path(f"texture_source_{k}", name), tex)
-        materials.append((f"transfer_{k}", name if tex is not None else None))
-    ctx.path("transferred_mtl", "transferred.mtl")
-    write_textured_obj(ctx.path("transferred_obj", "transferred.obj"), ext.positions, work.mesh.faces, ext.uv,
-                       ext.material, materials)
-
-
-def _export(cfg, ctx, work: WorkMesh, preps, ext: Extracted) -> None:
-    mesh = work.mesh
-    F = np.asarray(mesh.faces)
-    colors = np.round(np.clip(ext.colors, 0, 1) * 255).astype(np.uint8)
-    write_signal_ply(ctx.path("transferred", "transferred.ply"), ext.positions, F, colors, ext.attributes)
-    suffix = cfg.input.suffix.lower()
-    textured_obj = ext.uv is not None and suffix == ".obj"  # that OBJ carries the displaced positions too
-    if any(p.signal == "displacement" for p in cfg.transfer.pairs) and suffix in (".obj", ".off", ".stl") \
-            and not textured_obj:
-        displaced = trimesh.Trimesh(ext.positions, F, process=False)
-        save_mesh(displaced, ctx.path("transferred_mesh", f"transferred{suffix}"))
-    if ext.uv is not None:
-        _export_obj(cfg, ctx, work, preps, ext)
-    pal = np.vstack([PALETTE, [[90, 90, 90]]])
-    fc = pal[np.where(ext.patch_ids >= 0, ext.patch_ids % len(PALETTE), len(PALETTE))]
-    save_mesh(trimesh.Trimesh(ext.positions, F, process=False), ctx.path("patches", "patches.ply"),
-              face_labels=ext.patch_ids.astype(np.int32), face_colors=fc)
-
-
-def _face_colors(F: np.ndarray, vertex_rgb: np.ndarray) -> np.ndarray:
-    return np.clip(vertex_rgb[F].mean(axis=1), 0, 1)
-
-
 def _seam_field(preps, results, n_faces: int) -> np.ndarray:
     """Seam cost per face of the full mesh (half of each incident seam), NaN outside the regions."""
     out = np.full(n_faces, np.nan)
@@ -630,67 +560,6 @@ def _seam_field(preps, results, n_faces: int) -> np.ndarray:
     return out
 
 
-def _param_tiles(results, size: int) -> list[np.ndarray]:
-    """Fig. 4: for the first patches of the first pair, the source domain (grey) under the target
-    domain (blue), rendered flat."""
-    res = results[0][0]
-    tiles = []
-    for patch in res.patches[:3]:
-        S, T = patch.locator.T, patch.corner_uv
-        P = np.concatenate([S.reshape(-1, 2), T.reshape(-1, 2)])
-        V = np.c_[P, np.r_[np.zeros(S.size // 2), np.full(T.size // 2, 1e-3)]]
-        F = np.arange(len(V)).reshape(-1, 3)
-        col = np.r_[np.tile([[0.8, 0.8, 0.8]], (len(S), 1)), np.tile([[0.25, 0.45, 0.9]], (len(T), 1))]
-        tiles.append(preview.rasterize_mesh(V, F, face_colors=col, view="front", size=size))
-    return tiles
-
-
-def _textured_look(cfg, work: WorkMesh, preps, ext: Extracted) -> preview.Appearance | None:
-    """How ``transferred.obj`` looks (its corner UVs into the target's own texture and the pairs'
-    source textures), or None when the result has no UVs (it is then drawn in its vertex colours)."""
-    if ext.uv is None:
-        return None
-    images = [work.texture] + [prep.texture if pair.signal == "texture" else None
-                               for prep, pair in zip(preps, cfg.transfer.pairs, strict=True)]
-    images = [None if img is None else np.asarray(img, np.float32)[..., :3] for img in images]
-    material = np.asarray(ext.material, np.int64)
-    has = np.array([img is not None for img in images])
-    face_image = np.where(has[material], material, -1)
-    return preview.Appearance(corner_uv=ext.uv, face_image=face_image, images=images,
-                              face_tint=np.ones((len(material), 3)))
-
-
-def _previews(cfg, ctx, work: WorkMesh, layout: Layout, preps, results, ext: Extracted) -> None:
-    if not ctx.wants_preview("summary"):
-        return
-    V0, F = np.asarray(work.mesh.vertices), np.asarray(work.mesh.faces)
-    size = cfg.preview_size
-    before = work.colors
-    before = np.full((len(V0), 3), 0.75) if before is None else before
-    views = ("front", "side", "iso")
-    imgs = [preview.rasterize_mesh(V0, F, face_colors=_face_colors(F, before), view=v, size=size) for v in views]
-    look = _textured_look(cfg, work, preps, ext)
-    imgs += [preview.rasterize_mesh(ext.positions, F, face_colors=_face_colors(F, ext.colors), view=v, size=size,
-                                    appearance=look) for v in views]
-    titles = [f"before {v}" for v in views] + [f"after {v}" for v in views]
-    preview.montage_png(ctx.path("preview_transfer", "transfer.png"), imgs, titles=titles, height=size)
-    if not ctx.wants_preview("all"):
-        return
-    pal = np.vstack([PALETTE, [[90, 90, 90]]]).astype(np.float64) / 255.0
-    pc = pal[np.where(ext.patch_ids >= 0, ext.patch_ids % len(PALETTE), len(PALETTE))]
-    imgs = [preview.rasterize_mesh(ext.positions, F, face_colors=pc, view=v, size=size) for v in views]
-    preview.montage_png(ctx.path("preview_patches", "patches.png"), imgs, titles=list(views), height=size)
-    field = _seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin]
-    sc = preview.colorize(field[None, :])[0]
-    imgs = [preview.rasterize_mesh(ext.positions, F, face_colors=sc, view=v, size=size) for v in views]
-    preview.montage_png(ctx.path("preview_seams", "seams.png"), imgs, titles=[f"seam cost {v}" for v in views],
-                        height=size)
-    tiles = _param_tiles(results, size)
-    if tiles:
-        preview.montage_png(ctx.path("preview_params", "params.png"), tiles,
-                            titles=[f"patch {k}: source grey, target blue" for k in range(len(tiles))], height=size)
-
-
 def _check_quality(cfg, ctx, mesh: trimesh.Trimesh, work: WorkMesh, ext: Extracted) -> None:
     """``ctx.check_quality`` of the transferred mesh against the target as read. Its faces are the
     target's, refined: each subdivision or refinement step at most doubles the open and non-manifold
@@ -706,22 +575,45 @@ def _check_quality(cfg, ctx, mesh: trimesh.Trimesh, work: WorkMesh, ext: Extract
     ctx.check_quality("transferred", before, after, limits)
 
 
-def run_transfer(cfg, ctx) -> None:
-    """Run ``cfg`` (mode transfer) into ``ctx.out_dir``."""
+
+def _patch_domains(results) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Fig. 4: the source domain ``(n, 3, 2)`` and target domain ``(m, 3, 2)`` of the first patches
+    of the first pair."""
+    return [(patch.locator.T, patch.corner_uv) for patch in results[0][0].patches[:3]]
+
+
+def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
     with ctx.stage("load"):
-        mesh = load_mesh(cfg.input)
+        mesh = inputs.mesh(cfg.input)
         work = _work_mesh(cfg, mesh)
     ctx.budget.require("extraction.subdivide", cfg.transfer.extraction.subdivide, len(work.mesh.faces),
                        "faces after refinement", bytes_each=BYTES_PER_FACE)
-    preps = _prepare(cfg, ctx, mesh, work)
+    preps = _prepare(cfg, ctx, mesh, work, inputs)
     results = _synthesize(cfg, ctx, preps)
     with ctx.stage("extract"):
         layout = _layout(work, preps, results)
         work, layout = _refine(cfg, ctx, work, layout, preps, results)
         ext = _extract(cfg, work, layout, preps, results)
     _metrics(cfg, ctx, preps, results)
-    with ctx.stage("export"):
-        _export(cfg, ctx, work, preps, ext)
-        _check_quality(cfg, ctx, mesh, work, ext)
-    with ctx.stage("previews"):
-        _previews(cfg, ctx, work, layout, preps, results, ext)
+    _check_quality(cfg, ctx, mesh, work, ext)
+    textures = [work.texture] + [prep.texture if pair.signal == "texture" else None
+                                 for prep, pair in zip(preps, cfg.transfer.pairs, strict=True)]
+    F = np.asarray(work.mesh.faces)
+    return TransferResult(
+        **result_fields(cfg, ctx, inputs), asset=transferred_asset(ext.positions, F, ext.colors, ext.uv,
+                                                                   ext.material, textures),
+        positions=ext.positions, faces=F, colors=ext.colors, attributes=ext.attributes, patch_ids=ext.patch_ids,
+        corner_uv=ext.uv, face_material=ext.material, textures=textures,
+        input_suffix="" if inputs.is_memory(cfg.input) else cfg.input.suffix.lower(),
+        before_positions=np.asarray(work.mesh.vertices), before_colors=work.colors,
+        seam_field=_seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin],
+        patch_domains=_patch_domains(results),
+    )
+
+
+def compute(cfg, inputs: Inputs, ctx) -> TransferResult:
+    """Run ``cfg`` (mode transfer) over ``inputs`` without writing."""
+    try:
+        return _transfer(cfg, inputs, ctx)
+    except prepare.KeyedValueError as exc:
+        raise ConfigError(str(exc)) from None

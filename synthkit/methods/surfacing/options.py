@@ -1,0 +1,60 @@
+"""The one map from the keys of a surface-by-numbers config to the arguments of its stages: the
+segmentation's :class:`~synthkit.methods.surfacing.segment.Options`, each transfer pair's
+:class:`~synthkit.methods.surfacing.transfer.synth.Options` and the region colours."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from synthkit.methods.surfacing.segment import Options
+from synthkit.methods.surfacing.transfer import synth
+
+__all__ = ["PALETTE", "segment_options", "synthesis_options", "region_colors", "stroke_colors"]
+
+PALETTE = np.array(
+    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
+     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165]], dtype=np.uint8
+)
+"""Colours of the regions that give none (``regions[k].color``) and are painted in no image."""
+
+
+def segment_options(cfg) -> Options:
+    """Solver options from the config (``graph``, ``boundary``, ``region_term``, ``multires``)."""
+    m, r = cfg.multires, cfg.region_term
+    return Options(
+        graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
+        region_weight=r.weight, concavity=r.concavity, trust=r.trust, wall_deg=r.wall_deg, clusters=r.clusters,
+        multires=m.enabled,
+        coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
+        crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
+    )
+
+
+def synthesis_options(cfg, k: int, radius: float) -> synth.Options:
+    """Synthesis options of ``transfer.pairs[k]`` (``transfer.synthesis`` and the pair's ``scale``) with
+    the patch ``radius`` the pipeline chose."""
+    syn, pair = cfg.transfer.synthesis, cfg.transfer.pairs[k]
+    return synth.Options(patch_radius=radius, scale=pair.scale, bound=syn.bound, matching=syn.matching,
+                         trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
+                         tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
+                         patience=syn.patience, fixed_orientation=syn.orientation == "up")
+
+
+def region_colors(cfg) -> np.ndarray:
+    """``(L, 3) uint8`` colour of each region: its ``color``, else the colour it is painted in (the first
+    image that lists it), else the palette's."""
+    painted = {}
+    for item in cfg.images:
+        for name, rgb in item.colors.items():
+            painted.setdefault(name, rgb)
+    return np.array([r.color if r.color is not None else painted.get(r.name, PALETTE[k % len(PALETTE)])
+                     for k, r in enumerate(cfg.regions)], dtype=np.uint8)
+
+
+def stroke_colors(cfg, k: int) -> np.ndarray:
+    """``(L, 3)`` float RGB in [0, 1] each region is painted in on ``images[k]`` (NaN: not painted there)."""
+    names = [r.name for r in cfg.regions]
+    colors = np.full((len(names), 3), np.nan)
+    for name, rgb in cfg.images[k].colors.items():
+        colors[names.index(name)] = np.asarray(rgb) / 255.0
+    return colors

@@ -356,13 +356,13 @@ def test_subdivide_keeps_the_targets_texture(tmp_path):
 
 
 def test_planar_surface_maps_by_its_own_coordinates():
-    from synthkit.methods.surfacing.transfer.param import _centred_log_map
+    from synthkit.methods.surfacing.transfer.param import centred_log_map
 
     V, F = sample.grid(10)
     flat = make_surface(V, F, np.arange(len(F)), None)
     S, G = sample.sphere(2)
     assert flat.planar and not make_surface(S, G, np.arange(len(G)), None).planar
-    U = _centred_log_map(flat, 7, radius=1.0, bound=2.0)
+    U = centred_log_map(flat, 7, radius=1.0, bound=2.0)
     np.testing.assert_allclose(U[flat.F[7]].mean(axis=0), 0, atol=1e-12)
     d3 = np.linalg.norm(flat.V[:, None] - flat.V[None], axis=2)
     np.testing.assert_allclose(np.linalg.norm(U[:, None] - U[None], axis=2), d3, atol=1e-12)  # isometric

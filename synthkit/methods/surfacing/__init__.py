@@ -6,7 +6,11 @@ Stages: :mod:`.strokes` turns vertex, face and polyline strokes into fixed nodes
 builds the vertex or face graph with the area-weighted boundary cost of eq. 1; :mod:`.regions`
 adds the optional region term; :mod:`.lod` builds the quadric level-of-detail hierarchy and
 :mod:`.solve` cuts it (s-t min cut for two regions, alpha-expansion for more, refined in bands);
-:mod:`.segment` ties them together over arrays; :mod:`.pipeline` reads, runs and writes.
+:mod:`.segment` ties them together over arrays. Around them: :mod:`.config` (the schema),
+:mod:`.options` (config keys to stage options), :mod:`.prepare` (strokes and segmentation, for
+both modes), :mod:`.pipeline` (reads and runs; mode transfer in :mod:`.transfer.pipeline`),
+:mod:`.outputs` (the result and its files) and :mod:`.api` (``synthkit.segment`` and
+``synthkit.transfer``).
 """
 
 CLI_FLAGS = {

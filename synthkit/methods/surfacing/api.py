@@ -2,27 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from synthkit.api import prepare, run_in_memory
-from synthkit.errors import ConfigError
 from synthkit.methods.surfacing.outputs import SegmentResult
-from synthkit.methods.surfacing.pipeline import compute
+from synthkit.methods.surfacing.pipeline import compute, with_mode
 from synthkit.methods.surfacing.transfer.outputs import TransferResult
 
 __all__ = ["segment", "transfer"]
 
 METHOD = "surface-by-numbers"
-
-
-def _keys(keys: dict[str, Any], mode: str, call: str) -> dict[str, Any]:
-    """``keys`` with ``mode`` set; a contradicting ``mode=`` is a ConfigError."""
-    given = keys.get("mode", mode)
-    if given != mode:
-        other = "synthkit.transfer()" if given == "transfer" else "synthkit.segment()"
-        hint = f"; use {other}" if given in ("segment", "transfer") else ""
-        raise ConfigError(f"{call}: mode: {given!r} contradicts the function (mode {mode}){hint}")
-    return {**keys, "mode": mode}
 
 
 def segment(mesh, /, *, progress: bool = False, **keys) -> SegmentResult:
@@ -78,7 +65,7 @@ def segment(mesh, /, *, progress: bool = False, **keys) -> SegmentResult:
     True
     """
     call = "synthkit.segment()"
-    cfg, inputs = prepare(METHOD, call, {"input": mesh}, _keys(keys, "segment", call))
+    cfg, inputs = prepare(METHOD, call, {"input": mesh}, with_mode(keys, "segment", call))
     return run_in_memory(METHOD, call, compute, cfg, inputs, progress=progress)
 
 
@@ -140,5 +127,5 @@ def transfer(mesh, /, *, progress: bool = False, **keys) -> TransferResult:
     True
     """
     call = "synthkit.transfer()"
-    cfg, inputs = prepare(METHOD, call, {"input": mesh}, _keys(keys, "transfer", call))
+    cfg, inputs = prepare(METHOD, call, {"input": mesh}, with_mode(keys, "transfer", call))
     return run_in_memory(METHOD, call, compute, cfg, inputs, progress=progress)

@@ -101,7 +101,7 @@ class RegionTermSection(StrictModel):
         "geodesic",
         description="none = boundary costs only (the paper's choice); geodesic = normalised edge-graph distance "
         "to each region's strokes; color = k-means of each region's stroked colours (Lazy Snapping). "
-        "Default chosen by benchmarks/segmentation.py (README).",
+        "Default chosen by benchmarks/segmentation.py (docs/findings/surface-by-numbers.md).",
     )
     weight: float = Field(
         0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."

@@ -29,7 +29,7 @@ from synthkit.io.meshes import save_mesh
 from synthkit.io.segmentation import write_labels_ply, write_point_polylines_obj, write_polylines_obj, write_seg
 from synthkit.methods.surfacing.views import Camera
 
-__all__ = ["SegmentResult", "legend"]
+__all__ = ["SegmentResult", "legend", "write_obj_without_material", "REGION_SUFFIXES"]
 
 REGION_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb")
 """Formats a region mesh is written in (the input's; others, and a mesh given in memory: PLY)."""

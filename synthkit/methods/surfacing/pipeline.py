@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -31,7 +32,7 @@ from synthkit.methods.surfacing.segment import Segmentation, chain_edges, cut_ed
 from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
 from synthkit.methods.surfacing.transfer import pipeline as transfer_pipeline
 
-__all__ = ["run", "compute"]
+__all__ = ["run", "compute", "with_mode"]
 
 log = logging.getLogger("synthkit")
 
@@ -157,6 +158,17 @@ def compute(cfg: SurfacingConfig, inputs: Inputs, ctx):
         return _segment(cfg, inputs, ctx)
     except prepare.KeyedValueError as exc:
         raise ConfigError(str(exc)) from None
+
+
+def with_mode(keys: dict[str, Any], mode: str, call: str) -> dict[str, Any]:
+    """The keyword arguments ``keys`` of ``synthkit.segment`` or ``synthkit.transfer`` (``call``) with
+    ``mode`` set; a contradicting ``mode=`` is a ConfigError."""
+    given = keys.get("mode", mode)
+    if given != mode:
+        other = "synthkit.transfer()" if given == "transfer" else "synthkit.segment()"
+        hint = f"; use {other}" if given in ("segment", "transfer") else ""
+        raise ConfigError(f"{call}: mode: {given!r} contradicts the function (mode {mode}){hint}")
+    return {**keys, "mode": mode}
 
 
 def run(cfg: SurfacingConfig, ctx) -> None:

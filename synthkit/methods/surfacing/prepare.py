@@ -21,7 +21,7 @@ from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, str
 __all__ = ["KeyedValueError", "ViewCache", "mesh_colors", "stroke_owners", "segmentation", "BYTES_PER_NODE"]
 
 BYTES_PER_NODE = 1500
-"""Peak bytes per graph node over the graph, hierarchy and cuts (measured about 1 kB at 1M faces)."""
+"""Peak bytes per graph node over the graph, hierarchy and cuts (docs/findings/surface-by-numbers.md)."""
 
 
 class KeyedValueError(ValueError):

@@ -17,7 +17,7 @@ The coarsest level is solved whole; at each finer level only the free nodes with
 the band's problem as node costs; when the new cut reaches the band's edge, the band moves onto
 it and is solved again. The coarse cut can only run where clusters meet: with boundary costs
 alone, whose cheapest cuts are often nearly tied, a coarse cut can settle in a parallel place the
-bands cannot leave (see the README's figures).
+bands cannot leave (docs/findings/surface-by-numbers.md).
 
 Static and per-stroke work: :func:`build_hierarchy` does what depends on the mesh alone (barrier
 splits, the coarse graphs' edges and weights, each level's adjacency), once; :func:`solve_multires`

@@ -27,7 +27,8 @@ from synthkit.methods.surfacing.transfer.surface import Surface
 from synthkit.methods.surfacing.transfer.synth import Result
 
 __all__ = ["corner_sources", "corner_values", "vertex_values", "poisson_values", "seam_visibility", "smooth",
-           "displacement_field", "transfer_displacement", "BLEND_EDGES"]
+           "displacement_field", "transfer_displacement", "BLEND_EDGES",
+           "boundary_edges"]
 
 BLEND_EDGES = 10.0
 """``blend: poisson``: a seam's jump is spread over about this many mean edge lengths."""

@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from synthkit.methods.surfacing.transfer.surface import Surface
 
 __all__ = ["Locator", "Patch", "distortion", "jacobians", "mutual_patch", "rotation", "singular_values_2x2", "up_error",
-           "UP_TOLERANCE"]
+           "UP_TOLERANCE", "centred_log_map", "unfold"]
 
 UP_TOLERANCE = 10.0
 """Degrees: the largest turn of a face's up direction in the domain with ``orientation: up``."""
@@ -174,7 +174,7 @@ class Patch:
         return self.src_faces[tri], bary, inside
 
 
-def _centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
+def centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
     the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
@@ -314,8 +314,8 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
     the seed face itself cannot be placed within the bound inside the source patch."""
-    Ut = _level(target, _centred_log_map(target, seed, radius=radius, bound=bound), seed)
-    Us = _level(source, _centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound), source_face)
+    Ut = _level(target, centred_log_map(target, seed, radius=radius, bound=bound), seed)
+    Us = _level(source, centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound), source_face)
     Us = scale * (Us @ rotation(-theta).T)
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):

@@ -45,14 +45,12 @@ from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
 from synthkit.methods.surfacing.transfer.synth import Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
 
-__all__ = ["compute", "Prepared", "WorkMesh", "prefiltered", "STEP_KINDS"]
+__all__ = ["compute", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS", "BYTES_PER_FACE"]
 
 log = logging.getLogger("synthkit")
 
 BYTES_PER_FACE = 18000
-"""Peak bytes per target face of a whole transfer (log-map factorizations, edge samples, grading
-neighbourhoods, fan matrix, patches): 18.0 kB measured on the benchmark's 20k-face sphere from a
-10k-face source (peak RSS 526 MB against 165 MB after imports)."""
+"""Peak bytes per target face of a whole transfer (docs/findings/surface-by-numbers.md)."""
 MIN_PATCH_EDGES = 3.0
 """The automatic patch radius spans at least this many mean target edge lengths."""
 

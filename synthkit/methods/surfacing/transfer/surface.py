@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
 
-__all__ = ["Signal", "Surface", "make_surface", "bilinear"]
+__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_bowties"]
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:

@@ -214,6 +214,47 @@ def test_transfer_texture_from_an_image_array():
     assert asset.corner_uv.shape == (len(F), 3, 2)
 
 
+def textured_plane(folder: Path, n: int = 8) -> np.ndarray:
+    """``plane.obj`` (UVs = its x, y; material with ``tex.png``, random texels) in ``folder``; return
+    the ``(#F,)`` labels: 0 on the left half, 1 on the right."""
+    from synthkit.io.images import save_image
+
+    xs = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(xs, xs)
+    V = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    q = (np.arange(n * n) // n * (n + 1) + np.arange(n * n) % n)
+    F = np.concatenate([np.c_[q, q + 1, q + n + 2], np.c_[q, q + n + 2, q + n + 1]])
+    save_image(folder / "tex.png", np.random.default_rng(0).random((32, 32, 3)).astype(np.float32))
+    (folder / "plane.mtl").write_text("newmtl skin\nKd 1 1 1\nmap_Kd tex.png\n")
+    lines = ["mtllib plane.mtl", "usemtl skin"] + [f"v {x} {y} {z}" for x, y, z in V]
+    lines += [f"vt {x} {y}" for x, y, _ in V] + [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in F]
+    (folder / "plane.obj").write_text("\n".join(lines) + "\n")
+    return (V[F].mean(axis=1)[:, 0] >= 0.5).astype(np.int64)
+
+
+def test_textured_trimesh_target_keeps_its_texture_and_saves_the_cli_bytes(tmp_path):
+    """A textured OBJ read by trimesh, an image array as the source, subdivided once: the same files
+    as ``synthkit run`` on the files."""
+    labels = textured_plane(tmp_path)
+    (tmp_path / "half.seg").write_text("".join(f"{v}\n" for v in labels.tolist()))
+    tex = load_image(tmp_path / "tex.png")
+    settings = {"synthesis": {"patch_radius": 0.2, "orientation": "up"}, "extraction": {"subdivide": 1}}
+    pair = {"target": {"labels": "half.seg", "label": 0}, "signal": "texture", "source": {"image": "tex.png"}}
+    cfg = write_yaml(tmp_path / "t.yaml", mode="transfer", input="plane.obj", transfer={"pairs": [pair], **settings})
+    run_config(cfg, out_dir=tmp_path / "cli", show_progress=False, previews="summary")
+    pair = {"target": {"labels": labels, "label": 0}, "signal": "texture", "source": {"image": tex}}
+    result = synthkit.transfer(trimesh.load(tmp_path / "plane.obj", process=False),
+                               transfer={"pairs": [pair], **settings})
+    own = result.face_material == 0
+    assert own.sum() == 4 * (labels == 1).sum() and (result.face_material[~own] == 1).all()
+    np.testing.assert_allclose(result.textures[0], tex, atol=1 / 255)
+    assert [m.name for m in result.asset.materials] == ["original", "transfer_0"]
+    result.save(tmp_path / "api", previews="summary")
+    for name in ("transferred.obj", "transferred.mtl", "original.png", "source_0.png", "transferred.ply",
+                 "patches.ply", "transfer.png"):
+        assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+
+
 def test_transfer_errors_name_the_key():
     V, F, labels = sample.cylinder(24, 8)
     pair = stripes_pair(labels)

@@ -29,3 +29,27 @@ def echo_config(tmp_path, echo_method):
     cfg = tmp_path / "echo.yaml"
     cfg.write_text("method: echo\nimage: in.png\nmode: invert\n")
     return cfg
+
+
+def _untracked_files() -> set[str] | None:
+    """Files in the repository that git neither tracks nor ignores; None outside a git checkout."""
+    import subprocess
+
+    try:
+        done = subprocess.run(["git", "ls-files", "--others", "--exclude-standard"], cwd=REPO,
+                              capture_output=True, text=True, timeout=60, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(done.stdout.splitlines())
+
+
+@pytest.fixture(scope="session", autouse=True)
+def repository_left_clean():
+    """No test may leave a file in the repository (a test once wrote a mesh named 'ply' into the
+    current folder, and it was committed)."""
+    before = _untracked_files()
+    yield
+    after = _untracked_files()
+    if before is not None and after is not None:
+        new = sorted(after - before)
+        assert not new, f"tests left files in the repository: {new[:10]}"

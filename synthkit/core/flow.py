@@ -122,7 +122,7 @@ class ResidualGraph:
         """
         cap_pq = np.asarray(cap_pq, dtype=np.float64)
         term = np.asarray(term, dtype=np.float64)
-        _update(self.rcap, self.tr, self.arc_pq, self.arc_qp, self.p, self.q, self.cap_pq,
+        update_residual(self.rcap, self.tr, self.arc_pq, self.arc_qp, self.p, self.q, self.cap_pq,
                 cap_pq, np.asarray(cap_qp, dtype=np.float64), self.term, term)
         self.cap_pq[:] = cap_pq
         self.term[:] = term
@@ -130,8 +130,8 @@ class ResidualGraph:
     def solve(self, rounds: int = 0) -> np.ndarray:
         """Augment to a maximum flow; returns ``(n,) bool``, True on the sink side."""
         if rounds:
-            _saturate(self.first, self.head, self.sister, self.rcap, self.tr, rounds)
-        return _bk(self.first, self.head, self.sister, self.rcap, self.tr)
+            saturate_greedy(self.first, self.head, self.sister, self.rcap, self.tr, rounds)
+        return bk_max_flow(self.first, self.head, self.sister, self.rcap, self.tr)
 
 
 @numba.njit(cache=NUMBA_CACHE, nogil=True)
@@ -165,7 +165,7 @@ def _arcs(n, p, q):  # pragma: no cover
 
 
 @numba.njit(cache=NUMBA_CACHE, nogil=True)
-def _update(rcap, tr, arc_pq, arc_qp, p, q, old_pq, new_pq, new_qp, old_term, new_term):  # pragma: no cover
+def update_residual(rcap, tr, arc_pq, arc_qp, p, q, old_pq, new_pq, new_qp, old_term, new_term):  # pragma: no cover
     """Bring the residual graph from capacities ``old_*`` to ``new_*`` (Kohli and Torr 2005).
 
     The flow ``f`` of an edge stays where the new capacities admit it. Where ``f`` exceeds the new
@@ -195,7 +195,7 @@ def _update(rcap, tr, arc_pq, arc_qp, p, q, old_pq, new_pq, new_qp, old_term, ne
 
 
 @numba.njit(cache=NUMBA_CACHE, nogil=True)
-def _bk(first, head, sister, rcap, tr):  # pragma: no cover
+def bk_max_flow(first, head, sister, rcap, tr):  # pragma: no cover
     """Boykov-Kolmogorov max-flow (PAMI 2004) on the residual graph, in place; fresh search trees.
 
     Returns ``(n,) bool``: nodes of the sink tree at the end, i.e. those that can reach the sink.
@@ -408,7 +408,7 @@ def _adopt(first, head, sister, rcap, parent, tree, stamp, dist, queue, queued, 
 
 
 @numba.njit(cache=NUMBA_CACHE, nogil=True)
-def _saturate(first, head, sister, rcap, tr, rounds):  # pragma: no cover
+def saturate_greedy(first, head, sister, rcap, tr, rounds):  # pragma: no cover
     """Greedy pushes that are part of some maximum flow: a node whose source residual covers all
     its outgoing residual arcs sends their full capacity (it stays on the source side in every
     minimum cut), and a node whose sink residual covers all its incoming arcs takes theirs."""

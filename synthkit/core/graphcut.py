@@ -24,7 +24,7 @@ import maxflow
 import numba
 import numpy as np
 
-from synthkit.core.flow import NUMBA_CACHE, ResidualGraph, _bk, _saturate, _update
+from synthkit.core.flow import NUMBA_CACHE, ResidualGraph, bk_max_flow, saturate_greedy, update_residual
 
 INF = 1e12
 """Costs at or above this value are treated as infinite (forbidden), exactly like ``np.inf``."""
@@ -542,7 +542,7 @@ def _move(alpha, step, act, lab, un, u_alpha, pv, changed_at, idx, gp, gq, v01, 
     twice the sum of the move's finite terms plus one.
 
     The cut runs on the label's kept residual graph (arrays of :class:`ResidualGraph`), brought to
-    the new capacities by ``_update``: nodes and edges outside this move get capacity 0. The move
+    the new capacities by ``update_residual``: nodes and edges outside this move get capacity 0. The move
     is applied (labels, terms, ``changed_at``) only when it lowers the exact energy, with infinite
     terms counted first.
 
@@ -597,11 +597,11 @@ def _move(alpha, step, act, lab, un, u_alpha, pv, changed_at, idx, gp, gq, v01, 
             new_term[loc[gp[e]]] += _finite(v10[e], big) - _finite(pv[idx[e]], big)
         elif aq:
             new_term[loc[gq[e]]] += _finite(v01[e], big) - _finite(pv[idx[e]], big)
-    _update(rcap, tr, arc_pq, arc_qp, gpl, gql, cap_pq, new_pq, new_qp, term, new_term)
+    update_residual(rcap, tr, arc_pq, arc_qp, gpl, gql, cap_pq, new_pq, new_qp, term, new_term)
     cap_pq[:] = new_pq
     term[:] = new_term
-    _saturate(first, head, sister, rcap, tr, 1)
-    sink = _bk(first, head, sister, rcap, tr)
+    saturate_greedy(first, head, sister, rcap, tr, 1)
+    sink = bk_max_flow(first, head, sister, rcap, tr)
 
     # exact change of the energy, infinite terms counted separately
     n_old = 0

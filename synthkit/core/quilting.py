@@ -200,7 +200,7 @@ def _channel_sq_sum(d: np.ndarray) -> np.ndarray:
     return err
 
 
-def _dp_left_cut(err: np.ndarray) -> np.ndarray:
+def min_vertical_cuts(err: np.ndarray) -> np.ndarray:
     """Min-cost vertical path through ``err (K, B, w)``; returns the column per row ``(K, B)``.
 
     Each step moves at most one column; ties prefer the left neighbour, then straight down.
@@ -236,7 +236,7 @@ def _side_masks(strips: list[np.ndarray], widths: list[int], B: int) -> list[np.
     stacked = np.full((len(strips) * K, B, wmax), np.inf)
     for i, (e, w) in enumerate(zip(strips, widths, strict=True)):
         stacked[i * K : (i + 1) * K, :, :w] = e[:, :, :w]
-    path = _dp_left_cut(stacked)
+    path = min_vertical_cuts(stacked)
     cols = np.arange(B)
     masks = cols[None, None, :] >= path[:, :, None]
     return [masks[i * K : (i + 1) * K] for i in range(len(strips))]

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as sparse_linalg
 
-from synthkit.core.quilting import _dp_left_cut
+from synthkit.core.quilting import min_vertical_cuts
 
 __all__ = ["cut_tile", "seam_masks", "fix_seams"]
 
@@ -29,7 +29,7 @@ def _cut_columns(img: np.ndarray, src: np.ndarray, overlap: int) -> tuple[np.nda
     W = img.shape[1]
     a, b = img[:, :overlap], img[:, W - overlap :]
     err = ((a - b) ** 2).sum(axis=-1)
-    path = _dp_left_cut(err[None])[0]
+    path = min_vertical_cuts(err[None])[0]
     take_b = (np.arange(overlap)[None, :] < path[:, None])[..., None]
     tile = img[:, : W - overlap].copy()
     tile[:, :overlap] = np.where(take_b, b, a)

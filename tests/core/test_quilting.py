@@ -52,7 +52,7 @@ def test_candidates_rules():
 
 def test_left_cut_is_minimum_over_all_paths(rng):
     err = rng.random((3, 5, 3))
-    path = q._dp_left_cut(err)
+    path = q.min_vertical_cuts(err)
     for k in range(3):
         best = np.inf
         for cols in itertools.product(range(3), repeat=5):

@@ -144,7 +144,8 @@ def test_ply_colours_round_trip(tmp_path):
     colors = np.tile([[200, 10, 30, 255]], (len(box.vertices), 1)).astype(np.uint8)
     colors[0] = [0, 255, 0, 255]
     src = tmp_path / "c.ply"
-    src.write_bytes(trimesh.Trimesh(box.vertices, box.faces, vertex_colors=colors, process=False).export("ply"))
+    colored = trimesh.Trimesh(box.vertices, box.faces, vertex_colors=colors, process=False)
+    src.write_bytes(colored.export(file_type="ply"))
     asset = load_asset(src)
     assert asset.corner_color.shape == (12, 3, 4)
     save_asset(tmp_path / "d.ply", asset.V, asset.F, like=asset, corner_color=asset.corner_color)

@@ -714,7 +714,7 @@ def test_lod_kernel_takes_the_shared_numba_cache_path():
     from synthkit.methods.surfacing import lod
 
     assert "cache=True" not in inspect.getsource(lod)
-    assert type(lod._roots._cache) is type(flow._bk._cache)
+    assert type(lod._roots._cache) is type(flow.bk_max_flow._cache)
 
 
 def test_collapse_map_equals_the_replayed_one():

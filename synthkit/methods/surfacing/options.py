@@ -8,14 +8,9 @@ import numpy as np
 
 from synthkit.methods.surfacing.segment import Options
 from synthkit.methods.surfacing.transfer import synth
+from synthkit.preview import SET1
 
-__all__ = ["PALETTE", "segment_options", "synthesis_options", "region_colors", "stroke_colors"]
-
-PALETTE = np.array(
-    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
-     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165]], dtype=np.uint8
-)
-"""Colours of the regions that give none (``regions[k].color``) and are painted in no image."""
+__all__ = ["segment_options", "synthesis_options", "region_colors", "stroke_colors"]
 
 
 def segment_options(cfg) -> Options:
@@ -42,12 +37,12 @@ def synthesis_options(cfg, k: int, radius: float) -> synth.Options:
 
 def region_colors(cfg) -> np.ndarray:
     """``(L, 3) uint8`` colour of each region: its ``color``, else the colour it is painted in (the first
-    image that lists it), else the palette's."""
+    image that lists it), else the palette's (:data:`synthkit.preview.SET1`)."""
     painted = {}
     for item in cfg.images:
         for name, rgb in item.colors.items():
             painted.setdefault(name, rgb)
-    return np.array([r.color if r.color is not None else painted.get(r.name, PALETTE[k % len(PALETTE)])
+    return np.array([r.color if r.color is not None else painted.get(r.name, SET1[k % len(SET1)])
                      for k, r in enumerate(cfg.regions)], dtype=np.uint8)
 
 

@@ -28,12 +28,8 @@ from synthkit.io.signals import write_signal_ply, write_textured_obj
 
 __all__ = ["TransferResult", "transferred_asset", "PALETTE"]
 
-PALETTE = np.array(
-    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
-     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165], [141, 160, 203], [231, 138, 195]],
-    dtype=np.uint8,
-)
-"""Patch colours of ``patches.ply`` and ``patches.png`` (grey: no patch)."""
+PALETTE = np.vstack([preview.SET1, np.array([[141, 160, 203], [231, 138, 195]], np.uint8)])
+"""Patch colours of ``patches.ply`` and ``patches.png`` (grey: no patch): the region palette and two more."""
 
 
 def _u8(values: np.ndarray) -> np.ndarray:

@@ -272,3 +272,24 @@ def test_transfer_errors_name_the_key():
 def test_docstring_examples_run():
     failed, attempted = doctest.testmod(api, optionflags=doctest.ELLIPSIS)
     assert attempted >= 10 and failed == 0
+
+
+def test_the_docs_examples_run():
+    """The Python blocks of docs/surface-by-numbers.md's "From Python" section run as written."""
+    text = (ROOT / "docs/surface-by-numbers.md").read_text().split("## From Python")[1]
+    blocks = [block.split("```")[0] for block in text.split("```python")[1:]]
+    assert len(blocks) == 2
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, "docs/surface-by-numbers.md", "exec"), namespace)
+    assert namespace["result"].metrics["coverage"] == 1.0
+
+
+def test_strokes_as_numpy_arrays():
+    V, F, part, regions = crease()
+    a, b = (r["vertices"][0] for r in regions)
+    as_lists = synthkit.segment((V, F), regions=regions)
+    points = V[[b]] + 0.0  # (1, 3) float64: a one-point polyline on the vertex itself
+    as_arrays = synthkit.segment((V, F), regions=[{"name": "long", "vertices": np.array([a], np.int64)},
+                                                  {"name": "short", "points": points}])
+    np.testing.assert_array_equal(as_arrays.face_labels, as_lists.face_labels)

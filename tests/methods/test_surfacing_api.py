@@ -126,6 +126,7 @@ def test_painted_image_array_gives_the_cli_labels_and_save_writes_its_bytes(tmp_
     names += [f"regions/{r['name']}.ply" for r in cfg["regions"]]
     for name in names:
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    np.testing.assert_allclose(result.summary_image(), load_image(tmp_path / "cli" / "regions.png"), atol=0.5 / 255)
 
 
 def test_views_and_smoothed_cut_in_memory():
@@ -194,6 +195,7 @@ def test_transfer_save_writes_the_bytes_of_synthkit_run(tmp_path):
     result.save(tmp_path / "api", previews="summary")
     for name in ("transferred.ply", "patches.ply", "transfer.png"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    np.testing.assert_allclose(result.summary_image(), load_image(tmp_path / "cli" / "transfer.png"), atol=0.5 / 255)
 
 
 def test_transfer_texture_from_an_image_array():

@@ -36,7 +36,8 @@ def segment(mesh, /, *, progress: bool = False, **keys) -> SegmentResult:
         ``region_names`` (L), ``region_colors (L, 3) uint8``, ``cut_edges (E, 2)`` vertex pairs,
         ``cut_chains`` (vertex-index polylines), ``cut_curves`` (smoothed ``(n, 3)`` polylines with
         ``smooth_cut``, else None), ``stroked_faces (#F,) bool``, ``levels``, ``view_images`` and
-        ``cameras`` (with ``views={"render": True}``), ``region_mesh(name)``, the input ``mesh``,
+        ``cameras`` (with ``views={"render": True}``), ``region_mesh(name)``, ``summary_image()``
+        (``regions.png`` as an array), the input ``mesh``,
         ``metrics``, ``timings``, ``status``; ``.save(folder)`` writes the command line's outputs
         (labels.ply, labels.seg, cut.obj, regions/, regions.png, report.json).
 
@@ -95,7 +96,8 @@ def transfer(mesh, /, *, progress: bool = False, **keys) -> TransferResult:
         pairs), ``positions (#V, 3)``, ``faces (#F, 3)``, ``colors (#V, 3)`` in [0, 1],
         ``attributes`` (name -> ``(#V, C)``), ``patch_ids (#F,)`` (-1 outside the targets),
         ``corner_uv (#F, 3, 2)`` and ``face_material (#F,)`` or None, ``textures`` (the images the
-        materials use, ``(H, W, 3)`` float), ``seam_field (#F,)``, ``metrics`` (coverage, seam cost,
+        materials use, ``(H, W, 3)`` float), ``seam_field (#F,)``, ``summary_image()`` (``transfer.png``
+        as an array), ``metrics`` (coverage, seam cost,
         distortion, per pair), ``timings``, ``status`` (``partial`` when faces stayed uncovered);
         ``.save(folder)`` writes transferred.ply, patches.ply, transferred.obj, the previews and
         report.json.

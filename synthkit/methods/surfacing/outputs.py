@@ -121,11 +121,9 @@ class SegmentResult(Result):
         if self.cut_curves is not None:
             write_point_polylines_obj(ctx.path("cut_smooth", "cut_smooth.obj"), self.cut_curves)
 
-    def _previews(self, ctx) -> None:
-        """``regions.png`` (the summary preview: four views, strokes darker, the cut in red: the smoothed
-        curves when there are) and one ``level_<k>.png`` per level with its free band (Fig. 3)."""
-        if not ctx.wants_preview("summary"):
-            return
+    def summary_image(self) -> np.ndarray:
+        """``regions.png`` as an ``(H, W, 3) float32`` image in [0, 1]: four views in the region
+        colours, stroked faces darker, the cut in red (the smoothed curves when there are), a legend."""
         V, F = np.asarray(self.mesh.vertices), np.asarray(self.mesh.faces)
         base = self.region_colors.astype(np.float64)[self.face_labels] / 255.0
         base[self.stroked_faces] *= 0.45
@@ -137,9 +135,17 @@ class SegmentResult(Result):
         imgs = [preview.rasterize_mesh(V, F, face_colors=base, view=v, size=size, lines=lines) for v in names]
         montage = preview.montage_png(None, imgs, titles=list(names), height=size)
         band = legend(self.region_names, self.region_colors, montage.shape[1])
-        preview.image_png(ctx.path("preview_regions", "regions.png"), np.concatenate([montage, band], axis=0))
+        return np.concatenate([montage, band], axis=0)
+
+    def _previews(self, ctx) -> None:
+        """``regions.png`` (the summary preview, :meth:`summary_image`) and one ``level_<k>.png`` per
+        level with its free band (Fig. 3)."""
+        if not ctx.wants_preview("summary"):
+            return
+        preview.image_png(ctx.path("preview_regions", "regions.png"), self.summary_image())
         if not ctx.wants_preview("all"):
             return
+        V, F, size = np.asarray(self.mesh.vertices), np.asarray(self.mesh.faces), self.config.preview_size
         for k, st in enumerate(self.levels):
             col = self.region_colors.astype(np.float64)[self.face_labels] / 255.0
             col[st["free_faces"]] = 0.75

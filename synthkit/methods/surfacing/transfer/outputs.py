@@ -150,9 +150,9 @@ class TransferResult(Result):
         return preview.Appearance(corner_uv=self.corner_uv, face_image=face_image, images=images,
                                   face_tint=np.ones((len(material), 3)))
 
-    def _previews(self, ctx) -> None:
-        if not ctx.wants_preview("summary"):
-            return
+    def summary_image(self) -> np.ndarray:
+        """``transfer.png`` as an ``(H, W, 3) float32`` image in [0, 1]: the target before and after
+        (textured as ``transferred.obj`` when it has UVs) from three views."""
         V0, F = self.before_positions, self.faces
         size = self.config.preview_size
         before = np.full((len(V0), 3), 0.75) if self.before_colors is None else self.before_colors
@@ -162,9 +162,17 @@ class TransferResult(Result):
         imgs += [preview.rasterize_mesh(self.positions, F, face_colors=_face_colors(F, self.colors), view=v,
                                         size=size, appearance=look) for v in views]
         titles = [f"before {v}" for v in views] + [f"after {v}" for v in views]
-        preview.montage_png(ctx.path("preview_transfer", "transfer.png"), imgs, titles=titles, height=size)
+        return preview.montage_png(None, imgs, titles=titles, height=size)
+
+    def _previews(self, ctx) -> None:
+        """``transfer.png`` (the summary, :meth:`summary_image`), ``patches.png``, ``seams.png`` and
+        ``params.png``."""
+        if not ctx.wants_preview("summary"):
+            return
+        preview.image_png(ctx.path("preview_transfer", "transfer.png"), self.summary_image())
         if not ctx.wants_preview("all"):
             return
+        F, size, views = self.faces, self.config.preview_size, ("front", "side", "iso")
         pal = np.vstack([PALETTE, [[90, 90, 90]]]).astype(np.float64) / 255.0
         pc = pal[np.where(self.patch_ids >= 0, self.patch_ids % len(PALETTE), len(PALETTE))]
         imgs = [preview.rasterize_mesh(self.positions, F, face_colors=pc, view=v, size=size) for v in views]

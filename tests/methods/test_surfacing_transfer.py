@@ -262,6 +262,7 @@ def test_coverage_and_report_metrics(stripes_run):
         assert (out / name).stat().st_size > 0
 
 
+@pytest.mark.slow  # two more runs with the baseline: 22 s (the in-memory determinism test is fast)
 def test_same_seed_same_bytes(stripes_inputs, stripes_run):
     out2 = stripes_inputs / "again"
     result = run(stripes_config(stripes_inputs, "stripes"), out2, "--previews", "none")

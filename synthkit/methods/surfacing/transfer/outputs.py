@@ -59,8 +59,6 @@ class TransferResult(Result):
 
     Attributes
     ----------
-    asset : :class:`~synthkit.io.assets.Asset`, the textured result (``transferred.obj``: corner UVs
-        into the target's own texture and the source textures; vertex colours per corner)
     positions : (#V, 3) float64 vertex positions (displaced by a ``displacement`` pair)
     faces : (#F, 3) int64 triangles of the target, welded and refined as the transfer worked on it
     colors : (#V, 3) float64 vertex colours in [0, 1] (``color`` and ``texture`` pairs; the target's own
@@ -78,7 +76,6 @@ class TransferResult(Result):
     """
 
     method: ClassVar[str] = "surface-by-numbers"
-    asset: Asset
     positions: np.ndarray
     faces: np.ndarray
     colors: np.ndarray
@@ -92,6 +89,13 @@ class TransferResult(Result):
     before_positions: np.ndarray
     before_colors: np.ndarray | None = None
     input_suffix: str = ""
+
+    @property
+    def asset(self) -> Asset:
+        """The textured result as an :class:`~synthkit.io.assets.Asset` (``transferred.obj``: corner UVs
+        into ``textures`` by ``face_material``; the vertex colours per corner)."""
+        return transferred_asset(self.positions, self.faces, self.colors, self.corner_uv, self.face_material,
+                                 self.textures)
 
     @property
     def mesh(self) -> trimesh.Trimesh:

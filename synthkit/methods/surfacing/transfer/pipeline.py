@@ -39,7 +39,7 @@ from synthkit.methods.surfacing.transfer.extract import (
     transfer_displacement,
     vertex_values,
 )
-from synthkit.methods.surfacing.transfer.outputs import TransferResult, transferred_asset
+from synthkit.methods.surfacing.transfer.outputs import TransferResult
 from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface
 from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
 from synthkit.methods.surfacing.transfer.synth import Synthesis
@@ -596,12 +596,10 @@ def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
     _check_quality(cfg, ctx, mesh, work, ext)
     textures = [work.texture] + [prep.texture if pair.signal == "texture" else None
                                  for prep, pair in zip(preps, cfg.transfer.pairs, strict=True)]
-    F = np.asarray(work.mesh.faces)
     return TransferResult(
-        **result_fields(cfg, ctx, inputs), asset=transferred_asset(ext.positions, F, ext.colors, ext.uv,
-                                                                   ext.material, textures),
-        positions=ext.positions, faces=F, colors=ext.colors, attributes=ext.attributes, patch_ids=ext.patch_ids,
-        corner_uv=ext.uv, face_material=ext.material, textures=textures,
+        **result_fields(cfg, ctx, inputs), positions=ext.positions, faces=np.asarray(work.mesh.faces),
+        colors=ext.colors, attributes=ext.attributes, patch_ids=ext.patch_ids, corner_uv=ext.uv,
+        face_material=ext.material, textures=textures,
         input_suffix="" if inputs.is_memory(cfg.input) else cfg.input.suffix.lower(),
         before_positions=np.asarray(work.mesh.vertices), before_colors=work.colors,
         seam_field=_seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin],

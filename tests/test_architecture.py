@@ -105,7 +105,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-KNOWN_CYCLES = [["synthkit.methods.surfacing.pipeline", "synthkit.methods.surfacing.transfer.pipeline"]]
+KNOWN_CYCLES: list[list[str]] = []
 """Import cycles left to break (issue 27); the test fails on any other, and on one that is gone."""
 
 
@@ -184,7 +184,6 @@ def test_only_pipelines_and_configs_raise_user_errors():
 KNOWN_PRIVATE_IMPORTS = {
     "methods/retarget/synthesis.py: synthkit.core.mesh._plane_args",
     "methods/retarget/synthesis.py: synthkit.core.mesh._split_one",
-    "methods/surfacing/transfer/pipeline.py: synthkit.methods.surfacing.pipeline._segment",
 }
 """Private names still imported from another module (issue 27)."""
 

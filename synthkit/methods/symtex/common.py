@@ -1,22 +1,18 @@
-"""What the symmetry-texture modes share: the objective, its targets, and the common outputs.
+"""What the symmetry-texture modes share: the objective, its targets, and the S of the result.
 
 :func:`build_objective` and :func:`build_targets` turn a config into the :class:`Objective` and
-its standardized target representations; :func:`write_common` writes ``result.png`` and the
-heatmaps of S for input, target and result. Used by :mod:`.pipeline` and :mod:`.deform`.
+its standardized target representations; :func:`representations` gives S of input, target and
+result (the previews of :mod:`.outputs`). Used by :mod:`.pipeline` and :mod:`.deform`.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError
-from synthkit.io.images import save_image
 from synthkit.methods.symtex.config import SymtexConfig
 from synthkit.methods.symtex.objective import Objective, st_window
-from synthkit.preview import heatmap_png, plot_curve_png
 
 
 def apply_filter(S: np.ndarray, cfg: SymtexConfig) -> np.ndarray:
@@ -83,30 +79,25 @@ def build_targets(cfg: SymtexConfig, src: np.ndarray, tgt: np.ndarray | None, ou
     return reps
 
 
-def preview_rep(path: Path, S: np.ndarray, title: str) -> None:
-    if S.ndim == 2:
-        heatmap_png(path, S, title=title)
+def representations(cfg: SymtexConfig, src: np.ndarray, image: np.ndarray, objective: Objective,
+                    targets) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Standardized S of the first signal of the input ``src``, the target and the result
+    ``image`` (the result's by ``objective``; the input's too, unless the result's size differs,
+    when the input's S_T is over the same window)."""
+    signal = cfg.symmetry.signals[0]
+    sig_in = sy.signal(src, signal)
+    if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
+        rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
     else:
-        deg = np.arange(S.shape[0]) * (360.0 if title.startswith("S_R") else 180.0) / S.shape[0]
-        plot_curve_png(path, deg, S, xlabel="degrees", ylabel="S", title=title)
+        rep_in = objective.represent(sig_in, standardize=True)
+    rep_out = objective.represent(sy.signal(image, signal), standardize=True)
+    return rep_in, None if targets is None else targets[0], rep_out
 
 
-def write_common(cfg, ctx, src, image, objective: Objective, targets) -> None:
-    save_image(ctx.path("result", "result.png"), image)
-    name = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}[cfg.symmetry.kind]
-    if ctx.wants_preview("all"):
-        sig_in = sy.signal(src, cfg.symmetry.signals[0])
-        if objective.representation == "translational" and src.shape[:2] != image.shape[:2]:
-            rep_in = sy.translational(sig_in, mode="toroidal", window=objective.window)
-        else:
-            rep_in = objective.represent(sig_in, standardize=True)
-        preview_rep(ctx.path("s_input", "s_input.png"), rep_in, f"{name} input")
-        if targets is not None:
-            preview_rep(ctx.path("s_target", "s_target.png"), targets[0], f"{name} target")
-    rep_out = objective.represent(sy.signal(image, cfg.symmetry.signals[0]), standardize=True)
-    preview_rep(ctx.preview_path("s_result", "s_result.png"), rep_out, f"{name} result")
-    if rep_out.ndim == 2:
-        try:
-            ctx.metrics["result_peak"] = list(sy.strongest_peak(rep_out))
-        except ValueError:
-            ctx.metrics["result_peak"] = None  # a window too small to hold a peak
+def result_peak(rep: np.ndarray) -> list[int] | None:
+    """The strongest peak of an S_T lattice ``(a, b)`` (:func:`synthkit.core.symmetry.strongest_peak`);
+    None for a window too small to hold a peak."""
+    try:
+        return list(sy.strongest_peak(rep))
+    except ValueError:
+        return None

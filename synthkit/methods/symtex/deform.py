@@ -79,9 +79,7 @@ from synthkit.core.warp import (
     mvc_interpolate,
     triangle_stretch,
 )
-from synthkit.io.images import save_image
-from synthkit.methods.symtex.common import build_objective, build_targets, write_common
-from synthkit.preview import montage_png
+from synthkit.methods.symtex.common import build_objective, build_targets
 
 log = logging.getLogger("synthkit")
 
@@ -531,7 +529,7 @@ SHARPNESS_MIN = 0.9
 """A tile keeps at least this share of the input's high-frequency energy (issue 14)."""
 
 
-def run_deform(cfg, ctx, src, tgt) -> None:
+def run_deform(cfg, ctx, src, tgt):
     """Run ``perturbation: deform`` for transfer / filter / symmetrize / tile.
 
     ``tile``: with ``tile.optimize`` (default off: :func:`_run_tile_unoptimized`), the optimized
@@ -541,12 +539,14 @@ def run_deform(cfg, ctx, src, tgt) -> None:
     per ``tile.cut_overlaps`` entry is cut from the input (``cut<overlap>``). The returned
     ``result.png`` is, of these and the input itself, the one :func:`choose_tile` picks: the
     lowest seam ratio among those meeting every goal of issue 14 (``metrics.tile_choice`` names
-    it, ``metrics.tile_candidates`` holds the figures of all). ``optimized.png`` is the optimized
-    tile (with ``tile.optimize``), ``cut<overlap>.png`` the cut tiles.
+    it, ``metrics.tile_candidates`` holds the figures of all).
+
+    Returns ``(image, sample_map, tiles, objective, targets)``: the result, the backward map
+    ``(H, W, 2) float32`` (None for a tile without the optimization), the tiles by name (mode
+    tile; else empty), the objective and the E_L2 targets (or None). Figures go to ``ctx.metrics``.
     """
     if cfg.mode == "tile" and not cfg.tile.optimize:
-        _run_tile_unoptimized(cfg, ctx, src)
-        return
+        return _run_tile_unoptimized(cfg, ctx, src)
     dc = cfg.deform
     H, W = src.shape[:2]
     out_shape = (H, W)
@@ -648,10 +648,7 @@ def run_deform(cfg, ctx, src, tgt) -> None:
                 max_displacement_gradient=0.0,
             )
     ctx.metrics.update(metrics)
-    with ctx.stage("write"):
-        write_common(cfg, ctx, src, image, objective, targets)
-        np.save(ctx.path("sample_map", "sample_map.npy"), np.stack([mx, my], axis=2).astype(np.float32))
-        _write_deform_images(ctx, src, image, tiles)
+    return image, np.stack([mx, my], axis=2).astype(np.float32), tiles or {}, objective, targets
 
 
 def symmetrize_refusal(metrics: dict, max_gradient: float | None) -> str | None:
@@ -679,7 +676,7 @@ def symmetrize_refusal(metrics: dict, max_gradient: float | None) -> str | None:
     return None
 
 
-def _run_tile_unoptimized(cfg, ctx, src) -> None:
+def _run_tile_unoptimized(cfg, ctx, src):
     """Mode ``tile`` without the paper's optimization (``tile.optimize: false``, the default): the
     blended input and the cut tiles are compared with the input as :func:`choose_tile` does, in
     seconds (issue 24: the optimized tile was returned on none of 4 photographs and took minutes).
@@ -697,9 +694,7 @@ def _run_tile_unoptimized(cfg, ctx, src) -> None:
     }
     image, tiles = _tile_result(cfg, ctx, src, None, objective, None, metrics)
     ctx.metrics.update(metrics)
-    with ctx.stage("write"):
-        write_common(cfg, ctx, src, image, objective, None)
-        _write_deform_images(ctx, src, image, tiles)
+    return image, None, tiles, objective, None
 
 
 def _tile_result(cfg, ctx, src, image, objective, hf_view: float | None, metrics: dict):
@@ -766,31 +761,3 @@ def _cut_overlaps(overlaps, shape) -> list[int]:
         )
     return fit
 
-
-def _write_deform_images(ctx, src, image, tiles) -> None:
-    """The tile images (``tiles`` None outside tile), tilings and ``comparison.png``; the PNGs are
-    encoded by two threads (a 640x480 input has five 1440x1920 tilings)."""
-    if tiles is not None:
-        cuts = sorted((k for k in tiles if k.startswith("cut")), key=tile_order)
-        jobs = [(ctx.path(k, f"{k}.png"), lambda k=k: tiles[k]) for k in ("optimized", "baseline") if k in tiles]
-        jobs += [(ctx.path(name, f"{name}.png"), lambda name=name: tiles[name]) for name in cuts]
-        if ctx.wants_preview("all"):
-            jobs.append((ctx.path("tiled", "tiled_3x3.png"), lambda: np.tile(image, (3, 3, 1))))
-            for name in [n for n in ("optimized", "input", "baseline") if n in tiles] + cuts:
-                tiled = lambda name=name: np.tile(tiles[name], (3, 3, 1))  # noqa: E731
-                jobs.append((ctx.path(f"tiled_{name}", f"tiled_{name}_3x3.png"), tiled))
-        with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-            written = pool.map(lambda job: save_image(job[0], job[1]()), jobs)
-            list(ctx.progress(written, total=len(jobs), desc="writing tiles"))
-    if not ctx.wants_preview("summary"):
-        return
-    if tiles is None:
-        montage_png(ctx.path("comparison", "comparison.png"), [src, image], titles=["input", "result"])
-    else:
-        names = sorted((k for k in tiles if k != "input"), key=lambda k: (k != "baseline", tile_order(k)))
-        titles = {"baseline": "blended, not optimized", "optimized": "optimized"}
-        montage_png(
-            ctx.path("comparison", "comparison.png"),
-            [src] + [tiles[k] for k in names],
-            titles=["input"] + [titles.get(k, f"cut {k[3:]} px, not optimized") for k in names],
-        )

@@ -1,8 +1,10 @@
-"""``synthkit symmetry-texture``: load, build the target, optimize, write the result and previews.
+"""``synthkit symmetry-texture``: load, build the target, optimize; the result in memory.
 
-Stages: ``load`` (images, blank/size checks), ``target`` (S(g) or FLT(S(f))), ``baseline``
-(unguided quilting from the same seed, synthesis modes), ``optimize`` (guided walk, ARAP or lens
-search), ``write``. Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
+:func:`compute` runs the stages on an :class:`~synthkit.io.inputs.Inputs` and returns a
+:class:`~synthkit.methods.symtex.outputs.SymmetryTextureResult` (``synthkit.symmetry_texture``);
+:func:`run` (the command line) writes it. Stages: ``load`` (images, blank/size checks),
+``target`` (S(g) or FLT(S(f))), ``baseline`` (unguided quilting from the same seed, synthesis
+modes), ``optimize`` (guided walk, ARAP or lens search), then ``write`` (:mod:`.outputs`). Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
 ``iterations`` plus mode-specific values; the synthesis modes report ``seam_visibility`` (of the
 result) and ``baseline_seam_visibility`` (of unguided quilting), see
 :func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into a baseline
@@ -17,34 +19,37 @@ from pathlib import Path
 
 import numpy as np
 
+from synthkit.api import result_fields
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.images import load_image, save_image
+from synthkit.io.inputs import Inputs
 from synthkit.methods.symtex import lens as lens_mod
 from synthkit.methods.symtex import synth as synth_mod
-from synthkit.methods.symtex.common import build_objective, build_targets, write_common
+from synthkit.methods.symtex.common import build_objective, build_targets, representations, result_peak
 from synthkit.methods.symtex.config import SymtexConfig
-from synthkit.preview import montage_png, plot_curve_png
+from synthkit.methods.symtex.outputs import SymmetryTextureResult
 
 MIN_SIZE = 8
 
 log = logging.getLogger("synthkit")
 
 
-def _load(path: Path, what: str) -> np.ndarray:
-    img = load_image(path, mode="rgb")
+def _load(inputs: Inputs, path: Path, key: str, what: str) -> np.ndarray:
+    """The image at config key ``key`` (a file or an array given in memory), checked."""
+    img = inputs.image(path, mode="rgb")
+    where = key if inputs.is_memory(path) else path
     if min(img.shape[:2]) < MIN_SIZE:
-        raise InputError(f"{path}: {what} is {img.shape[0]}x{img.shape[1]}, smaller than {MIN_SIZE}x{MIN_SIZE}")
+        raise InputError(f"{where}: {what} is {img.shape[0]}x{img.shape[1]}, smaller than {MIN_SIZE}x{MIN_SIZE}")
     if float(np.ptp(img)) <= 1e-6:
-        raise InputError(f"{path}: {what} is blank (constant): its symmetry representation is undefined")
+        raise InputError(f"{where}: {what} is blank (constant): its symmetry representation is undefined")
     return img
 
 
-def _check_signals(img: np.ndarray, signals, path: Path, what: str) -> None:
+def _check_signals(img: np.ndarray, signals, where, what: str) -> None:
     for s in signals:
         if float(np.ptp(sy.signal(img, s))) <= 1e-6:
-            raise InputError(f"{path}: {what} has a constant {s} signal: its symmetry representation is undefined")
+            raise InputError(f"{where}: {what} has a constant {s} signal: its symmetry representation is undefined")
 
 
 def resolve_auto_signals(cfg: SymtexConfig, src: np.ndarray, metrics: dict) -> SymtexConfig:
@@ -89,31 +94,55 @@ def check_image_budget(budget, cfg: SymtexConfig, src: np.ndarray) -> None:
         budget.require("output_size", f"{h}x{w}", float(h) * float(w), "pixels", bytes_each=PIXEL_BYTES)
 
 
-def run(cfg: SymtexConfig, ctx) -> None:
-    """Run one symmetry-texture config (see the module docstring)."""
+def compute(cfg: SymtexConfig, inputs: Inputs, ctx) -> SymmetryTextureResult:
+    """Run one symmetry-texture config on ``inputs`` (see the module docstring); write nothing."""
+    given = cfg
     pert = cfg.resolved_perturbation()
     with ctx.stage("load"):
-        src = _load(cfg.source, "source image")
+        src = _load(inputs, cfg.source, "source", "source image")
         if cfg.symmetry.signals == "auto":
             cfg = resolve_auto_signals(cfg, src, ctx.metrics)
-        _check_signals(src, cfg.symmetry.signals, cfg.source, "source image")
+        where = "source" if inputs.is_memory(cfg.source) else cfg.source
+        _check_signals(src, cfg.symmetry.signals, where, "source image")
         tgt = None
         if cfg.target is not None and cfg.mode == "transfer":
-            tgt = _load(cfg.target, "target image")
-            _check_signals(tgt, cfg.symmetry.signals, cfg.target, "target image")
+            tgt = _load(inputs, cfg.target, "target", "target image")
+            where = "target" if inputs.is_memory(cfg.target) else cfg.target
+            _check_signals(tgt, cfg.symmetry.signals, where, "target image")
     ctx.metrics["signals"] = list(cfg.symmetry.signals)
     check_image_budget(ctx.budget, cfg, src)
     if pert == "synth":
-        _run_synth(cfg, ctx, src, tgt)
+        out = _run_synth(cfg, ctx, src, tgt)
     elif pert == "lens":
-        _run_lens(cfg, ctx, src)
+        out = _run_lens(cfg, ctx, src)
     else:
-        from synthkit.methods.symtex import deform as deform_mod
+        out = _run_deform(cfg, ctx, src, tgt)
+    objective, targets = out.pop("objective"), out.pop("targets")
+    s_input, s_target, s_result = representations(cfg, src, out["image"], objective, targets)
+    if s_result.ndim == 2:
+        ctx.metrics["result_peak"] = result_peak(s_result)
+    return SymmetryTextureResult(source=src, s_input=s_input, s_target=s_target, s_result=s_result, **out,
+                                 **result_fields(given, ctx, inputs))
 
-        deform_mod.run_deform(cfg, ctx, src, tgt)
+
+def run(cfg: SymtexConfig, ctx) -> None:
+    """The command line's run: :func:`compute` on the config's files, then write the outputs."""
+    compute(cfg, Inputs(), ctx).write(ctx)
 
 
-def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> None:
+def _run_deform(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> dict:
+    from synthkit.methods.symtex import deform as deform_mod
+
+    try:
+        image, sample_map, tiles, objective, targets = deform_mod.run_deform(cfg, ctx, src, tgt)
+    except ValueError as exc:
+        if str(exc).startswith("tile.margin"):
+            raise ConfigError(str(exc)) from None
+        raise
+    return {"image": image, "sample_map": sample_map, "tiles": tiles, "objective": objective, "targets": targets}
+
+
+def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) -> dict:
     sc = cfg.synth
     out_shape = tuple(cfg.output_size) if cfg.output_size is not None else src.shape[:2]
     if sc.patch > min(src.shape[:2]):
@@ -185,18 +214,11 @@ def _run_synth(cfg: SymtexConfig, ctx, src: np.ndarray, tgt: np.ndarray | None) 
         output_size=list(out_shape),
         window=list(objective.window),
     )
-    with ctx.stage("write"):
-        write_common(cfg, ctx, src, image, objective, targets)
-        if cfg.mode != "quilt":
-            shown = [src, image] if not cfg.baseline else [src, baseline.image, image]
-            if cfg.baseline:
-                save_image(ctx.path("baseline", "baseline.png"), baseline.image)
-            if ctx.wants_preview("summary"):
-                titles = ["source", "guided"] if not cfg.baseline else ["source", "unguided", "guided"]
-                montage_png(ctx.path("comparison", "comparison.png"), shown, titles=titles)
+    return {"image": image, "baseline": baseline.image if cfg.mode != "quilt" and cfg.baseline else None,
+            "objective": objective, "targets": targets}
 
 
-def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
+def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> dict:
     lc = cfg.lens
     objective = build_objective(cfg, src.shape[:2], source=src)
     with ctx.stage("optimize"):
@@ -225,9 +247,4 @@ def _run_lens(cfg: SymtexConfig, ctx, src: np.ndarray) -> None:
         status="input returned" if reason else "symmetrized",
         status_reason=reason,
     )
-    with ctx.stage("write"):
-        write_common(cfg, ctx, src, image, objective, None)
-        ks, vals = np.array(sorted(history)).T
-        plot_curve_png(
-            ctx.preview_path("k1_search", "k1_search.png"), ks, vals, xlabel="k1", ylabel="E_symm", title="lens search"
-        )
+    return {"image": image, "k1_search": np.array(history, dtype=np.float64), "objective": objective, "targets": None}

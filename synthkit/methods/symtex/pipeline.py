@@ -4,12 +4,14 @@
 :class:`~synthkit.methods.symtex.outputs.SymmetryTextureResult` (``synthkit.symmetry_texture``);
 :func:`run` (the command line) writes it. Stages: ``load`` (images, blank/size checks),
 ``target`` (S(g) or FLT(S(f))), ``baseline`` (unguided quilting from the same seed, synthesis
-modes), ``optimize`` (guided walk, ARAP or lens search), then ``write`` (:mod:`.outputs`). Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``,
-``iterations`` plus mode-specific values; the synthesis modes report ``seam_visibility`` (of the
-result) and ``baseline_seam_visibility`` (of unguided quilting), see
-:func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into a baseline
-generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the baseline of a
-guided run with that seed.
+modes), ``optimize`` (guided walk, ARAP or lens search), then ``write`` (:mod:`.outputs`).
+
+Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``, ``iterations`` plus
+mode-specific values; the synthesis modes report ``seam_visibility`` (of the result) and
+``baseline_seam_visibility`` (of unguided quilting), see
+:func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into
+a baseline generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the
+baseline of a guided run with that seed.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ candidate is closer (so the objective never rises: a steepest-descent walk).
 
 Candidates are evaluated incrementally: the change of the windowed autocorrelation caused by
 replacing one block is computed from the block and its surroundings only
-(:class:`synthkit.core.symmetry.IncrementalAutocorrelation`), batched over all candidates of the
+(:class:`synthkit.core.autocorrelation.IncrementalAutocorrelation`), batched over all candidates of the
 tile (in chunks shared by two threads), and E_L2 of the standardized result follows from four
 sums of that change over the window, exactly (the same values as a full recompute, up to
 rounding). With every displacement in the window (``symmetry.window: 0.5``, the default) those
@@ -30,6 +30,7 @@ import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
+from synthkit.core.autocorrelation import IncrementalAutocorrelation
 
 
 @dataclass
@@ -154,7 +155,7 @@ def guided_walk(
 
     states = (
         [
-            sy.IncrementalAutocorrelation(f, window=window, offset=float(f.mean()), fft_dtype=np.float32)
+            IncrementalAutocorrelation(f, window=window, offset=float(f.mean()), fft_dtype=np.float32)
             for f in sig(canvas)
         ]
         if evaluation == "incremental"

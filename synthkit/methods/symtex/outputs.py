@@ -17,7 +17,7 @@ import numpy as np
 
 from synthkit.api import Result
 from synthkit.io.images import save_image
-from synthkit.methods.symtex.deform import tile_order
+from synthkit.methods.symtex.tile import tile_order
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png
 
 REPRESENTATION_NAMES = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}

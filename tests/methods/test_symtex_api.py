@@ -86,7 +86,7 @@ def test_key_errors_give_the_command_lines_message():
         synthkit.symmetry_texture(src, mode="transfer")
     with pytest.raises(ConfigError, match=r"unknown key 'synht' \(did you mean 'synth'\?\)"):
         synthkit.symmetry_texture(src, mode="quilt", synht={})
-    with pytest.raises(ConfigError, match=CALL + r"synth.patch 32 is larger than the 24x24"):
+    with pytest.raises(ConfigError, match=CALL + r"synth.patch 32 is larger than the 24x24 source image source$"):
         synthkit.symmetry_texture(src[:24, :24], mode="quilt")
     with pytest.raises(ConfigError, match=CALL + r"tile.margin 0.45 leaves a 2x2 tile of the 30x30 input$"):
         synthkit.symmetry_texture(src[:30, :30], mode="tile", tile={"margin": 0.45})
@@ -151,3 +151,23 @@ def test_the_docstring_example_runs():
     for test in finder.find(api.symmetry_texture, "symmetry_texture", globs={}):
         runner.run(test)
     assert runner.summarize(verbose=False).failed == 0 and runner.summarize(verbose=False).attempted >= 4
+
+
+def test_symmetrize_reports_the_ssim_of_what_it_returns():
+    """ssim_to_input is skimage's SSIM of the returned image to the input: 1 when the input comes
+    back; a symmetrized warped lattice is nearer (SSIM) the unwarped one than its input was."""
+    from skimage.metrics import structural_similarity
+
+    truth = textures.dots(64)
+    warped = textures.smooth_warp(truth, 2.0)
+    r = synthkit.symmetry_texture(warped, mode="symmetrize", symmetry={"signals": ["lum"]},
+                                  deform=dict(DEFORM, max_evaluations=300, levels=2))
+    ssim = structural_similarity(r.image, r.source, channel_axis=2, data_range=1.0)
+    assert r.metrics["status"] == "symmetrized" and r.metrics["ssim_to_input"] == pytest.approx(ssim)
+    assert ssim < 0.9
+    gain = [structural_similarity(img, truth, channel_axis=2, data_range=1.0) for img in (r.image, r.source)]
+    assert gain[0] > gain[1]
+    refused = synthkit.symmetry_texture(truth, mode="symmetrize", symmetry={"signals": ["lum"]}, deform=DEFORM,
+                                        seed=1)
+    assert refused.metrics["status"] == "input returned" and refused.image is refused.source
+    assert refused.metrics["ssim_to_input"] == 1.0

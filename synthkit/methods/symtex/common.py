@@ -101,3 +101,11 @@ def result_peak(rep: np.ndarray) -> list[int] | None:
         return list(sy.strongest_peak(rep))
     except ValueError:
         return None
+
+
+def similarity(image: np.ndarray, reference: np.ndarray) -> float:
+    """SSIM (``skimage.metrics.structural_similarity``, 7x7 windows, per channel) of two images
+    ``(H, W, C)`` in [0, 1]: 1 for equal images; the figure ``ssim_to_input`` of symmetrize."""
+    from skimage.metrics import structural_similarity
+
+    return float(structural_similarity(image, reference, channel_axis=2, data_range=1.0))

@@ -30,7 +30,7 @@ from synthkit.methods.symtex import deform as deform_mod
 from synthkit.methods.symtex import lens as lens_mod
 from synthkit.methods.symtex import synth as synth_mod
 from synthkit.methods.symtex import tile as tile_mod
-from synthkit.methods.symtex.common import build_objective, build_targets, representations, result_peak
+from synthkit.methods.symtex.common import build_objective, build_targets, representations, result_peak, similarity
 from synthkit.methods.symtex.config import SymtexConfig
 from synthkit.methods.symtex.options import SymtexOptions, options_from_config
 from synthkit.methods.symtex.outputs import SymmetryTextureResult
@@ -104,8 +104,8 @@ def compute(cfg: SymtexConfig, inputs: Inputs, ctx) -> SymmetryTextureResult:
         src = _load(inputs, cfg.source, "source", "source image")
         if cfg.symmetry.signals == "auto":
             cfg = resolve_auto_signals(cfg, src, ctx.metrics)
-        where = "source" if inputs.is_memory(cfg.source) else cfg.source
-        _check_signals(src, cfg.symmetry.signals, where, "source image")
+        _check_signals(src, cfg.symmetry.signals, "source" if inputs.is_memory(cfg.source) else cfg.source,
+                       "source image")
         tgt = None
         if cfg.target is not None and cfg.mode == "transfer":
             tgt = _load(inputs, cfg.target, "target", "target image")
@@ -114,15 +114,16 @@ def compute(cfg: SymtexConfig, inputs: Inputs, ctx) -> SymmetryTextureResult:
     ctx.metrics["signals"] = list(cfg.symmetry.signals)
     check_image_budget(ctx.budget, cfg, src)
     opts = options_from_config(cfg)
+    source = "source" if inputs.is_memory(cfg.source) else cfg.source  # what messages call it
     if opts.perturbation == "synth":
-        _check_patch(opts, src, cfg.source)
+        _check_patch(opts, src, source)
     try:
         if opts.perturbation == "synth":
             out = _run_synth(opts, ctx, src, tgt)
         elif opts.perturbation == "lens":
-            out = _run_lens(opts, ctx, src, cfg.source)
+            out = _run_lens(opts, ctx, src, source)
         else:
-            out = _run_deform(opts, ctx, src, tgt, cfg.source)
+            out = _run_deform(opts, ctx, src, tgt, source)
     except ValueError as exc:
         if str(exc).split(" ", 1)[0] in CONFIG_KEYS:  # a stage's refusal naming a config key
             raise ConfigError(str(exc)) from None
@@ -238,6 +239,7 @@ def _run_lens(opts: SymtexOptions, ctx, src: np.ndarray, source) -> dict:
         k1_searched=k1,
         status="input returned" if reason else "symmetrized",
         status_reason=reason,
+        ssim_to_input=similarity(image, src),
     )
     return {"image": image, "k1_search": np.array(history, dtype=np.float64), "objective": objective, "targets": None}
 
@@ -271,6 +273,7 @@ def _run_deform(opts: SymtexOptions, ctx, src: np.ndarray, tgt: np.ndarray | Non
                 metrics[f"refused_{key}"] = metrics[key]
             metrics.update(objective_end=metrics["baseline_objective"], mean_displacement=0.0,
                            max_displacement=0.0, max_displacement_gradient=0.0)
+        metrics["ssim_to_input"] = similarity(image, src)
     ctx.metrics.update(metrics)
     return {"image": image, "sample_map": sample_map, "tiles": tiles, "objective": objective, "targets": targets}
 

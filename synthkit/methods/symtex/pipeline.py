@@ -61,13 +61,9 @@ def resolve_auto_signals(cfg: SymtexConfig, src: np.ndarray, metrics: dict) -> S
     """``cfg`` with ``symmetry.signals: auto`` replaced by one signal chosen on ``src``.
 
     E_symm (tile, symmetrize): of ``lum`` and ``1-lum``, the one whose raw representation has the
-    larger variance; both variances go to ``metrics.signal_variances``. With ``f = mu + g`` on a
-    torus, raw S_T is ``(N mu^2 + AC_g) / (N mu^2 + AC_g(0))``, and ``1 - f`` has ``(1 - mu)`` in
-    place of ``mu``: the same pattern, divided by a larger constant for the signal whose mean is
-    farther from 0. On dark line art on white (``mu`` near 1) E_symm of lum is 1e-5 to 1e-8 of a
-    flat S near 1; 1-lum carries the same pattern at 40-1200x that size (a synthetic grid, the
-    negative of lattice-p4). With ``symmetry.mode: overlap`` (mean-free) both are equal: ``lum``.
-    E_L2 compares standardized representations, which are the same for lum and 1-lum: ``lum``.
+    larger variance (both go to ``metrics.signal_variances``; why: docs/findings/symmetry-texture.md).
+    With ``symmetry.mode: overlap`` (mean-free) both are equal: ``lum``. E_L2 compares
+    standardized representations, which are the same for lum and 1-lum: ``lum``.
     """
     if cfg.objective_kind() == "symm":
         objective = build_objective(options_from_config(cfg).objective, src.shape[:2])

@@ -171,3 +171,20 @@ def test_symmetrize_reports_the_ssim_of_what_it_returns():
                                         seed=1)
     assert refused.metrics["status"] == "input returned" and refused.image is refused.source
     assert refused.metrics["ssim_to_input"] == 1.0
+
+
+def test_transfer_save_writes_the_clis_bytes(tmp_path, write_config):
+    save_image(tmp_path / "src.png", textures.noise(64))
+    save_image(tmp_path / "tgt.png", textures.dots(64))
+    keys = dict(mode="transfer", output_size=[48, 48], baseline=True, symmetry={"signals": ["lum"]}, synth=SYNTH)
+    report = run_config(write_config(tmp_path, "t", source="src.png", target="tgt.png", **keys),
+                        out_dir=tmp_path / "cli", show_progress=False)
+    r = synthkit.symmetry_texture(load_image(tmp_path / "src.png"), load_image(tmp_path / "tgt.png"), **keys)
+    # comparison() is the montage comparison.png holds, before its 8-bit rounding
+    assert np.abs(r.comparison() - load_image(tmp_path / "cli" / "comparison.png")).max() <= 0.5 / 255 + 1e-6
+    saved = r.save(tmp_path / "api", previews="summary")
+    assert saved["outputs"] == {k: v for k, v in report["outputs"].items() if k in ("result", "baseline",
+                                                                                    "comparison", "report")}
+    for name in ("result.png", "baseline.png", "comparison.png"):
+        assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    assert saved["metrics"] == report["metrics"]

@@ -40,10 +40,15 @@ MIN_SIZE = 8
 log = logging.getLogger("synthkit")
 
 
+def _name(inputs: Inputs, path: Path, key: str):
+    """What messages call an input: its file, or its config key when it was given in memory."""
+    return key if inputs.is_memory(path) else path
+
+
 def _load(inputs: Inputs, path: Path, key: str, what: str) -> np.ndarray:
     """The image at config key ``key`` (a file or an array given in memory), checked."""
     img = inputs.image(path, mode="rgb")
-    where = key if inputs.is_memory(path) else path
+    where = _name(inputs, path, key)
     if min(img.shape[:2]) < MIN_SIZE:
         raise InputError(f"{where}: {what} is {img.shape[0]}x{img.shape[1]}, smaller than {MIN_SIZE}x{MIN_SIZE}")
     if float(np.ptp(img)) <= 1e-6:
@@ -84,10 +89,11 @@ PIXEL_BYTES = 512
 buffers (estimate)."""
 
 
-def check_image_budget(budget, cfg: SymtexConfig, src: np.ndarray) -> None:
-    """Refuse a source or output size whose working fields exceed the memory budget."""
+def check_image_budget(budget, cfg: SymtexConfig, src: np.ndarray, source=None) -> None:
+    """Refuse a source or output size whose working fields exceed the memory budget (``source``:
+    what the message calls the source image, default its file)."""
     H, W = src.shape[:2]
-    budget.require("source", f"{cfg.source} ({H}x{W})", H * W, "pixels", bytes_each=PIXEL_BYTES)
+    budget.require("source", f"{source or cfg.source} ({H}x{W})", H * W, "pixels", bytes_each=PIXEL_BYTES)
     if cfg.output_size is not None:
         h, w = cfg.output_size
         budget.require("output_size", f"{h}x{w}", float(h) * float(w), "pixels", bytes_each=PIXEL_BYTES)
@@ -96,21 +102,19 @@ def check_image_budget(budget, cfg: SymtexConfig, src: np.ndarray) -> None:
 def compute(cfg: SymtexConfig, inputs: Inputs, ctx) -> SymmetryTextureResult:
     """Run one symmetry-texture config on ``inputs`` (see the module docstring); write nothing."""
     given = cfg
+    source = _name(inputs, cfg.source, "source")
     with ctx.stage("load"):
         src = _load(inputs, cfg.source, "source", "source image")
         if cfg.symmetry.signals == "auto":
             cfg = resolve_auto_signals(cfg, src, ctx.metrics)
-        _check_signals(src, cfg.symmetry.signals, "source" if inputs.is_memory(cfg.source) else cfg.source,
-                       "source image")
+        _check_signals(src, cfg.symmetry.signals, source, "source image")
         tgt = None
         if cfg.target is not None and cfg.mode == "transfer":
             tgt = _load(inputs, cfg.target, "target", "target image")
-            where = "target" if inputs.is_memory(cfg.target) else cfg.target
-            _check_signals(tgt, cfg.symmetry.signals, where, "target image")
+            _check_signals(tgt, cfg.symmetry.signals, _name(inputs, cfg.target, "target"), "target image")
     ctx.metrics["signals"] = list(cfg.symmetry.signals)
-    check_image_budget(ctx.budget, cfg, src)
+    check_image_budget(ctx.budget, cfg, src, source)
     opts = options_from_config(cfg)
-    source = "source" if inputs.is_memory(cfg.source) else cfg.source  # what messages call it
     if opts.perturbation == "synth":
         _check_patch(opts, src, source)
     try:

@@ -29,6 +29,25 @@ _VIEWS = {
 }
 _BASE_COLOR = np.array([0.72, 0.76, 0.84])
 
+SET1 = np.array(
+    [[228, 26, 28], [55, 126, 184], [77, 175, 74], [152, 78, 163], [255, 127, 0], [255, 255, 51],
+     [166, 86, 40], [247, 129, 191], [153, 153, 153], [102, 194, 165]], dtype=np.uint8
+)
+"""``(10, 3) uint8`` the qualitative palette of region colours (ColorBrewer Set1, then Set2's first)."""
+
+
+def golden_hues(n: int, *, start: float = 0.0, saturation: float = 0.55, value: float = 0.92) -> np.ndarray:
+    """``(n, 3)`` float64 RGB in [0, 1] of ``n`` distinct colours: hues ``start + i * 0.618...``
+    (golden-ratio steps, so any prefix is spread out) at one saturation and value."""
+    h = (start + np.arange(n) * 0.618033988749895) % 1.0
+    sector = np.floor(h * 6).astype(int) % 6
+    f = h * 6 - np.floor(h * 6)
+    v = np.full(n, float(value))
+    p, q, t = v * (1 - saturation), v * (1 - f * saturation), v * (1 - (1 - f) * saturation)
+    table = np.stack([np.stack(rgb, 1) for rgb in
+                      ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q))])
+    return table[sector, np.arange(n)]
+
 
 @dataclass
 class Appearance:

@@ -27,6 +27,7 @@ import trimesh
 from synthkit.errors import InputError
 from synthkit.io._capture import check_readable
 from synthkit.io.atomic import write_bytes_atomic
+from synthkit.io.ply import ply_bytes, read_face_property
 
 log = logging.getLogger(__name__)
 
@@ -214,68 +215,16 @@ def save_mesh(
     write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
 
 
-_FACE_RECORDS = {
-    ("list uchar int vertex_indices", "int label"): [("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4")],
-    ("list uchar int vertex_indices", "int label", "uchar red", "uchar green", "uchar blue"): [
-        ("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))
-    ],
-}
-"""Face record layouts :func:`save_mesh` writes (by their header property lines), as numpy dtypes."""
-
-
 def load_face_labels(path: Path | str) -> np.ndarray:
-    """Per-face ``label`` property of a PLY written by :func:`save_mesh` (with or without face
-    colours), as ``(#F,) int32``."""
-    path = Path(path)
-    with open(path, "rb") as fh:
-        header = []
-        while True:
-            line = fh.readline()
-            if not line:
-                raise InputError(f"{path}: truncated PLY header")
-            header.append(line.decode("ascii", "replace").strip())
-            if header[-1] == "end_header":
-                break
-        body = fh.read()
-    n_vertices = n_faces = 0
-    face_props: list[str] = []
-    element = None
-    for line in header:
-        if line.startswith("element "):
-            element = line.split()[1]
-            if element == "vertex":
-                n_vertices = int(line.split()[-1])
-            elif element == "face":
-                n_faces = int(line.split()[-1])
-        elif line.startswith("property ") and element == "face":
-            face_props.append(line.removeprefix("property "))
-    if "int label" not in face_props:
-        raise InputError(f"{path}: PLY has no per-face 'label' property")
-    layout = _FACE_RECORDS.get(tuple(face_props))
-    if layout is None:
-        raise InputError(f"{path}: face properties {face_props} are not a layout synthkit writes")
-    vertex_bytes = n_vertices * 3 * 4
-    faces = np.frombuffer(body, dtype=np.dtype(layout), count=n_faces, offset=vertex_bytes)
-    return faces["label"].astype(np.int32)
+    """Per-face ``label`` property of a PLY written by :func:`save_mesh` (or any PLY with one), as
+    ``(#F,) int32``."""
+    return read_face_property(Path(path), "label").astype(np.int32)
 
 
 def _ply_with_face_labels(mesh: trimesh.Trimesh, labels: np.ndarray, colors: np.ndarray | None = None) -> bytes:
     """Binary little-endian PLY: float32 xyz, triangles with an int32 ``label`` per face and, with
     ``colors (#F, 3) uint8``, ``uchar red green blue``."""
-    V = np.asarray(mesh.vertices, dtype="<f4")
-    F = np.asarray(mesh.faces)
-    props = ("list uchar int vertex_indices", "int label") + (
-        () if colors is None else ("uchar red", "uchar green", "uchar blue")
-    )
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
-        f"element face {len(F)}\n" + "".join(f"property {p}\n" for p in props) + "end_header\n"
-    ).encode("ascii")
-    faces = np.empty(len(F), dtype=np.dtype(_FACE_RECORDS[props]))
-    faces["n"] = 3
-    faces["idx"] = F
-    faces["label"] = labels
+    face = [("label", "int", labels)]
     if colors is not None:
-        faces["rgb"] = colors
-    return header + V.tobytes() + faces.tobytes()
+        face += [(c, "uchar", colors[:, k]) for k, c in enumerate(("red", "green", "blue"))]
+    return ply_bytes(mesh.vertices, mesh.faces, face=face)

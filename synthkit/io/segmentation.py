@@ -11,6 +11,10 @@ import numpy as np
 
 from synthkit.errors import InputError
 from synthkit.io.atomic import write_bytes_atomic
+from synthkit.io.ply import ply_bytes
+
+RGB = ("red", "green", "blue")
+"""PLY's colour property names."""
 
 __all__ = ["write_labels_ply", "write_seg", "read_seg", "write_polylines_obj", "write_point_polylines_obj"]
 
@@ -19,19 +23,12 @@ def write_labels_ply(path, V, F, face_labels, vertex_labels, face_colors, vertex
     """Binary PLY of ``V (#V, 3)``, ``F (#F, 3)`` with int32 ``label`` and uchar ``red green blue``
     on both vertices (``vertex_labels (#V,)``, ``vertex_colors (#V, 3) uint8``) and faces
     (``face_labels (#F,)``, ``face_colors (#F, 3) uint8``)."""
-    V = np.asarray(V)
-    F = np.asarray(F)
-    vrec = np.empty(len(V), dtype=[("xyz", "<f4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
-    vrec["xyz"], vrec["label"], vrec["rgb"] = V, vertex_labels, vertex_colors
-    frec = np.empty(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,)), ("label", "<i4"), ("rgb", "u1", (3,))])
-    frec["n"], frec["idx"], frec["label"], frec["rgb"] = 3, F, face_labels, face_colors
-    rgb = "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\nproperty int label\n{rgb}"
-        f"element face {len(F)}\nproperty list uchar int vertex_indices\nproperty int label\n{rgb}end_header\n"
-    )
-    write_bytes_atomic(Path(path), header.encode("ascii") + vrec.tobytes() + frec.tobytes())
+    def props(labels, colors):
+        colors = np.asarray(colors)
+        return [("label", "int", labels), *[(c, "uchar", colors[:, k]) for k, c in enumerate(RGB)]]
+
+    data = ply_bytes(V, F, vertex=props(vertex_labels, vertex_colors), face=props(face_labels, face_colors))
+    write_bytes_atomic(Path(path), data)
 
 
 def write_seg(path, face_labels) -> None:

@@ -11,7 +11,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from synthkit.errors import InputError
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
+from synthkit.io.ply import ply_bytes, read_face_property
 
 __all__ = [
     "vertex_colors", "vertex_attribute", "texture_of", "image_grid", "write_signal_ply", "read_face_labels",
@@ -82,47 +84,25 @@ def image_grid(mask: np.ndarray, *, width: float, resolution: int):
 def write_signal_ply(path, V, F, colors, attributes: dict[str, np.ndarray] | None = None) -> None:
     """Binary PLY of ``V (#V, 3)``, ``F (#F, 3)`` with uchar ``red green blue`` from ``colors
     (#V, 3) uint8`` and float properties ``<name>`` (one column) or ``<name>_<k>`` per column."""
-    V, F = np.asarray(V), np.asarray(F)
-    fields = [("xyz", "<f4", (3,)), ("rgb", "u1", (3,))]
-    props, cols = [], []
+    colors = np.asarray(colors)
+    props = [(c, "uchar", colors[:, k]) for k, c in enumerate(("red", "green", "blue"))]
     for name, values in (attributes or {}).items():
         values = np.asarray(values, np.float32).reshape(len(V), -1)
         names = [name] if values.shape[1] == 1 else [f"{name}_{k}" for k in range(values.shape[1])]
-        for k, n in enumerate(names):
-            fields.append((n, "<f4"))
-            props.append(f"property float {n}\n")
-            cols.append((n, values[:, k]))
-    rec = np.empty(len(V), dtype=fields)
-    rec["xyz"], rec["rgb"] = V, colors
-    for n, v in cols:
-        rec[n] = v
-    frec = np.empty(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
-    frec["n"], frec["idx"] = 3, F
-    header = ("ply\nformat binary_little_endian 1.0\n"
-              f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
-              "property uchar red\nproperty uchar green\nproperty uchar blue\n" + "".join(props)
-              + f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
-    write_bytes_atomic(path, header.encode("ascii") + rec.tobytes() + frec.tobytes())
+        props += [(n, "float", values[:, k]) for k, n in enumerate(names)]
+    write_bytes_atomic(path, ply_bytes(V, F, vertex=props))
 
 
 def read_face_labels(path, n_faces: int) -> np.ndarray:
     """Face labels ``(#F,) int64`` of a ``.seg`` file or of a PLY's per-face ``label`` property
     (``labels.ply`` of a segment run); InputError when unreadable, without labels or of the wrong
     length."""
-    from synthkit.errors import InputError
     from synthkit.io.segmentation import read_seg
 
     path = Path(path)
     if path.suffix.lower() != ".ply":
         return read_seg(path, n_faces)
-    try:
-        loaded = trimesh.load(path, process=False)
-    except Exception as exc:  # trimesh raises many types for corrupt files
-        raise InputError(f"{path}: cannot read labels: {type(exc).__name__}: {exc}".splitlines()[0]) from None
-    raw = getattr(loaded, "metadata", {}).get("_ply_raw", {}).get("face", {}).get("data", {})
-    if not isinstance(raw, dict) or "label" not in raw:
-        raise InputError(f"{path}: PLY has no per-face 'label' property")
-    labels = np.asarray(raw["label"], np.int64).reshape(-1)
+    labels = read_face_property(path, "label").astype(np.int64)
     if len(labels) != n_faces:
         raise InputError(f"{path}: {len(labels)} labels for {n_faces} faces")
     return labels

@@ -518,12 +518,3 @@ def strongest_peak(S: np.ndarray, *, min_distance: float = 1.0) -> tuple[int, in
     k = int(ties[np.argmin(dist.ravel()[ties])])
     return int(dy.flat[k]), int(dx.flat[k])
 
-
-def __getattr__(name: str):
-    # IncrementalAutocorrelation moved to synthkit.core.autocorrelation (issue 27); the benchmarks
-    # still reach it here
-    if name == "IncrementalAutocorrelation":
-        from synthkit.core.autocorrelation import IncrementalAutocorrelation
-
-        return IncrementalAutocorrelation
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

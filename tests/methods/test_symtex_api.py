@@ -188,3 +188,16 @@ def test_transfer_save_writes_the_clis_bytes(tmp_path, write_config):
     for name in ("result.png", "baseline.png", "comparison.png"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
     assert saved["metrics"] == report["metrics"]
+
+
+def test_a_bad_key_gives_the_same_line_as_the_command_line(tmp_path, write_config):
+    from synthkit.runner import load_method_config
+
+    save_image(tmp_path / "src.png", textures.noise(32))
+    path = write_config(tmp_path, "bad", mode="quilt", source="src.png", synth={"patch": 2, "overlap": 1})
+    with pytest.raises(ConfigError) as cli:
+        load_method_config(path)
+    with pytest.raises(ConfigError) as api:
+        synthkit.symmetry_texture(textures.noise(32), mode="quilt", synth={"patch": 2, "overlap": 1})
+    assert str(cli.value).removeprefix(f"{path}: ") == str(api.value).removeprefix("synthkit.symmetry_texture(): ")
+    assert "synth.patch" in str(api.value)

@@ -9,7 +9,7 @@ import pytest
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image, save_image
-from synthkit.methods.symtex import deform, lens, synth
+from synthkit.methods.symtex import deform, lens, synth, tile
 from synthkit.runner import run_config
 from synthkit.samples import textures
 
@@ -120,7 +120,7 @@ def test_guided_walk_threads_and_full_evaluation_agree(window):
     sources = runs[0].sources
     np.testing.assert_array_equal(runs[0].image, src[sources[..., 0], sources[..., 1]])
     assert synth.seam_visibility(src, np.stack(np.mgrid[0:48, 0:48], axis=2)) == pytest.approx(
-        deform.seam_ratio(src)
+        tile.seam_ratio(src)
     )
 
 
@@ -195,13 +195,12 @@ def test_tile_is_seamless(tile_run, seam_steps):
     # the discontinuity is not merely moved off the seam: the 3 steps either side of it are no
     # rougher than the same band around interior lines of the tile (content makes that band's
     # energy vary from line to line: a row of dots inside it or not)
-    from synthkit.methods.symtex import deform
 
     m = report["metrics"]
     H, W = out.shape[:2]
-    band = deform.seam_ratio(out, width=3)
+    band = tile.seam_ratio(out, width=3)
     inner = [
-        deform.seam_ratio(np.roll(out, (dy, dx), (0, 1)), width=3)
+        tile.seam_ratio(np.roll(out, (dy, dx), (0, 1)), width=3)
         for dy in range(8, H - 7, 4)
         for dx in range(8, W - 7, 4)
     ]
@@ -325,11 +324,10 @@ def test_search_k1_finds_maximum_of_known_function():
 
 @pytest.mark.parametrize("shape", [(48, 40), (33, 50)])
 def test_toroidal_blend_makes_wrap_steps_interior_like(shape):
-    from synthkit.methods.symtex import deform
 
     H, W = shape
     img = textures.wavy(96)[5 : 5 + H, 11 : 11 + W]
-    out = deform.toroidal_blend(img).astype(np.float64)
+    out = tile.toroidal_blend(img).astype(np.float64)
     # each wrap-around step equals the central estimate from its two neighbouring interior steps
     # (exact up to float32 rounding: no clipping happens on this input), corners included
     assert 0.0 < out.min() and out.max() < 1.0
@@ -339,8 +337,8 @@ def test_toroidal_blend_makes_wrap_steps_interior_like(shape):
     np.testing.assert_allclose(out[0] - out[-1], 0.5 * (out[-1] - out[-2] + out[1] - out[0]), atol=2e-6)
     # and is not the zero step of copying one border onto the other
     assert np.abs(out[:, 0] - out[:, -1]).mean() > 1e-3
-    assert deform.seam_ratio(out) <= 1.5 < deform.seam_ratio(img)
-    assert deform.seam_ratio(out, width=3) <= 1.5
+    assert tile.seam_ratio(out) <= 1.5 < tile.seam_ratio(img)
+    assert tile.seam_ratio(out, width=3) <= 1.5
     # the correction fades towards the centre: the middle changes far less than the borders
     c = np.abs(out - img)
     assert c[H // 2 - 4 : H // 2 + 4, W // 2 - 4 : W // 2 + 4].mean() < 0.5 * c[:, 0].mean()
@@ -349,20 +347,18 @@ def test_toroidal_blend_makes_wrap_steps_interior_like(shape):
 def test_toroidal_blend_band_evaluation_matches_exact_mvc():
     """The banded / coarse-grid spread of the border correction is the exact MVC interpolant to within 1/255."""
     from synthkit.core.warp import mean_value_coordinates
-    from synthkit.methods.symtex import deform
 
     img = textures.wavy(96)[3:67, 9:73]
     H, W = img.shape[:2]
-    poly = deform._border_polygon(H, W, 1)
+    poly = tile._border_polygon(H, W, 1)
     c = np.random.default_rng(0).standard_normal((len(poly), 1)) * 0.05
     yy, xx = np.mgrid[0:H, 0:W]
     exact = (mean_value_coordinates(np.stack([xx.ravel(), yy.ravel()], 1).astype(float), poly) @ c).reshape(H, W, 1)
-    fast = deform._spread(c, (H, W), poly, band=8, step=4)
+    fast = tile._spread(c, (H, W), poly, band=8, step=4)
     assert np.abs(fast - exact).max() < 1.0 / 255
 
 
 def test_control_points_count_spacing_and_determinism():
-    from synthkit.methods.symtex import deform
 
     img = textures.dots(96)
     a = deform.control_points(img, 40, np.random.default_rng(3))
@@ -377,7 +373,6 @@ def test_control_points_count_spacing_and_determinism():
 
 
 def test_control_points_shortfall_warns_and_is_recorded(tmp_path, caplog, write_config):
-    from synthkit.methods.symtex import deform
 
     img = textures.dots(24)
     with caplog.at_level("WARNING", logger="synthkit"):
@@ -414,7 +409,7 @@ def test_choose_tile_rule():
     E_symm >= the input's with 0.1% slack, sharpness >= 0.9) the lowest seam ratio; when none
     does, the lowest of the baseline, the input and the made tiles that keep E_symm and
     sharpness; ties to optimized, the cut tiles by overlap, baseline, input."""
-    from synthkit.methods.symtex.deform import choose_tile
+    from synthkit.methods.symtex.tile import choose_tile
 
     def cand(seam, obj=1.0, sharp=1.0):
         return {"seam_ratio": seam, "objective": obj, "sharpness": sharp}
@@ -439,7 +434,7 @@ def test_choose_tile_rule():
 
 
 def test_tile_crop_and_high_frequency_energy():
-    from synthkit.methods.symtex.deform import high_frequency_energy, tile_crop
+    from synthkit.methods.symtex.tile import high_frequency_energy, tile_crop
 
     assert tile_crop((256, 221), 0.2) == ((154, 133), (51, 44))
     assert tile_crop((10, 10), 0.0) == ((10, 10), (0, 0))
@@ -528,11 +523,23 @@ def test_symmetry_crop_auto_is_periods_for_symmetrize_by_deform_only():
 def test_cut_overlaps_that_do_not_fit_are_skipped_with_a_warning(caplog):
     import logging
 
-    from synthkit.methods.symtex.deform import _cut_overlaps
+    from synthkit.methods.symtex.tile import cut_overlaps
 
     with caplog.at_level(logging.WARNING, logger="synthkit"):
-        assert _cut_overlaps([24, 8, 16, 8], (40, 64)) == [8, 16]
+        assert cut_overlaps([24, 8, 16, 8], (40, 64)) == [8, 16]
     assert any("tile.cut_overlaps: [24]" in r.getMessage() for r in caplog.records)
     caplog.clear()
-    assert _cut_overlaps([], (40, 64)) == []
+    assert cut_overlaps([], (40, 64)) == []
     assert not caplog.records
+
+
+
+def test_only_outputs_py_writes_files():
+    """Issue 27: the stage modules and the pipeline compute; outputs.py writes every file and
+    preview (function length, user errors and private imports: tests/test_architecture.py)."""
+    import synthkit.methods.symtex
+
+    for path in sorted(Path(synthkit.methods.symtex.__file__).parent.glob("*.py")):
+        if path.name != "outputs.py":
+            text = path.read_text()
+            assert not any(w in text for w in ("save_image(", "np.save(", "ctx.path(", "_png(")), path.name

@@ -152,7 +152,7 @@ def test_real_photo_tile_never_worse_than_baseline_or_input(tmp_path, write_conf
     within tile.max_stretch; result.png is the candidate report.json names. The 3x3 tilings
     (tiled_3x3.png of the result, tiled_optimized_3x3.png, tiled_baseline_3x3.png) stay in tmp_path."""
     from synthkit.core.tiling import cut_tile, seam_masks
-    from synthkit.methods.symtex.deform import E_SYMM_TOL, SHARPNESS_MIN, high_frequency_energy, seam_ratio
+    from synthkit.methods.symtex.tile import E_SYMM_TOL, SHARPNESS_MIN, high_frequency_energy, seam_ratio
 
     crop = native_crop(name, 160)
     save_image(tmp_path / "c.png", crop)
@@ -200,7 +200,7 @@ TILE_E_SYMM_MISSED = pytest.mark.xfail(
 def test_real_photo_tile_keeps_the_inputs_e_symm(tmp_path, write_config, name):
     """Issue 14's remaining tile goal on the 160 px native crop: E_symm of the returned tile is not
     below the input's (within E_SYMM_TOL), whichever candidate is returned."""
-    from synthkit.methods.symtex.deform import E_SYMM_TOL
+    from synthkit.methods.symtex.tile import E_SYMM_TOL
 
     save_image(tmp_path / "c.png", native_crop(name, 160))
     report = run_config(write_config(tmp_path, "t", **TILE_REAL), out_dir=tmp_path / "out", show_progress=False)

@@ -1,8 +1,11 @@
 """Symmetry-guided texture synthesis and processing (Kim, Lipman, Funkhouser).
 
-Stages: :mod:`.common` builds the objective and its targets; :mod:`.synth` (guided quilting),
-:mod:`.deform` (ARAP warping, tiling) and :mod:`.lens` (radial undistortion) optimize it;
-:mod:`.pipeline` runs a config's mode.
+Rooms: :mod:`.config` (the schema), :mod:`.options` (stage arguments built from a config),
+stage modules over arrays (:mod:`.common` the objective and its targets, :mod:`.objective`,
+:mod:`.synth` guided quilting, :mod:`.deform` ARAP warping, :mod:`.tile` the tile candidates,
+:mod:`.lens` radial undistortion), :mod:`.pipeline` (inputs, stages, error mapping; ``compute``
+and ``run``), :mod:`.outputs` (the result and its files) and :mod:`.api`
+(``synthkit.symmetry_texture``).
 """
 
 SET_EXAMPLE = "synth.patch=24"

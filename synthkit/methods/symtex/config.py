@@ -60,10 +60,8 @@ class SymmetrySection(StrictModel):
         description=(
             "S_T displacement window as a fraction of the output's height/width; 0.5 (the default) = "
             "every translation, the paper's S_T; smaller values limit S_T to shorter displacements "
-            "(the paper's optional reduced domain, for smaller patterns). A 512x512 transfer with the "
-            "other defaults took 44.7 s at 0.5 and 49.0 s at 0.25 through run_config (2-core machine "
-            "shared with other work, one run each; before the spectral evaluation without full-size "
-            "transforms per candidate: 131 s at 0.5); the issue's goal is 60 s."
+            "(the paper's optional reduced domain, for smaller patterns); both take about as long "
+            "(docs/findings/symmetry-texture.md)."
         ),
     )
     center: tuple[float, float] | None = Field(
@@ -239,11 +237,8 @@ class TileSection(StrictModel):
 
 
 SYMMETRIZE_MIN_GAIN = 0.01
-"""Default ``deform.min_gain`` of mode symmetrize. 128 px real photographs, whole-period crop
-(README): unwarped, the grid, stripes, cars and brick move 0.54, 0.34, 0.65, 0.68 px instead of
-0.77, 0.86, 1.81, 1.19 px; the warped grid still has 64% of its field error removed (65% at 0);
-0.003 left the cars at 1.87 px. Seed 0; over seeds 0-3 the cars move 0.65-1.16 px and the brick
-0.68-1.92 px, the grid and the stripes stay within 0.54 px."""
+"""Default ``deform.min_gain`` of mode symmetrize: each move must buy 1% of E_symm, so that an
+already regular photograph comes back nearly unchanged (docs/findings/symmetry-texture.md)."""
 
 
 class SymtexConfig(RunConfig):

@@ -79,11 +79,8 @@ class Objective:
     def representations(self, img: np.ndarray) -> list[np.ndarray]:
         """Per-signal representations of ``img`` (standardized for E_L2, raw for E_symm)."""
         if self.kind == "symm":
-            # E_symm is the variance of a raw S close to a constant (S = 1 at zero displacement,
-            # near mu^2 / E[f^2] elsewhere). float32 resolves S near 1 to 6e-8, so on faint line
-            # art (E_symm 4.6e-8: variations of 2e-4) a probe's change keeps 3 digits; float64.
-            # On the negative of lattice-p4 (E_symm 1e-5) float32 and float64 agree to 1e-6: there
-            # the signal, not the precision, is what fails (see signals: auto)
+            # E_symm is the variance of a raw S close to a constant: float64 (float32 kept 3 digits
+            # of a probe's change on faint line art; docs/findings/symmetry-texture.md)
             img64 = np.asarray(img, dtype=np.float64)
             return [self.represent(sy.signal(img64, s), standardize=False) for s in self.signals]
         img32 = np.asarray(img, dtype=np.float32)

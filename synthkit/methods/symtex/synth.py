@@ -10,7 +10,7 @@ candidate is closer (so the objective never rises: a steepest-descent walk).
 
 Candidates are evaluated incrementally: the change of the windowed autocorrelation caused by
 replacing one block is computed from the block and its surroundings only
-(:class:`synthkit.core.symmetry.IncrementalAutocorrelation`), batched over all candidates of the
+(:class:`synthkit.core.autocorrelation.IncrementalAutocorrelation`), batched over all candidates of the
 tile (in chunks shared by two threads), and E_L2 of the standardized result follows from four
 sums of that change over the window, exactly (the same values as a full recompute, up to
 rounding). With every displacement in the window (``symmetry.window: 0.5``, the default) those
@@ -30,6 +30,7 @@ import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
+from synthkit.core.autocorrelation import IncrementalAutocorrelation
 
 
 @dataclass
@@ -133,33 +134,23 @@ def guided_walk(
         ``min(2, os.cpu_count())``); the result does not depend on it.
     """
     src = np.asarray(source, dtype=np.float32)
-    canvas = init.image.copy()
-    origins = init.origins.copy()
-    sources = init.sources.copy()
+    canvas, origins, sources = init.image.copy(), init.origins.copy(), init.sources.copy()
     ys, xs = init.ys, init.xs
     H, W = canvas.shape[:2]
     if 2 * patch > min(H, W):
         evaluation = "full"
     targets = [np.asarray(t, dtype=np.float64) for t in targets]
-    if workers is None:
-        workers = min(2, os.cpu_count() or 1)
+    workers = min(2, os.cpu_count() or 1) if workers is None else workers
 
     def sig(img):
         return [sy.signal(img, s).astype(np.float64) for s in signals]
 
     def full_value(img):
-        return float(
-            sum(sy.e_l2(sy.translational(f, window=window), T) for f, T in zip(sig(img), targets, strict=True))
-        )
+        pairs = zip(sig(img), targets, strict=True)
+        return float(sum(sy.e_l2(sy.translational(f, window=window), T) for f, T in pairs))
 
-    states = (
-        [
-            sy.IncrementalAutocorrelation(f, window=window, offset=float(f.mean()), fft_dtype=np.float32)
-            for f in sig(canvas)
-        ]
-        if evaluation == "incremental"
-        else []
-    )
+    states = [] if evaluation != "incremental" else [
+        IncrementalAutocorrelation(f, window=window, offset=float(f.mean()), fft_dtype=np.float32) for f in sig(canvas)]
 
     def current_value():
         if states:
@@ -173,32 +164,15 @@ def guided_walk(
     matcher = q.PatchMatcher(src, patch)
     for _ in range(sweeps):
         changed = 0
-        iterator = progress(tiles, total=len(tiles), desc="guided walk") if progress else tiles
-        for i, j in iterator:
+        for i, j in progress(tiles, total=len(tiles), desc="guided walk") if progress else tiles:
             y0, x0 = int(ys[i]), int(xs[j])
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
-            region = canvas[np.ix_(ry, rx)]
-            overlaps = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
-            band = _band(patch, overlaps)
-            cost = matcher.costs(region, band)
-            pos = q.candidates(cost, tol=None, k=candidates)
-            patches = q.source_patches(src, pos, patch)
-            keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
-            k = keep[..., None] if patches.ndim == 4 else keep
-            news = np.where(k, patches, region[None])
+            pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch, candidates, seams)
             result.iterations += 1
             result.candidates_evaluated += len(pos)
             if states:
-                old_sig = sig(region)
-                values = np.zeros(len(pos))
-                grids = []
-                for st, T, s_name, f_old in zip(states, targets, signals, old_sig, strict=True):
-                    # all candidates' signals at once: the stack seen as one (K B, B[, C]) image
-                    stacked = sy.signal(news.reshape(len(news) * patch, *news.shape[2:]), s_name)
-                    deltas = stacked.reshape(len(news), patch, patch).astype(np.float64) - f_old[None]
-                    vals, halves = st.l2_of_changes(y0, x0, deltas, T, workers=workers)
-                    values += vals
-                    grids.append((halves, deltas))
+                values, grids = _incremental_values(states, targets, signals, canvas[np.ix_(ry, rx)], news,
+                                                    (y0, x0), workers)
             else:
                 values = np.empty(len(pos))
                 for c in range(len(pos)):
@@ -223,10 +197,42 @@ def guided_walk(
         result.changed += changed
         if changed == 0:
             break
-    result.image = canvas
-    result.origins = origins
-    result.sources = sources
+    result.image, result.origins, result.sources = canvas, origins, sources
     return result
+
+
+def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):
+    """The ``k`` overlap-consistent candidates of tile ``(i, j)`` of the toroidal grid, each cut
+    into place: source positions ``(k, 2)``, cut masks ``(k, B, B) bool`` and the blocks they
+    give ``(k, B, B[, C])``."""
+    H, W = canvas.shape[:2]
+    i, j = tile
+    ry, rx = q.region_indices(int(ys[i]), int(xs[j]), patch, (H, W))
+    region = canvas[np.ix_(ry, rx)]
+    overlaps = q.tile_overlaps(ys, xs, i, j, patch, (H, W))
+    pos = q.candidates(matcher.costs(region, _band(patch, overlaps)), tol=None, k=candidates)
+    patches = q.source_patches(src, pos, patch)
+    keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
+    k = keep[..., None] if patches.ndim == 4 else keep
+    return pos, keep, np.where(k, patches, region[None])
+
+
+def _incremental_values(states, targets, signals, region, news, corner, workers: int):
+    """E_L2 ``(k,)`` of every candidate block ``news`` replacing ``region`` at ``corner`` (y0, x0),
+    summed over the signals, and per signal the halves and signal changes that apply the best."""
+    y0, x0 = corner
+    patch = region.shape[0]
+    values = np.zeros(len(news))
+    grids = []
+    for st, T, s_name in zip(states, targets, signals, strict=True):
+        f_old = sy.signal(region, s_name).astype(np.float64)
+        # all candidates' signals at once: the stack seen as one (K B, B[, C]) image
+        stacked = sy.signal(news.reshape(len(news) * patch, *news.shape[2:]), s_name)
+        deltas = stacked.reshape(len(news), patch, patch).astype(np.float64) - f_old[None]
+        vals, halves = st.l2_of_changes(y0, x0, deltas, T, workers=workers)
+        values += vals
+        grids.append((halves, deltas))
+    return values, grids
 
 
 def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:
@@ -237,6 +243,6 @@ def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:
     pixels (``sources (H, W, 2)``, :func:`synthkit.core.tiling.seam_masks`); about 1 when the
     borders cannot be told from the patches' insides, above 1 when edges show."""
     from synthkit.core.tiling import seam_masks
-    from synthkit.methods.symtex.deform import seam_ratio
+    from synthkit.methods.symtex.tile import seam_ratio
 
     return seam_ratio(image, seams=seam_masks(sources))

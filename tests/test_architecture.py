@@ -124,10 +124,7 @@ MAX_FUNCTION_LINES = 80
 """Most lines of code (no docstring, blank or comment lines) a function may have; numba kernels,
 which cannot call helpers cheaply, are exempt."""
 
-KNOWN_LONG_FUNCTIONS = {
-    "methods/petri/net.py:_fire_all", "methods/retarget/pipeline.py:run", "methods/symtex/deform.py:run_deform",
-    "methods/symtex/pipeline.py:_run_synth", "methods/symtex/synth.py:guided_walk",
-}
+KNOWN_LONG_FUNCTIONS = {"methods/petri/net.py:_fire_all", "methods/retarget/pipeline.py:run"}
 """Functions over the limit left to split (issue 27)."""
 
 
@@ -161,7 +158,7 @@ USER_ERRORS = ("ConfigError", "InputError")
 
 KNOWN_STAGE_RAISES = {
     "methods/petri/network.py", "methods/petri/construction.py", "methods/reshape/retexture.py",
-    "methods/petri/analysis.py", "methods/petri/net.py", "methods/symtex/common.py",
+    "methods/petri/analysis.py", "methods/petri/net.py",
 }
 """Stage modules that still raise config or input errors themselves (issue 27)."""
 

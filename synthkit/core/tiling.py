@@ -98,7 +98,7 @@ def _step_equations(index, seam, axis, weight):
 def fix_seams(tile: np.ndarray, source: np.ndarray, *, radius: int = 8, weight: float = 30.0) -> np.ndarray:
     """Correct ``tile (h, w[, C])`` near its seams (:func:`seam_masks` of ``source``) so each step
     across a seam is the mean of its two neighbouring steps, as :func:`toroidal_blend
-    <synthkit.methods.symtex.deform.toroidal_blend>` makes the wrap's.
+    <synthkit.methods.symtex.tile.toroidal_blend>` makes the wrap's.
 
     Unknowns are the corrections of the pixels within ``radius`` of a seam step (Chebyshev
     distance); the others are fixed. Least squares over every step touching an unknown: a seam

@@ -232,7 +232,7 @@ class MeshSampler:
         or "wrap"; ``interpolation`` "linear" (bilinear), "cubic" (bicubic) or "lanczos" (8x8
         Lanczos); the last two are clipped to the input's range. A half-pixel diagonal shift keeps
         0.34, 0.70 and 0.84 of a brick photograph's high-frequency energy
-        (:func:`synthkit.methods.symtex.deform.high_frequency_energy`) with the three.
+        (:func:`synthkit.methods.symtex.tile.high_frequency_energy`) with the three.
         """
         flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "lanczos": cv2.INTER_LANCZOS4}
         if interpolation not in flags:

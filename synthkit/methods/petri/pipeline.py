@@ -2,32 +2,26 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import trimesh
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from synthkit import preview
+from synthkit.api import result_fields
 from synthkit.core.mesh import merge_vertices, remove_unreferenced, weld
 from synthkit.core.quality import WELD_REL_TOL, degenerate_faces, mesh_quality
 from synthkit.errors import InputError
-from synthkit.io.assets import Asset, load_asset, save_asset
-from synthkit.io.meshes import save_mesh
+from synthkit.io.assets import Asset
+from synthkit.io.inputs import Inputs
 from synthkit.methods.petri import analysis, construction, network
 from synthkit.methods.petri.appearance import Look, example_look
 from synthkit.methods.petri.assembly import (
     Assembler,
     PieceLibrary,
-    assemble,
     crack_measure,
     crack_measure_graph,
-    label_colors,
     open_edges_off_border,
-    preview_library,
     quality_limits,
-    reorder_library,
 )
 from synthkit.methods.petri.config import PetriConfig
 from synthkit.methods.petri.joints import close_t_junctions, repeated_faces
@@ -35,13 +29,8 @@ from synthkit.methods.petri.net import (
     ColouredPetriNet,
     adjacency_violations,
     graph_violations,
-    to_dot,
-    to_pnml,
 )
-
-VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
-PREVIEW_FACES = 400_000
-"""Previews draw pieces decimated to about this many triangles in all (the meshes written are full)."""
+from synthkit.methods.petri.outputs import PetriResult, PreviewScene, result_asset
 
 
 def analyse_example(V, F, cfg: PetriConfig, look: Look | None = None):
@@ -338,24 +327,6 @@ def weld_seams(V, F, seams):
     return V, F2, keep
 
 
-def write_result(ctx, cfg: PetriConfig, asset: Asset, V, F, face_label, look: Look | None) -> None:
-    """Write the result mesh (``output.mesh_format``) with the example's appearance: GLB with its PBR
-    materials and textures, OBJ with an MTL and texture copies, PLY with colours; a PLY of an example
-    without colours stores each face's label instead (as before). An example with an appearance also
-    gets ``before_after.png``: example above result, textured, from three views (the summary)."""
-    out_mesh = ctx.path("mesh", f"result.{cfg.output.mesh_format}")
-    if cfg.output.mesh_format == "ply" and (look is None or look.corner_color is None):
-        save_mesh(trimesh.Trimesh(V, F, process=False), out_mesh, face_labels=face_label)
-        return
-    written = save_asset(out_mesh, V, F, like=asset, **({} if look is None else look.written()))
-    for k, name in enumerate(written[1:]):
-        ctx.outputs[f"mesh_file_{k}"] = name
-    if look is not None and (asset.textured or asset.corner_color is not None) and ctx.wants_preview("summary"):
-        example = (asset.V, asset.F, preview.Appearance.of(asset, like_input=True))
-        result = (V, F, preview.Appearance.of(asset, **look.written()))
-        preview.before_after_png(ctx.path("before_after", "before_after.png"), example, result, size=320)
-
-
 def check_result_quality(ctx, asset: Asset, V, F, library: PieceLibrary, labels, neighbours) -> None:
     """``ctx.check_quality`` of the written result against the example, with petri-synth's limits
     (:func:`assembly.quality_limits`: what the placed pieces bring themselves, plus the open cuts on
@@ -425,44 +396,6 @@ def run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes
     return bnet
 
 
-def export_nets(cfg: PetriConfig, ctx, net: ColouredPetriNet, ex_net: ColouredPetriNet) -> None:
-    """Write the target net and the example net as PNML and/or DOT (``output.export_net``)."""
-    exp = cfg.output.export_net
-    if exp in ("pnml", "both"):
-        ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
-        ctx.path("example_net_pnml", "example_net.pnml").write_bytes(to_pnml(ex_net, net_id="example"))
-    if exp in ("dot", "both"):
-        ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
-        ctx.path("example_net_dot", "example_net.dot").write_text(to_dot(ex_net, name="example"))
-
-
-def write_previews(cfg: PetriConfig, ctx, net, bnet, ex_net, grid, labels_out, library_xyz, axes, lines) -> None:
-    """``result.png`` (the summary preview), ``construction_space.png`` (the example in the curve's view
-    with ``lines (k, 2, 3)`` drawn over it) and ``montage.png`` (example, space, result and, when run,
-    the baseline ``bnet``), from pieces decimated to about :data:`PREVIEW_FACES` triangles in all."""
-    if not ctx.wants_preview("summary"):
-        return
-    colors = label_colors(max(net.n_labels, 1))
-    n_max = max(net.n_cells, grid.size)
-    lib_xyz = preview_library(library_xyz, max(PREVIEW_FACES // n_max, 64))
-    lib_abc = reorder_library(lib_xyz, axes)
-    PV, PF, p_label = assemble(lib_abc, labels_out, net.corners)
-    small, large = {"size": 320}, {"size": 512}
-    img_res = preview.rasterize_mesh(PV, PF, face_colors=colors[p_label], view="iso", **large)
-    preview.image_png(ctx.path("preview_result", "result.png"), img_res)
-    if not ctx.wants_preview("all"):
-        return
-    EV, EF, e_label = assemble(lib_xyz, grid, ex_net.corners)
-    img_ex = preview.rasterize_mesh(EV, EF, face_colors=colors[e_label], view="iso", **small)
-    img_space = preview.rasterize_mesh(EV, EF, view=VIEW_OF_PLANE[cfg.construction.plane], lines=lines, **large)
-    preview.image_png(ctx.path("preview_space", "construction_space.png"), img_space)
-    images = [img_ex, img_space[::2, ::2][:320, :320], img_res[::2, ::2][:320, :320]]
-    if bnet is not None:
-        BPV, BPF, bp_label = assemble(lib_abc, bnet.label_grid(), bnet.corners)
-        images.append(preview.rasterize_mesh(BPV, BPF, face_colors=colors[bp_label], view="iso", **small))
-    preview.montage_png(ctx.path("preview_montage", "montage.png"), images)
-
-
 def _result_metrics(V, F, RV, RF, space, net, spec, cons, grid, library, labels_out, *, assembler, restarts,
                     violations, gap, unmatched, deviation, cls, welded) -> tuple[np.ndarray, dict]:
     """The metrics a single-curve and a network run share, and the example's normal histogram
@@ -524,9 +457,10 @@ def check_construction_budget(budget, cfg: PetriConfig, spec, V: np.ndarray, F: 
     budget.require(key, f"{length:.6g} units long", cells, "cells", bytes_each=CELL_BYTES + piece_bytes)
 
 
-def run(cfg: PetriConfig, ctx) -> None:
+def compute(cfg: PetriConfig, inputs: Inputs, ctx) -> PetriResult:
+    """All stages of a run on the example read through ``inputs``; writes nothing (:class:`PetriResult`)."""
     with ctx.stage("load"):
-        asset = load_asset(cfg.example)
+        asset = inputs.asset(cfg.example)
         V, F = asset.V, asset.F
         look = example_look(asset.corner_uv, asset.corner_color, asset.face_material, len(F))
 
@@ -537,7 +471,7 @@ def run(cfg: PetriConfig, ctx) -> None:
     cons, hint, joined = curve_constraints(cfg, grid, cons, construction.PLANE_AXES[cfg.construction.plane][0])
     ctx.metrics["joined_ends"] = joined
     if cfg.construction.curves is not None:
-        return run_network(cfg, ctx, asset, spec, pieces, features, grid, reps, cons)
+        return compute_network(cfg, ctx, inputs, asset, spec, pieces, features, grid, reps, cons)
 
     with ctx.stage("construction"):
         space = build_space(cfg, spec)
@@ -565,9 +499,8 @@ def run(cfg: PetriConfig, ctx) -> None:
         welded = welded_mesh(assembler, seams, weld=cfg.output.weld)
         RV, RF, face_label, look, cls = joined_mesh(assembler, welded, grid_graph(net))
         require_faces(RF, cfg)
-        write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out.ravel(), net.neighbours)
-        _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
+        labels_doc = _labels_doc(labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
         violations = adjacency_violations(
@@ -589,14 +522,27 @@ def run(cfg: PetriConfig, ctx) -> None:
             bnet = run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes, metrics,
                                 what="straight curve of the same length")
 
-    with ctx.stage("export"):
-        export_nets(cfg, ctx, net, example_net(grid, cons, spec))
-
-    with ctx.stage("previews"):
-        write_previews(cfg, ctx, net, bnet, example_net(grid, cons, spec), grid, labels_out,
-                       PieceLibrary(pieces, reps, (0, 1, 2)), axes, _lines_of_space(space))
-
     ctx.metrics.update(metrics)
+    scene = PreviewScene(PieceLibrary(pieces, reps, (0, 1, 2)), grid, axes, _lines_of_space(space),
+                         cfg.construction.plane)
+    return _result(cfg, ctx, inputs, asset, (RV, RF, face_label, look), labels_out, labels_doc,
+                   (net, example_net(grid, cons, spec), bnet), scene)
+
+
+def _result(cfg, ctx, inputs, asset: Asset, mesh, labels_out, labels_doc, nets, scene) -> PetriResult:
+    """The :class:`PetriResult` of a run: ``mesh = (V, F, face_label, look)``, ``nets = (target,
+    example, baseline)``."""
+    V, F, face_label, look = mesh
+    net, ex_net, bnet = nets
+    return PetriResult(**result_fields(cfg, ctx, inputs), mesh=trimesh.Trimesh(V, F, process=False),
+                       asset=result_asset(asset, V, F, look), face_labels=face_label, label_grid=labels_out,
+                       labels=labels_doc, target_net=net, example_net=ex_net, baseline_net=bnet, example=asset,
+                       look=look, scene=scene)
+
+
+def run(cfg: PetriConfig, ctx) -> None:
+    """The command line's run: :func:`compute` on the config's files, then the result's files."""
+    compute(cfg, Inputs(), ctx).write(ctx)
 
 
 def _example_doc(grid, cons, spec, features, reps) -> dict:
@@ -624,8 +570,9 @@ def _example_doc(grid, cons, spec, features, reps) -> dict:
     }
 
 
-def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> None:
-    doc = {
+def _labels_doc(labels_out, grid, cons, space, spec, features, reps) -> dict:
+    """``labels.json`` of a single-curve run."""
+    return {
         "format": "petri-synth label grid: grid[i][j][k], i along the curve, j across, k along the sweep",
         "shape": list(labels_out.shape),
         "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
@@ -633,7 +580,6 @@ def _write_labels(ctx, labels_out, grid, cons, space, spec, features, reps) -> N
         "grid": labels_out.tolist(),
         **_example_doc(grid, cons, spec, features, reps),
     }
-    ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")
 
 
 # ---------------------------------------------------------------------------------------- networks
@@ -699,8 +645,9 @@ def network_metrics(space: network.NetworkSpace, net: ColouredPetriNet, library:
     }
 
 
-def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, grid, reps, cons) -> None:
-    """The run of :func:`run` for a curve network (``construction.curves``)."""
+def compute_network(cfg: PetriConfig, ctx, inputs: Inputs, asset: Asset, spec, pieces, features, grid, reps,
+                    cons) -> PetriResult:
+    """The run of :func:`compute` for a curve network (``construction.curves``)."""
     V, F = asset.V, asset.F
     with ctx.stage("construction"):
         space = build_network_space(cfg, spec)
@@ -719,9 +666,8 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
         welded = welded_mesh(assembler, jm["seams"], weld=cfg.output.weld)
         RV, RF, face_label, look, cls = joined_mesh(assembler, welded, space.graph()[:2])
         require_faces(RF, cfg)
-        write_result(ctx, cfg, asset, RV, RF, face_label, look)
         check_result_quality(ctx, asset, RV, RF, library, labels_out, net.neighbours)
-        _write_network_labels(ctx, labels_out, grid, cons, space, spec, features, reps)
+        labels_doc = _network_labels_doc(labels_out, grid, cons, space, spec, features, reps)
 
     with ctx.stage("evaluation"):
         nbr, back, _, _ = space.graph()
@@ -757,24 +703,22 @@ def run_network(cfg: PetriConfig, ctx, asset: Asset, spec, pieces, features, gri
             bnet = run_baseline(cfg, ctx, spec, cons, library, grid, straight, h_ex, plane_axes, metrics,
                                 what="a straight curve with as many cells")
 
-    with ctx.stage("export"):
-        export_nets(cfg, ctx, net, example_net(grid, cons, spec))
-
-    with ctx.stage("previews"):
-        w = space.sweep[0]
-        segs = space.plane_segments()
-        lines = [space.world(segs, np.full(segs.shape[:2], w))]
-        for P, closed in zip(space.curves, space.closed, strict=True):
-            C = np.vstack([P, P[:1]]) if closed else P
-            C = space.world(C, np.full(len(C), w))
-            lines.append(np.stack([C[:-1], C[1:]], axis=1))
-        write_previews(cfg, ctx, net, bnet, example_net(grid, cons, spec), grid, labels_out,
-                       PieceLibrary(pieces, reps, (0, 1, 2)), axes, np.concatenate(lines))
-
     ctx.metrics.update(metrics)
+    w = space.sweep[0]
+    segs = space.plane_segments()
+    lines = [space.world(segs, np.full(segs.shape[:2], w))]
+    for P, closed in zip(space.curves, space.closed, strict=True):
+        C = np.vstack([P, P[:1]]) if closed else P
+        C = space.world(C, np.full(len(C), w))
+        lines.append(np.stack([C[:-1], C[1:]], axis=1))
+    scene = PreviewScene(PieceLibrary(pieces, reps, (0, 1, 2)), grid, axes, np.concatenate(lines),
+                         cfg.construction.plane)
+    return _result(cfg, ctx, inputs, asset, (RV, RF, face_label, look), labels_out, labels_doc,
+                   (net, example_net(grid, cons, spec), bnet), scene)
 
 
-def _write_network_labels(ctx, labels_out, grid, cons, space: network.NetworkSpace, spec, features, reps) -> None:
+def _network_labels_doc(labels_out, grid, cons, space: network.NetworkSpace, spec, features, reps) -> dict:
+    """``labels.json`` of a curve-network run."""
     SZ = space.size_z
     L = labels_out.reshape(space.n_plane, SZ)
     parts = []
@@ -785,7 +729,7 @@ def _write_network_labels(ctx, labels_out, grid, cons, space: network.NetworkSpa
         assert len(q) == n and q[0] == first
         parts.append(dict(p, grid=L[q].reshape(p["shape"][0], p["shape"][1], SZ).tolist()))
         first += n
-    doc = {
+    return {
         "format": "petri-synth curve network: per part (arm of a curve or junction of two) grid[i][j][k], i along "
         "the part's curve (a junction: along its first curve), j across, k along the sweep",
         "axes": {"a": "XYZ"[space.axes[0]], "b": "XYZ"[space.axes[1]], "c": "XYZ"[space.axes[2]]},
@@ -793,4 +737,3 @@ def _write_network_labels(ctx, labels_out, grid, cons, space: network.NetworkSpa
         "junctions": [{"curves": [a, b], "point": pt} for a, b, pt in space.junctions],
         **_example_doc(grid, cons, spec, features, reps),
     }
-    ctx.path("labels", "labels.json").write_text(json.dumps(doc) + "\n")

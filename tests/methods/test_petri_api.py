@@ -106,7 +106,7 @@ def test_key_errors_give_the_command_lines_message(building, tmp_path):
     restarts = r"^synthkit\.petri_synth\(\): inference\.max_restarts: .*greater than or equal"
     with pytest.raises(ConfigError, match=restarts):
         synthkit.petri_synth((V, F), **{**KEYS, "inference": {"max_restarts": -1}})
-    fit = r"lattice\.unit \[2\.5, 3\.0, 2\.0\] does not fit the model: along X"
+    fit = r"lattice\.unit: \[2\.5, 3\.0, 2\.0\] does not fit the model: along X"
     with pytest.raises(ConfigError, match=r"^synthkit\.petri_synth\(\): .*" + fit):
         synthkit.petri_synth((V, F), **{**KEYS, "lattice": {"unit": [2.5, 3.0, 2.0]}})
     short = r"^synthkit\.petri_synth\(\): construction\.points: the curve is 1\.5 long, shorter than one unit"

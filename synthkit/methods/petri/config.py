@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
-from synthkit.methods.petri.construction import polyline_problem
+from synthkit.methods.petri.curves import polyline_problem
 
 COORDINATE_LIMIT = 1e9
 """Largest magnitude of a coordinate in model units (keeps lengths and products finite)."""

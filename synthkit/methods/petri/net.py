@@ -37,8 +37,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synthkit.errors import InputError
-
 STATES = ("selectable", "fillable", "filled", "deformed")
 SELECTABLE, FILLABLE, FILLED, DEFORMED = range(4)
 DIRECTIONS = ("+a", "-a", "+b", "-b", "+c", "-c")
@@ -73,6 +71,10 @@ _AXIS_NAMES = ("a (along the curve)", "b (across it)", "c (the sweep)")
 def _shown(labels: list[int], most: int = 8) -> str:
     """``labels`` for a message: the list, or its count when longer than ``most``."""
     return str(labels) if len(labels) <= most else f"({len(labels)} labels)"
+
+
+class Unfillable(ValueError):
+    """The example's adjacency constraints cannot fill the construction space (an input error)."""
 
 
 class Contradiction(Exception):
@@ -400,7 +402,7 @@ class ColouredPetriNet:
 
         ``origin_labels``: labels to try at the origin cell, best first (the example's e_000 first).
         ``deform(cell, label)`` is called by every deforming transition. ``on_restart()`` is called
-        before each restart (to discard deformed pieces). Raises InputError naming the cell of the
+        before each restart (to discard deformed pieces). Raises :class:`Unfillable` naming the cell of the
         last contradiction when ``max_restarts`` restarts all fail, or at once when the contradiction
         came before any random choice (then every restart would fail the same way).
         """
@@ -416,14 +418,14 @@ class ColouredPetriNet:
                     tuple(int(v) for v in self.coords[exc.cell]) if self.describe is None else self.describe(exc.cell)
                 )
                 if exc.choices <= 0:
-                    raise InputError(
+                    raise Unfillable(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
                         f"contradiction (empty candidate set) at cell {cell} before any random choice: "
                         f"{self._describe_conflict(exc.cell)}, so no restart can help "
                         f"({self.unfillable_hint or 'check the sizes S_Y, S_Z and labels.boundary'})"
                     ) from None
                 if restarts >= max_restarts:
-                    raise InputError(
+                    raise Unfillable(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
                         f"contradiction (empty candidate set) at cell {cell} after {restarts} restarts "
                         f"(inference.max_restarts)"

@@ -306,9 +306,10 @@ class ColouredPetriNet:
             exc.choices = self.fired["forced_selecting"] - 1  # the origin's choice is not random
             raise
 
-    def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
-        cand, state, su, nbr, support, tab = self.cand, self.state, self.su, self._nbr, self._support, self._tab
-        fired = self.fired
+    def _start(self) -> tuple[deque, bytearray, deque]:
+        """Every cell's updating flags set and queued; cells with one candidate fillable. Returns
+        ``(queue, queued, fillable)``."""
+        cand, state, su, nbr = self.cand, self.state, self.su, self._nbr
         queue: deque = deque(range(self.n_cells))
         queued = bytearray(b"\x01" * self.n_cells)
         for c in range(self.n_cells):
@@ -321,42 +322,53 @@ class ColouredPetriNet:
             if m & (m - 1) == 0:
                 state[c] = FILLABLE
                 fillable.append(c)
+        return queue, queued, fillable
+
+    def _update(self, c: int, queue: deque, queued: bytearray, fillable: deque, heap: list, cache: dict) -> None:
+        """Fire the updating transition of ``c``: intersect its candidates with the support of each
+        neighbour that changed (``cache``: (table, neighbour's set) -> support), notify on a change."""
+        cand, su, support = self.cand, self.su, self._support
+        queued[c] = 0
+        flags, su[c] = su[c], 0
+        m = old = cand[c]
+        nb = self._nbr[c]
+        tc = self._tab[c]
+        while flags:
+            low = flags & -flags
+            d = low.bit_length() - 1
+            flags ^= low
+            t = tc[d]
+            key = (t, cand[nb[d]])
+            s = cache.get(key)
+            if s is None:
+                s = 0
+                for b in _bits(key[1]):
+                    s |= support[t][b]
+                cache[key] = s
+            m &= s
+        self.fired["updating"] += 1
+        if m != old:
+            if m == 0:
+                raise Contradiction(c)
+            cand[c] = m
+            self._notify(c, queue, queued)
+            if self.state[c] == SELECTABLE:
+                if m & (m - 1) == 0:
+                    self.state[c] = FILLABLE
+                    fillable.append(c)
+                else:
+                    heapq.heappush(heap, (m.bit_count(), c))
+
+    def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
+        """Fire transitions by priority until none is enabled (module docstring)."""
+        cand, state, fired = self.cand, self.state, self.fired
+        queue, queued, fillable = self._start()
         heap: list = []
         cache: dict = {}
         origin_done = False
         while True:
             if queue:
-                c = queue.popleft()
-                queued[c] = 0
-                flags, su[c] = su[c], 0
-                m = old = cand[c]
-                nb = nbr[c]
-                tc = tab[c]
-                while flags:
-                    low = flags & -flags
-                    d = low.bit_length() - 1
-                    flags ^= low
-                    t = tc[d]
-                    key = (t, cand[nb[d]])
-                    s = cache.get(key)
-                    if s is None:
-                        s = 0
-                        for b in _bits(key[1]):
-                            s |= support[t][b]
-                        cache[key] = s
-                    m &= s
-                fired["updating"] += 1
-                if m != old:
-                    if m == 0:
-                        raise Contradiction(c)
-                    cand[c] = m
-                    self._notify(c, queue, queued)
-                    if state[c] == SELECTABLE:
-                        if m & (m - 1) == 0:
-                            state[c] = FILLABLE
-                            fillable.append(c)
-                        else:
-                            heapq.heappush(heap, (m.bit_count(), c))
+                self._update(queue.popleft(), queue, queued, fillable, heap, cache)
                 continue
             if not origin_done:
                 origin_done = True

@@ -10,7 +10,6 @@ import numpy as np
 from synthkit.methods.petri.curves import PLANE_AXES, VIEW_AXES
 
 if TYPE_CHECKING:
-    from synthkit.methods.petri.analysis import LatticeSpec
     from synthkit.methods.petri.config import PetriConfig
 
 __all__ = ["LatticeOptions", "SpaceOptions", "lattice_options", "space_options", "curves_of", "unit_key"]
@@ -56,9 +55,9 @@ def lattice_options(cfg: PetriConfig) -> LatticeOptions:
     )
 
 
-def space_options(cfg: PetriConfig, spec: LatticeSpec) -> SpaceOptions:
-    """:class:`SpaceOptions` of the config on the example's lattice ``spec`` (S_Y and S_Z default to
-    the example's counts)."""
+def space_options(cfg: PetriConfig, spec) -> SpaceOptions:
+    """:class:`SpaceOptions` of the config on the example's lattice ``spec`` (an
+    :class:`analysis.LatticeSpec`; S_Y and S_Z default to the example's counts)."""
     con = cfg.construction
     axes = PLANE_AXES[con.plane]
     return SpaceOptions(

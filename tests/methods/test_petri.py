@@ -1054,14 +1054,15 @@ def test_join_ends_and_facade_measures_exact():
     with pytest.raises(ValueError, match="labels.boundary: true"):
         analysis.join_ends(analysis.adjacency_constraints(np.zeros((2, 1, 1), int), 1, boundary=False), 0)
     box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
-    assert np.isclose(analysis.facade_area(box.vertices, box.faces, 1), 2 * (1 * 2 + 3 * 2))  # up = Y
-    assert analysis.facade_area(np.zeros((0, 3)), np.zeros((0, 3), int), 1) == 0.0
+    no_across = np.zeros((len(box.faces), 3))
+    assert np.isclose(analysis.facade_areas(box.vertices, box.faces, no_across, 1)[0], 2 * (1 * 2 + 3 * 2))  # up = Y
+    assert analysis.facade_areas(np.zeros((0, 3)), np.zeros((0, 3), int), np.zeros((0, 3)), 1)[0] == 0.0
     net = ColouredPetriNet((2, 3, 1), np.ones((3, 2, 2), bool), 1)
     assert analysis.facade_cells(net.neighbours, range(4)) == 2 * 3 + 2 * 2
     closed = ColouredPetriNet((4, 1, 1), np.ones((3, 2, 2), bool), 1, periodic=(True, False, False))
     assert analysis.facade_cells(closed.neighbours, range(4)) == 8
     across = np.tile([0.0, 0.0, 1.0], (len(box.faces), 1))  # the two 1 x 2 faces facing Z
-    assert np.isclose(analysis.facade_area_across(box.vertices, box.faces, across, 1), 2 * 1 * 2)
+    assert np.isclose(analysis.facade_areas(box.vertices, box.faces, across, 1)[1], 2 * 1 * 2)
 
 
 def test_join_ends_always_needs_the_boundary(tmp_path):

@@ -385,11 +385,9 @@ def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = 
     local units; otherwise it starts a new label. With ``pieces`` given (the "geometry" match, an
     addition to the paper: eq. 1 cannot tell a piece from its mirror image), the two pieces' vertices
     and face centroids must also lie within ``tolerance`` local units of each other both ways.
-    With ``seams`` (each piece's :func:`face_seams`; an addition to the paper, issue 22) the two
-    pieces must also show the same curves on each of the six cell faces (:func:`same_seams`): the
-    result places a label's representative wherever any of its pieces stood, so pieces that meet
-    their neighbours differently (a mirrored window half, a side wall taken for a front) would open
-    holes along the cuts. Returns ``(labels (P,), representative (L,))``.
+    With ``seams`` (each piece's :func:`face_seams`) the two pieces must also show the same curves
+    on each of the six cell faces (:func:`same_seams`; why: ``docs/findings/petri-synth.md``).
+    Returns ``(labels (P,), representative (L,))``.
     """
     labels = np.full(len(features), -1, np.int64)
     reps: list[int] = []
@@ -567,17 +565,6 @@ def facade_areas(V, F, across, up_axis: int, *, slope: float = FACADE_SLOPE) -> 
     return float(0.5 * double_area[facade].sum()), float(0.5 * double_area[facing & facade].sum())
 
 
-def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)`` (see :func:`facade_areas`)."""
-    _, double_area, facade = _facade_faces(V, F, up_axis, slope)
-    return float(0.5 * double_area[facade].sum())
-
-
-def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces facing across the curve (see :func:`facade_areas`)."""
-    return facade_areas(V, F, across, up_axis, slope=slope)[1]
-
-
 def facade_cells(neighbours: np.ndarray, directions) -> int:
     """Facade cells of a space: cell sides in ``directions`` (of the six, 2 axis + 0 for +axis, + 1
     for -axis; the horizontal ones) without a neighbour, from ``neighbours (N, 6)`` (-1: none). A
@@ -603,14 +590,7 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
     of ``label_grid (nx, ny, nz)`` along ``axis`` holding no label that may repeat along it, and the
     lattice change that would help.
 
-    Found on Kenney's building-small-a (1 x 1 footprint, two floors and a roof): at unit 0.5 every
-    one of its 2 x 2 x 2 pieces is a distinct corner, and at unit 0.25 the ground floor repeats
-    (label 1 follows itself along X) but the roof row is four different pieces. With the outside
-    as a label (``labels.boundary: true``, eq. 4 with Merrell's boundary), no construction longer
-    than the example along X has a solution, before any random choice: a property of the example
-    and the lattice, not of Algorithm 2. ``labels.join_ends: auto`` then joins the example end to
-    end (:func:`join_ends`); with ``never`` the error names the cell, the conflicting labels and
-    side, and these rows."""
+    Why ``labels.join_ends: auto`` exists: ``docs/findings/petri-synth.md``."""
     repeat = repeatable_labels(cons.allowed[axis], cons.n_labels)
     rows = np.moveaxis(label_grid, axis, -1)
     stuck = [idx for idx in np.ndindex(rows.shape[:-1]) if not repeat[rows[idx]].any()]

@@ -5,25 +5,7 @@ offset lines), ``c`` the sweep axis (cells k). ``PLANE_AXES[plane]`` maps them t
 world/lattice axes. A straight curve along +a with side "left" maps every lattice axis onto itself,
 and a turn of the curve is a rotation in the plane, so a piece is never mirrored.
 
-Choices where the paper is open (written here as promised):
-
-- Normals ``n_i`` are the left normals of the segments (tangent turned +90 degrees in the plane).
-  At an interior point the direction is the mitre ``d_i = 2 (n_{i-1} + n_i) / |n_{i-1} + n_i|^2``:
-  the paper's ``n_{i-1} + n_i`` scaled so that every offset line stays at the same distance from
-  both segments (a true parallel curve). Ends use their segment's normal; a closed curve has no ends.
-- Offset line ``j`` (0..S_Y) lies at signed distance ``(j - j0) * unit_b`` along ``d``, with ``j0 = 0``
-  (side "left"), ``S_Y`` ("right") or ``S_Y / 2`` ("center"), so j always grows to the curve's left.
-- ``S_X = floor(l / unit_a + 1/2)`` (the paper's ``l / l_X * N_X`` rounded to the nearest integer,
-  halves up); each tangential line is resampled by arc length into S_X equal parts (S_X + 1 points,
-  or S_X for a closed curve), so the cells are ``l / S_X`` long along the curve: a piece is stretched
-  or shrunk along the curve by the factor ``l / (S_X unit_a)``, in [0.75, 1.5) and within
-  ``1 +- 1 / (2 S_X)``. A curve shorter than one unit (``l < unit_a``) is refused (a config error) rather
-  than stretched to one unit.
-- Points must all differ (a repeated point, consecutive or not, is a config error naming both
-  indices); a closed curve may repeat its first point as its last (dropped), an open curve may not
-  (the error points to ``construction.closed``).
-- Cells must be strictly convex and counter-clockwise in the plane, and the boundary of the
-  construction plane must not cross itself; otherwise the cells self-intersect (a config error).
+Where the paper is open (mitre normals, S_X rounding, refused curves): ``docs/findings/petri-synth.md``.
 """
 
 from __future__ import annotations

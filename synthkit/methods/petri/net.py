@@ -13,19 +13,8 @@ inference on 10^4 cells stays fast; :meth:`ColouredPetriNet.token` returns one t
 :meth:`ColouredPetriNet.places`, :meth:`transitions` and :meth:`arcs` enumerate the net, and
 :func:`to_pnml` / :func:`to_dot` export it.
 
-Inference (Algorithm 2) is :meth:`ColouredPetriNet.infer`. Choices where the paper is open:
-
-- Transitions fire by priority: enabled updating transitions first (a FIFO of cells whose
-  updating flags are set), then selecting (singleton candidate sets), then deforming; when nothing
-  is enabled the selecting transition of the selectable cell with the smallest candidate set
-  (ties: lowest cell index) is forced, its label drawn uniformly with the run's generator.
-- Before the origin cell is filled, every cell's updating transition fires once so that the
-  unary boundary constraints (which labels may end the model on each side) reach all cells. The
-  origin then takes the label of the example's piece e_000; when that label is no longer a
-  candidate there (a closed curve has no ends, so end pieces cannot occur), the label of the
-  example piece nearest to e_000 in lattice order that still is a candidate is used.
-- A contradiction (an empty candidate set; not in the paper) restarts the inference from the
-  initial marking with a seed derived from the run's generator, at most ``max_restarts`` times.
+Inference (Algorithm 2) is :meth:`ColouredPetriNet.infer`: transitions fire by priority (updating,
+selecting, deforming, then a forced seeded choice); where the paper is open: ``docs/findings/petri-synth.md``.
 """
 
 from __future__ import annotations

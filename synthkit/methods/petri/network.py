@@ -5,49 +5,9 @@ mitre directions, tangential lines resampled by length, swept along the third ax
 plane, ``side``, ``size_y`` (S_Y), ``size_z`` (S_Z) and sweep for all curves. Where two curves
 cross, their bands of cells overlap; that overlap becomes one block of *junction cells* shared by
 both curves, and the rest of each curve is cut into *arms* ending at the junctions. All cells of all
-curves form one construction space whose adjacency the Petri net fills. Choices (none is in the
-paper, which shows Fig. 6d without saying how it was built):
-
-- **Locating a crossing.** Two curves cross where a segment of one properly crosses a segment of
-  the other (the user polylines themselves, not their offset bands). Touching at a point of a
-  polyline, a curve crossing itself, two curves overlapping along a common line (collinear
-  segments sharing a stretch), curves on different planes and crossings at less than
-  ``MIN_ANGLE_DEG`` are refused (:class:`KeyedError`, a config error).
-- **The junction's hexahedra.** Near a crossing both curves must run straight (the junction lies
-  inside one segment of each curve, otherwise "too close to point k" / "too close to the end").
-  There the offset lines of curve A (rows jA = 0..S_Y) and of curve B (rows jB = 0..S_Y) are
-  straight; corner ``X(jA, jB)`` is the intersection of A's offset line jA with B's offset line jB,
-  computed once and reused by the junction and by the arms that end at it, so the cells meet
-  exactly. The junction is S_Y x S_Y plane cells (parallelograms when the curves cross at an angle)
-  swept into S_Y x S_Y x S_Z hexahedra; its cell (u, jA) has the corners ``X(jA + jb, order[u + ia])``
-  (trilinear corner ``ia + 2 jb + 4 kc``), where ``order`` lists B's offset lines in the order they
-  cross A's tangent. Each junction cell is one cell, owned by the curve given first in
-  ``construction.curves`` (its *frame*: local a along A's tangent, b along A's left normal, c the
-  sweep); B passes through it without a second cell.
-- **Trimming.** An arm's tangential line j runs from the line where it leaves one junction (B's
-  outermost offset line crossed last, or the curve's start) to the line where it enters the next
-  (B's offset line crossed first, or the curve's end); each is resampled by length into
-  ``S_X = floor(l / unit + 1/2)`` parts, ``l`` the user curve's length between the same two lines.
-  So an arm's last cells end exactly on the junction's outer edge and no cell of an arm reaches into
-  a junction: cells never overlap. Afterwards every cell is checked strictly convex and
-  counter-clockwise and no two cells may overlap (edges crossing, or a cell's centre inside another
-  cell); else a config error naming the curves.
-- **Direction labels across a junction.** Neighbours are found geometrically: two cells are
-  neighbours where they share a plane edge (the same two corner points). Each cell names that
-  edge in its own frame (+a, -a, +b, -b); within one frame the two names are opposite, across a
-  junction they differ (an arm of B entering the junction along +a_B meets the junction cell's -b_A
-  or +b_A side, depending on the side B comes from). The Petri net keeps both names
-  (:class:`~synthkit.methods.petri.net.ColouredPetriNet` ``graph``) and accepts a label pair only
-  when the example has it in that direction in both frames, so a junction takes only labels the
-  example itself has with neighbours on the sides the crossing needs (e.g. its interior pieces with
-  neighbours on all four sides). Along the sweep axis all frames agree (c is the sweep for every
-  curve). Whether the edge runs the same way in both frames (``flip``) is recorded for the crack
-  measure, which maps one piece's face coordinate u to ``u`` or ``1 - u`` on the other's face.
-- **Crossings too close.** An arm shorter than one unit (between two junctions, or between a
-  junction and a curve end), or two junctions on a curve that overlap (three curves through one
-  point) is a config error naming both curves and the crossing point.
-- **Closed curves.** A closed curve is cut at its junctions into arms that run on across its first
-  point; without junctions it is one periodic arm whose last column is its first.
+curves form one construction space whose adjacency the Petri net fills. The choices (locating
+crossings, junction hexahedra, trimming, direction labels across a junction, refusals):
+``docs/findings/petri-synth.md``.
 """
 
 from __future__ import annotations

@@ -12,12 +12,14 @@ import trimesh
 from synthkit import preview
 from synthkit.api import Result
 from synthkit.io.assets import Asset, save_asset
+from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.meshes import save_mesh
 from synthkit.methods.petri.appearance import Look
 from synthkit.methods.petri.assembly import PieceLibrary, assemble, label_colors, preview_library, reorder_library
 from synthkit.methods.petri.net import ColouredPetriNet, to_dot, to_pnml
 
-__all__ = ["PetriResult", "PreviewScene", "VIEW_OF_PLANE", "PREVIEW_FACES"]
+__all__ = ["PetriResult", "PreviewScene", "result_asset", "write_mesh", "export_nets", "write_previews",
+           "VIEW_OF_PLANE", "PREVIEW_FACES"]
 
 VIEW_OF_PLANE = {"xy": "front", "xz": "top", "yz": "side"}
 """Construction plane -> the view ``construction_space.png`` is drawn in."""
@@ -88,7 +90,7 @@ class PetriResult(Result):
         """Write ``result.<mesh_format>`` (with ``before_after.png`` for an example with an appearance),
         ``labels.json``, the nets and the previews, as the command line does."""
         write_mesh(ctx, self.config.output.mesh_format, self.example, self.asset, self.face_labels, self.look)
-        ctx.path("labels", "labels.json").write_text(json.dumps(self.labels) + "\n")
+        write_text_atomic(ctx.path("labels", "labels.json"), json.dumps(self.labels) + "\n")
         with ctx.stage("export"):
             export_nets(ctx, self.config.output.export_net, self.target_net, self.example_net)
         with ctx.stage("previews"):
@@ -127,11 +129,11 @@ def write_mesh(ctx, mesh_format: str, example: Asset, asset: Asset, face_label, 
 def export_nets(ctx, export: str, net: ColouredPetriNet, ex_net: ColouredPetriNet) -> None:
     """Write the target net and the example net as PNML and/or DOT (``output.export_net``)."""
     if export in ("pnml", "both"):
-        ctx.path("net_pnml", "target_net.pnml").write_bytes(to_pnml(net, net_id="target"))
-        ctx.path("example_net_pnml", "example_net.pnml").write_bytes(to_pnml(ex_net, net_id="example"))
+        write_bytes_atomic(ctx.path("net_pnml", "target_net.pnml"), to_pnml(net, net_id="target"))
+        write_bytes_atomic(ctx.path("example_net_pnml", "example_net.pnml"), to_pnml(ex_net, net_id="example"))
     if export in ("dot", "both"):
-        ctx.path("net_dot", "target_net.dot").write_text(to_dot(net, name="target"))
-        ctx.path("example_net_dot", "example_net.dot").write_text(to_dot(ex_net, name="example"))
+        write_text_atomic(ctx.path("net_dot", "target_net.dot"), to_dot(net, name="target"))
+        write_text_atomic(ctx.path("example_net_dot", "example_net.dot"), to_dot(ex_net, name="example"))
 
 
 def write_previews(ctx, net, bnet, ex_net, labels_out, scene: PreviewScene) -> None:

@@ -103,11 +103,12 @@ def synthesize(space: Space, cons, library: PieceLibrary, grid, rng, max_restart
     return Synthesis(net, assembler, restarts, space.labels_of(net))
 
 
-def require_faces(F: np.ndarray, cfg: PetriConfig) -> None:
-    """Refuse (exit 3) a result without faces: every cell took an empty piece of the example."""
+def require_faces(F: np.ndarray, source: str) -> None:
+    """Refuse (exit 3) a result without faces: every cell took an empty piece of the example
+    (``source``: what the line starts with, the example's file)."""
     if len(F) == 0:
         raise InputError(
-            f"{cfg.example}: petri-synth: every cell took an empty piece of the example, so the result has "
+            f"{source}petri-synth: every cell took an empty piece of the example, so the result has "
             "no faces (choose a lattice whose pieces hold the model's surface)"
         )
 
@@ -186,7 +187,7 @@ def compute(cfg: PetriConfig, inputs: Inputs, ctx) -> PetriResult:
         syn.welded = welded_mesh(syn.assembler, cracks["seams"], weld=cfg.output.weld)
         syn.result = joined_mesh(syn.assembler, syn.welded, space.graph(syn.net))
         RV, RF, face_label, look, _ = syn.result
-        require_faces(RF, cfg)
+        require_faces(RF, source)
         check_result_quality(ctx, asset, RV, RF, library, syn.labels.ravel(), syn.net.neighbours)
     with ctx.stage("evaluation"):
         h_ex, shared = result_metrics(V, F, ex, space, syn, library, cracks, cons)

@@ -313,65 +313,68 @@ class ColouredPetriNet:
                 fillable.append(c)
         return queue, queued, fillable
 
-    def _update(self, c: int, queue: deque, queued: bytearray, fillable: deque, heap: list, cache: dict) -> None:
-        """Fire the updating transition of ``c``: intersect its candidates with the support of each
-        neighbour that changed (``cache``: (table, neighbour's set) -> support), notify on a change."""
-        cand, su, support = self.cand, self.su, self._support
-        queued[c] = 0
-        flags, su[c] = su[c], 0
-        m = old = cand[c]
-        nb = self._nbr[c]
-        tc = self._tab[c]
-        while flags:
-            low = flags & -flags
-            d = low.bit_length() - 1
-            flags ^= low
-            t = tc[d]
-            key = (t, cand[nb[d]])
-            s = cache.get(key)
-            if s is None:
-                s = 0
-                for b in _bits(key[1]):
-                    s |= support[t][b]
-                cache[key] = s
-            m &= s
-        self.fired["updating"] += 1
-        if m != old:
-            if m == 0:
-                raise Contradiction(c)
-            cand[c] = m
-            self._notify(c, queue, queued)
-            if self.state[c] == SELECTABLE:
-                if m & (m - 1) == 0:
-                    self.state[c] = FILLABLE
-                    fillable.append(c)
-                else:
-                    heapq.heappush(heap, (m.bit_count(), c))
+    def _fill_origin(self, origin_labels, queue: deque, queued: bytearray, fillable: deque, heap: list) -> None:
+        """Fire the origin's selecting transition with the first of ``origin_labels`` it may take, then
+        put every selectable cell on the ``heap`` of forced choices."""
+        cand, state = self.cand, self.state
+        m0 = cand[0]
+        choice = next((lab for lab in origin_labels if (m0 >> lab) & 1), None)
+        if choice is None:
+            raise Contradiction(0)
+        if state[0] == FILLABLE:
+            fillable.remove(0)
+        self.fill(0, choice, queue, queued, forced=True)
+        for c in range(self.n_cells):
+            if state[c] == SELECTABLE:
+                heapq.heappush(heap, (cand[c].bit_count(), c))
 
     def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
-        """Fire transitions by priority until none is enabled (module docstring)."""
-        cand, state, fired = self.cand, self.state, self.fired
+        """Fire transitions by priority until none is enabled (module docstring): updating (inline,
+        the hot loop), the origin's selection, selecting, deforming, then a forced seeded choice."""
+        cand, state, su, nbr, support, tab = self.cand, self.state, self.su, self._nbr, self._support, self._tab
+        fired = self.fired
         queue, queued, fillable = self._start()
         heap: list = []
         cache: dict = {}
         origin_done = False
         while True:
             if queue:
-                self._update(queue.popleft(), queue, queued, fillable, heap, cache)
+                c = queue.popleft()
+                queued[c] = 0
+                flags, su[c] = su[c], 0
+                m = old = cand[c]
+                nb = nbr[c]
+                tc = tab[c]
+                while flags:
+                    low = flags & -flags
+                    d = low.bit_length() - 1
+                    flags ^= low
+                    t = tc[d]
+                    key = (t, cand[nb[d]])
+                    s = cache.get(key)
+                    if s is None:
+                        s = 0
+                        for b in _bits(key[1]):
+                            s |= support[t][b]
+                        cache[key] = s
+                    m &= s
+                fired["updating"] += 1
+                if m != old:
+                    if m == 0:
+                        raise Contradiction(c)
+                    cand[c] = m
+                    self._notify(c, queue, queued)
+                    if state[c] == SELECTABLE:
+                        if m & (m - 1) == 0:
+                            state[c] = FILLABLE
+                            fillable.append(c)
+                        else:
+                            heapq.heappush(heap, (m.bit_count(), c))
                 continue
             if not origin_done:
                 origin_done = True
-                m0 = cand[0]
-                choice = next((lab for lab in origin_labels if (m0 >> lab) & 1), None)
-                if choice is None:
-                    raise Contradiction(0)
-                if state[0] == FILLABLE:
-                    fillable.remove(0)
-                self.fill(0, choice, queue, queued, forced=True)
+                self._fill_origin(origin_labels, queue, queued, fillable, heap)
                 filled.append(0)
-                for c in range(self.n_cells):
-                    if state[c] == SELECTABLE:
-                        heapq.heappush(heap, (cand[c].bit_count(), c))
                 continue
             if fillable:
                 c = fillable.popleft()

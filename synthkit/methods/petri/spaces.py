@@ -19,37 +19,26 @@ __all__ = ["Space", "CurveSpace", "NetworkSpace", "axes_doc"]
 
 
 class Space(Protocol):
-    """What a run needs of its construction space (the attributes of the space it wraps: ``axes``,
-    ``point_axes``, ``units``)."""
+    """What a run needs of its construction space, besides the attributes of the space it wraps
+    (``space``, ``axes``, ``point_axes``, ``units``): the target net over its cells (hexahedra
+    ``net.corners``); the net's labels as ``labels.json`` holds them; the cells' ``(neighbours (N, 6),
+    back (N, 6))``; the crack figures (``gap``, ``unmatched``, ``seams``, ``mismatch``, and a network's
+    junction figures); the adjacency violations counted apart from the inference; the figures
+    ``report.json`` lists first (cells, the space's shape); the baseline's straight curve (its length
+    and how it was chosen); ``labels.json``'s grid; the plane's cell edges and curves ``(k, 2, 3)``
+    at the first sweep level, for the previews."""
 
     space: ConstructionSpace | network.NetworkSpace
 
-    def make_net(self, cons, hint: str | None) -> ColouredPetriNet:
-        """The target net over the cells, hexahedra ``net.corners``."""
-
-    def labels_of(self, net: ColouredPetriNet) -> np.ndarray:
-        """The net's labels as ``report``/``labels.json`` hold them."""
-
-    def graph(self, net: ColouredPetriNet) -> tuple[np.ndarray, np.ndarray]:
-        """``(neighbours (N, 6), back (N, 6))`` of the cells."""
-
-    def cracks(self, library: PieceLibrary, net: ColouredPetriNet, assembler: Assembler) -> dict:
-        """``gap``, ``unmatched``, ``seams``, ``mismatch`` (and, for a network, the junctions' figures)."""
-
-    def violations(self, labels: np.ndarray, net: ColouredPetriNet, cons) -> int:
-        """Adjacency violations of ``labels`` counted apart from the inference."""
-
-    def shape_metrics(self, net: ColouredPetriNet, cracks: dict, unit: float) -> dict:
-        """The figures ``report.json`` lists first: cells, the space's shape (network: the junctions)."""
-
-    def straight_length(self) -> tuple[float, str]:
-        """The baseline's straight curve: its length and how it was chosen."""
-
-    def labels_doc(self, labels: np.ndarray) -> dict:
-        """``labels.json``'s description of the result's label grid."""
-
-    def lines(self) -> np.ndarray:
-        """Segments ``(k, 2, 3)`` of the plane's cell edges at the first sweep level, plus the curves."""
+    def make_net(self, cons, hint: str | None) -> ColouredPetriNet: ...
+    def labels_of(self, net: ColouredPetriNet) -> np.ndarray: ...
+    def graph(self, net: ColouredPetriNet) -> tuple[np.ndarray, np.ndarray]: ...
+    def cracks(self, library: PieceLibrary, net: ColouredPetriNet, assembler: Assembler) -> dict: ...
+    def violations(self, labels: np.ndarray, net: ColouredPetriNet, cons) -> int: ...
+    def shape_metrics(self, net: ColouredPetriNet, cracks: dict, unit: float) -> dict: ...
+    def straight_length(self) -> tuple[float, str]: ...
+    def labels_doc(self, labels: np.ndarray) -> dict: ...
+    def lines(self) -> np.ndarray: ...
 
 
 def axes_doc(axes) -> dict:

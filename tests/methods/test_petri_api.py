@@ -120,6 +120,16 @@ def test_key_errors_give_the_command_lines_message(building, tmp_path):
         run_config(cfg, out_dir=tmp_path / "out", show_progress=False)
 
 
+def test_network_errors_name_the_curve(building):
+    V, F = building
+    con = {"plane": "xz", "size_y": 2, "curves": [{"points": [[-8.0, 0.0], [8.0, 0.0]]},
+                                                  {"points": [[-8.0, -1.0], [8.0, 1.0]]}]}
+    shallow = (r"^synthkit\.petri_synth\(\): construction\.curves\[0\]: crosses construction\.curves\[1\] at "
+               r"\[0\.0, 0\.0\] at 14\.3 degrees, less than 30$")
+    with pytest.raises(ConfigError, match=shallow):
+        synthkit.petri_synth((V, F), **{**KEYS, "construction": con})
+
+
 def test_an_unfillable_space_is_an_input_error(building):
     V, F = building
     keys = {**KEYS, "labels": {"join_ends": "never"}, "construction": {"plane": "xz", "points": [[0, 0], [4, 0]]},

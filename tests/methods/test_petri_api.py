@@ -125,7 +125,7 @@ def test_network_errors_name_the_curve(building):
     con = {"plane": "xz", "size_y": 2, "curves": [{"points": [[-8.0, 0.0], [8.0, 0.0]]},
                                                   {"points": [[-8.0, -1.0], [8.0, 1.0]]}]}
     shallow = (r"^synthkit\.petri_synth\(\): construction\.curves\[0\]: crosses construction\.curves\[1\] at "
-               r"\[0\.0, 0\.0\] at 14\.3 degrees, less than 30$")
+               r"\[0\.0, 0\.0\] at 7\.13 degrees, less than 30$")
     with pytest.raises(ConfigError, match=shallow):
         synthkit.petri_synth((V, F), **{**KEYS, "construction": con})
 

@@ -14,21 +14,27 @@ from click.testing import CliRunner
 from synthkit.cli.main import cli
 from synthkit.config import validate_config
 from synthkit.core.mesh import boundary_loops, face_areas
-from synthkit.errors import ConfigError, InputError
+from synthkit.errors import ConfigError
 from synthkit.io.assets import load_asset
 from synthkit.io.meshes import load_face_labels, save_mesh
 from synthkit.methods.petri import analysis, construction, pipeline
+from synthkit.methods.petri.assembly import PieceLibrary
 from synthkit.methods.petri.config import CONFIG
+from synthkit.methods.petri.errors import KeyedError
+from synthkit.methods.petri.evaluation import origin_preference
 from synthkit.methods.petri.net import (
     SELECTABLE,
     ColouredPetriNet,
     Contradiction,
+    Unfillable,
     ac3_solve,
     adjacency_violations,
     to_dot,
     to_pnml,
 )
-from synthkit.methods.petri.pipeline import origin_preference
+from synthkit.methods.petri.network import build_network
+from synthkit.methods.petri.options import SpaceOptions, curves_of, lattice_options, space_options
+from synthkit.methods.petri.spaces import NetworkSpace
 from synthkit.runner import run_config
 from synthkit.samples import petri as sample
 
@@ -99,14 +105,15 @@ def test_lattice_from_annotation_matches_truth(building_mesh):
 
 def test_lattice_that_does_not_fit(building_mesh):
     V, _ = building_mesh
-    fit = r"^m\.obj: lattice\.unit \[2\.5, 3\.0, 2\.0\] does not fit the model: along X"
-    with pytest.raises(ConfigError, match=fit):
-        analysis.resolve_lattice(V.min(0), V.max(0), unit=(2.5, 3.0, 2.0), source="m.obj")
-    outside = r"lattice\.annotation\.rect \[20\.0, 0\.0, 22\.0, 3\.0\] lies outside the example"
-    with pytest.raises(ConfigError, match=outside):
+    with pytest.raises(KeyedError, match=r"^\[2\.5, 3\.0, 2\.0\] does not fit the model: along X") as err:
+        analysis.resolve_lattice(V.min(0), V.max(0), unit=(2.5, 3.0, 2.0))
+    assert err.value.key == "unit"
+    with pytest.raises(KeyedError, match=r"^\[20\.0, 0\.0, 22\.0, 3\.0\] lies outside the example") as err:
         analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (20.0, 0.0, 22.0, 3.0), None))
-    with pytest.raises(ConfigError, match=r"lattice\.annotation\.depth_unit 1\.5 does not fit the model: along Z"):
+    assert err.value.key == "annotation.rect"
+    with pytest.raises(KeyedError, match=r"^1\.5 does not fit the model: along Z") as err:
         analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (2.0, 3.0, 4.0, 6.0), 1.5))
+    assert err.value.key == "annotation.depth_unit"
 
 
 def test_pieces_partition_the_example(building_mesh):
@@ -182,9 +189,9 @@ def test_normal_histogram_and_D():
 
 
 def space(points, *, closed=False, side="left", size_y=2, size_z=1, units=(1.0, 1.0, 1.0)):
-    return construction.build_construction_space(
-        points, plane="xz", closed=closed, side=side, units=units, size_y=size_y, size_z=size_z, sweep_origin=0.0
-    )
+    opts = SpaceOptions(plane="xz", side=side, units=np.asarray(units, np.float64), size_y=size_y, size_z=size_z,
+                        sweep_origin=0.0, unit_key="lattice.unit[0], along X")
+    return construction.build_construction_space(points, closed, opts)
 
 
 def test_straight_curve_gives_the_orthogonal_lattice():
@@ -236,7 +243,7 @@ def test_closed_curve_wraps():
     ],
 )
 def test_bad_curves(kwargs, message):
-    with pytest.raises(ConfigError, match=message):
+    with pytest.raises(KeyedError, match=message):
         space(**kwargs)
 
 
@@ -307,7 +314,7 @@ def test_contradiction_names_the_cell():
     allowed[0, 1, 1] = False  # 1 may no longer follow 1: a chain of 5 cannot be filled
     net = ColouredPetriNet((5, 1, 1), allowed, 3)
     calls = []
-    with pytest.raises(InputError, match=r"contradiction .* at cell \(\d+, 0, 0\) before any random choice"):
+    with pytest.raises(Unfillable, match=r"contradiction .* at cell \(\d+, 0, 0\) before any random choice"):
         net.infer(np.random.default_rng(0), origin_labels=[0], max_restarts=2, on_restart=lambda: calls.append(1))
     assert calls == []  # propagation alone fails, so no restart is tried
 
@@ -497,10 +504,7 @@ def test_closed_ring(building, tmp_path):
 
 def ring_space(report):
     con = report["config"]["construction"]
-    return construction.build_construction_space(
-        con["points"], plane="xz", closed=con["closed"], side=con["side"], units=(2.0, 2.0, 3.0),
-        size_y=2, size_z=4, sweep_origin=0.0,
-    )
+    return space(con["points"], closed=con["closed"], side=con["side"], units=(2.0, 2.0, 3.0), size_y=2, size_z=4)
 
 
 def faces_across_the_curve(mesh, s, tol=1e-6) -> dict[int, int]:
@@ -546,7 +550,7 @@ output:
     [
         pytest.param(
             "[2.5, 3.0, 2.0]", "[[0, 0], [12, 0]]", 2,
-            ["{example}: lattice.unit [2.5, 3.0, 2.0] does not fit the model: along X", "4.8 units of 2.5"],
+            ["{example}: lattice.unit: [2.5, 3.0, 2.0] does not fit the model: along X", "4.8 units of 2.5"],
             id="lattice-does-not-fit",
         ),
         pytest.param(
@@ -572,7 +576,7 @@ output:
         ),
         pytest.param(
             "[2.0, 3.0, 2.0]", "[[0, 0], [12, 0], [12, 3], [0, 3]]", 2,
-            ["construction.points with construction.size_y = 2: self-intersecting construction cells",
+            ["construction.points: self-intersecting construction cells with construction.size_y = 2",
              "reduce construction.size_y"],
             id="self-intersecting-cells",
         ),
@@ -640,7 +644,7 @@ def test_restart_after_contradiction_then_success():
     )
     assert restarts == 2 and len(cleared) == 2
     assert adjacency_violations(net.label_grid(), cons.allowed, cons.n_labels, boundary=False) == 0
-    with pytest.raises(InputError, match="after 1 restarts"):
+    with pytest.raises(Unfillable, match="after 1 restarts"):
         ColouredPetriNet((7, 7, 1), cons.allowed, cons.n_labels, boundary=False).infer(
             np.random.default_rng(4), origin_labels=[int(g[0, 0, 0])], max_restarts=1
         )
@@ -808,12 +812,11 @@ def network_objects(example: Path, curves, *, seed=0):
     cfg = CONFIG.model_validate(data)
     mesh = trimesh.load(example, process=False)
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    spec, pieces, _, grid, reps, cons = pipeline.analyse_example(V, F, cfg)
-    space = pipeline.build_network_space(cfg, spec)
-    library = pipeline.PieceLibrary(pieces, reps, space.axes)
-    rng = np.random.default_rng(seed)
-    net, assembler, _ = pipeline.synthesize_network(space, cons, library, grid, rng, max_restarts=20)
-    return space, net, library, assembler, cons
+    ex = analysis.analyse(V, F, lattice_options(cfg))
+    wrapped = NetworkSpace(build_network(curves_of(cfg), space_options(cfg, ex.spec)))
+    library = PieceLibrary(ex.pieces, ex.reps, wrapped.axes)
+    syn = pipeline.synthesize(wrapped, ex.cons, library, ex.grid, np.random.default_rng(seed), 20, None)
+    return wrapped.space, syn.net, library, syn.assembler, ex.cons
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -951,7 +954,7 @@ NETWORK_BAD = NETWORK.replace("  plane: xz\n", "  plane: xz\n{extra}")
             [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[4.0, 0.0], [20.0, 0.0]]}],
             "",
             [
-                "construction.curves[0] overlaps construction.curves[1] along a common line",
+                "construction.curves[0]: overlaps construction.curves[1] along a common line",
                 "from [4.0, 0.0] to [12.0, 0.0]",
             ],
             id="overlapping-collinear-curves",
@@ -966,7 +969,7 @@ NETWORK_BAD = NETWORK.replace("  plane: xz\n", "  plane: xz\n{extra}")
         pytest.param(
             [{"points": [[-12.0, 0.0], [12.0, 0.0]]}, {"points": [[-12.0, -1.0], [12.0, 1.0]]}],
             "",
-            ["cross at [0.0, 0.0] at 4.76 degrees, less than 30"],
+            ["crosses construction.curves[1] at [0.0, 0.0] at 4.76 degrees, less than 30"],
             id="shallow-crossing",
         ),
         pytest.param(
@@ -1051,14 +1054,15 @@ def test_join_ends_and_facade_measures_exact():
     with pytest.raises(ValueError, match="labels.boundary: true"):
         analysis.join_ends(analysis.adjacency_constraints(np.zeros((2, 1, 1), int), 1, boundary=False), 0)
     box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
-    assert np.isclose(analysis.facade_area(box.vertices, box.faces, 1), 2 * (1 * 2 + 3 * 2))  # up = Y
-    assert analysis.facade_area(np.zeros((0, 3)), np.zeros((0, 3), int), 1) == 0.0
+    no_across = np.zeros((len(box.faces), 3))
+    assert np.isclose(analysis.facade_areas(box.vertices, box.faces, no_across, 1)[0], 2 * (1 * 2 + 3 * 2))  # up = Y
+    assert analysis.facade_areas(np.zeros((0, 3)), np.zeros((0, 3), int), np.zeros((0, 3)), 1)[0] == 0.0
     net = ColouredPetriNet((2, 3, 1), np.ones((3, 2, 2), bool), 1)
     assert analysis.facade_cells(net.neighbours, range(4)) == 2 * 3 + 2 * 2
     closed = ColouredPetriNet((4, 1, 1), np.ones((3, 2, 2), bool), 1, periodic=(True, False, False))
     assert analysis.facade_cells(closed.neighbours, range(4)) == 8
     across = np.tile([0.0, 0.0, 1.0], (len(box.faces), 1))  # the two 1 x 2 faces facing Z
-    assert np.isclose(analysis.facade_area_across(box.vertices, box.faces, across, 1), 2 * 1 * 2)
+    assert np.isclose(analysis.facade_areas(box.vertices, box.faces, across, 1)[1], 2 * 1 * 2)
 
 
 def test_join_ends_always_needs_the_boundary(tmp_path):

@@ -10,7 +10,7 @@ import trimesh
 
 from synthkit.core.quality import mesh_quality
 from synthkit.io.assets import load_asset
-from synthkit.methods.petri import analysis, pipeline
+from synthkit.methods.petri import analysis, joints
 from synthkit.methods.petri.appearance import Look, barycentrics
 from synthkit.methods.petri.joints import close_t_junctions
 from synthkit.runner import run_config
@@ -127,7 +127,7 @@ def test_drop_inner_walls_back_to_back_boxes():
     nbr = np.full((2, 6), -1)
     nbr[0, 0], nbr[1, 1] = 1, 0
     graph = (nbr, np.broadcast_to(np.arange(6) ^ 1, (2, 6)))
-    drop = pipeline.drop_inner_walls(V, F, pipeline.weld_classes(V, 1e-9), cell, side, graph, 1e-9)
+    drop = joints.drop_inner_walls(V, F, joints.weld_classes(V, 1e-9), cell, side, graph, 1e-9)
     assert drop.sum() == 4 and set(np.flatnonzero(drop) // 12) == {0, 1}
     q = mesh_quality(V, F[~drop])
     assert q["open_edges"] == 0 and q["nonmanifold_edges"] == 0

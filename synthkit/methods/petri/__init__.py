@@ -3,10 +3,12 @@
 Synthesis of 3D models by a coloured Petri net (Song, Sun, Zhang, Zhang 2013).
 
 Stages: :mod:`.analysis` cuts the example by a lattice into pieces, labels them by their feature
-vectors and collects the adjacency constraints; :mod:`.construction` turns the user's polyline
-into a space of hexahedral cells (Algorithm 1); :mod:`.net` holds the coloured Petri net and its
-inference (Algorithm 2) plus the plain AC-3 baseline; :mod:`.assembly` deforms the chosen pieces
-into their cells and measures the result; :mod:`.pipeline` runs it all.
+vectors and collects the adjacency constraints; :mod:`.construction` (one curve) and :mod:`.network`
+(a curve network) build the space of hexahedral cells (Algorithm 1), both behind :mod:`.spaces`;
+:mod:`.net` holds the coloured Petri net and its inference (Algorithm 2) plus the plain AC-3
+baseline; :mod:`.assembly` deforms the chosen pieces into their cells, :mod:`.joints` joins them,
+:mod:`.evaluation` measures the result. :mod:`.options` maps the config to the stages' arguments,
+:mod:`.pipeline` runs it all (:func:`synthkit.petri_synth`), :mod:`.outputs` writes the files.
 """
 
 SET_EXAMPLE = "inference.max_restarts=5"

@@ -16,12 +16,11 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
 from synthkit.core.quality import degenerate_faces
-from synthkit.errors import ConfigError
 from synthkit.methods.petri.appearance import Look, carry
+from synthkit.methods.petri.curves import VIEW_AXES
+from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.joints import close_t_junctions
-
-VIEW_AXES = {"front": (0, 1, 2), "top": (0, 2, 1), "side": (2, 1, 0)}
-"""View name -> (rectangle x axis, rectangle y axis, depth axis) as world axis indices."""
+from synthkit.methods.petri.options import LatticeOptions
 
 MAX_PIECES = 200_000
 
@@ -78,6 +77,38 @@ class Constraints:
         return self.n_labels
 
 
+@dataclass
+class Example:
+    """The example analysed (section 2.1): its lattice ``spec``, ``pieces``, feature vectors
+    ``features (P, 15)``, label ``grid (nx, ny, nz)``, each label's representative piece ``reps (L,)``
+    and the adjacency constraints ``cons``."""
+
+    spec: LatticeSpec
+    pieces: Pieces
+    features: np.ndarray
+    grid: np.ndarray
+    reps: np.ndarray
+    cons: Constraints
+
+
+def analyse(V, F, opts: LatticeOptions, look: Look | None = None) -> Example:
+    """Lattice, pieces, labels and constraints of the example ``V (#V, 3)``, ``F (#F, 3)`` (section
+    2.1); ``look`` the example faces' appearance, carried into the pieces. Raises :class:`KeyedError`
+    when the lattice does not fit (:func:`resolve_lattice`)."""
+    spec = resolve_lattice(V.min(axis=0), V.max(axis=0), unit=opts.unit, origin=opts.origin,
+                           annotation=opts.annotation, fit_tolerance=opts.fit_tolerance)
+    pieces = cut_pieces(V, F, spec, caps=opts.caps, look=look)
+    features = feature_vectors(pieces)
+    labels, reps = classify(
+        features,
+        tolerance=opts.tolerance,
+        pieces=pieces if opts.match_geometry else None,
+        seams=[face_seams(L, Fp) for L, Fp in zip(pieces.local, pieces.faces, strict=True)],
+    )
+    grid = labels.reshape(tuple(spec.counts))
+    return Example(spec, pieces, features, grid, reps, adjacency_constraints(grid, len(reps), boundary=opts.boundary))
+
+
 def resolve_lattice(
     lo,
     hi,
@@ -86,7 +117,6 @@ def resolve_lattice(
     origin=None,
     annotation=None,
     fit_tolerance: float = 0.02,
-    source: str | None = None,
 ) -> LatticeSpec:
     """The lattice covering the box ``[lo, hi]`` of the example.
 
@@ -94,11 +124,9 @@ def resolve_lattice(
     depth_unit)``: the rectangle gives the unit and a lattice corner in the view's two axes; along the
     depth axis the unit is ``depth_unit`` (None: the whole depth is one layer) from ``lo``. The lattice
     is replicated both ways from that corner; the example's box must start and end on lattice planes
-    within ``fit_tolerance`` units, else ConfigError ("... does not fit the model", naming the config
-    key and its value, prefixed by ``source``, the example's file, when given): the lattice is the
-    user's annotation, so a lattice that does not fit is a config error (exit code 2).
+    within ``fit_tolerance`` units, else :class:`KeyedError` ("... does not fit the model", its key
+    ``unit``, ``annotation.rect`` or ``annotation.depth_unit`` and the value).
     """
-    prefix = f"{source}: " if source else ""
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
     ext = hi - lo
@@ -114,8 +142,8 @@ def resolve_lattice(
         for axis, a0, a1 in ((ax, x0, x1), (ay, y0, y1)):
             tol = fit_tolerance * u[axis]
             if a0 < lo[axis] - tol or a1 > hi[axis] + tol:
-                raise ConfigError(
-                    f"{prefix}lattice.annotation.rect {list(rect)} lies outside the example's extent "
+                raise KeyedError(
+                    "annotation.rect", f"{list(rect)} lies outside the example's extent "
                     f"[{lo[axis]:.4g}, {hi[axis]:.4g}] along {'XYZ'[axis]} in the {view} view"
                 )
     else:
@@ -131,20 +159,21 @@ def resolve_lattice(
         bad = abs(a[axis] - n0[axis]) > fit_tolerance or abs(b[axis] - n1[axis]) > fit_tolerance
         if bad or n1[axis] - n0[axis] < 1:
             if annotation is None:
-                key = f"lattice.unit {u.tolist()}" + ("" if origin is None else f" with lattice.origin {o.tolist()}")
+                key, value = "unit", f"{u.tolist()}" + ("" if origin is None else f" with lattice.origin {o.tolist()}")
             elif axis == VIEW_AXES[annotation[0]][2]:
-                key = f"lattice.annotation.depth_unit {annotation[2]}"
+                key, value = "annotation.depth_unit", f"{annotation[2]}"
             else:
-                key = f"lattice.annotation.rect {list(annotation[1])}"
-            raise ConfigError(
-                f"{prefix}{key} does not fit the model: along {'XYZ'[axis]} the example spans "
+                key, value = "annotation.rect", f"{list(annotation[1])}"
+            raise KeyedError(
+                key, f"{value} does not fit the model: along {'XYZ'[axis]} the example spans "
                 f"[{lo[axis]:.6g}, {hi[axis]:.6g}] = {b[axis] - a[axis]:.4g} units of {u[axis]:.6g} from the "
                 f"lattice corner {o[axis]:.6g} (needs a whole number within {fit_tolerance})"
             )
     counts = (n1 - n0).astype(np.int64)
     if int(np.prod(counts)) > MAX_PIECES:
-        raise ConfigError(
-            f"{prefix}the lattice does not fit the model: {counts.tolist()} cells is more than {MAX_PIECES}"
+        raise KeyedError(
+            "unit" if annotation is None else "annotation",
+            f"the lattice does not fit the model: {counts.tolist()} cells is more than {MAX_PIECES}",
         )
     return LatticeSpec(unit=u, origin=o + n0 * u, counts=counts)
 
@@ -356,11 +385,9 @@ def classify(features: np.ndarray, *, tolerance: float, pieces: Pieces | None = 
     local units; otherwise it starts a new label. With ``pieces`` given (the "geometry" match, an
     addition to the paper: eq. 1 cannot tell a piece from its mirror image), the two pieces' vertices
     and face centroids must also lie within ``tolerance`` local units of each other both ways.
-    With ``seams`` (each piece's :func:`face_seams`; an addition to the paper, issue 22) the two
-    pieces must also show the same curves on each of the six cell faces (:func:`same_seams`): the
-    result places a label's representative wherever any of its pieces stood, so pieces that meet
-    their neighbours differently (a mirrored window half, a side wall taken for a front) would open
-    holes along the cuts. Returns ``(labels (P,), representative (L,))``.
+    With ``seams`` (each piece's :func:`face_seams`) the two pieces must also show the same curves
+    on each of the six cell faces (:func:`same_seams`; why: ``docs/findings/petri-synth.md``).
+    Returns ``(labels (P,), representative (L,))``.
     """
     labels = np.full(len(features), -1, np.int64)
     reps: list[int] = []
@@ -538,17 +565,6 @@ def facade_areas(V, F, across, up_axis: int, *, slope: float = FACADE_SLOPE) -> 
     return float(0.5 * double_area[facade].sum()), float(0.5 * double_area[facing & facade].sum())
 
 
-def facade_area(V, F, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces of ``V (#V, 3)``, ``F (#F, 3)`` (see :func:`facade_areas`)."""
-    _, double_area, facade = _facade_faces(V, F, up_axis, slope)
-    return float(0.5 * double_area[facade].sum())
-
-
-def facade_area_across(V, F, across: np.ndarray, up_axis: int, *, slope: float = FACADE_SLOPE) -> float:
-    """Area of the facade faces facing across the curve (see :func:`facade_areas`)."""
-    return facade_areas(V, F, across, up_axis, slope=slope)[1]
-
-
 def facade_cells(neighbours: np.ndarray, directions) -> int:
     """Facade cells of a space: cell sides in ``directions`` (of the six, 2 axis + 0 for +axis, + 1
     for -axis; the horizontal ones) without a neighbour, from ``neighbours (N, 6)`` (-1: none). A
@@ -574,14 +590,7 @@ def growth_hint(label_grid: np.ndarray, cons: Constraints, axis: int, unit_key: 
     of ``label_grid (nx, ny, nz)`` along ``axis`` holding no label that may repeat along it, and the
     lattice change that would help.
 
-    Found on Kenney's building-small-a (1 x 1 footprint, two floors and a roof): at unit 0.5 every
-    one of its 2 x 2 x 2 pieces is a distinct corner, and at unit 0.25 the ground floor repeats
-    (label 1 follows itself along X) but the roof row is four different pieces. With the outside
-    as a label (``labels.boundary: true``, eq. 4 with Merrell's boundary), no construction longer
-    than the example along X has a solution, before any random choice: a property of the example
-    and the lattice, not of Algorithm 2. ``labels.join_ends: auto`` then joins the example end to
-    end (:func:`join_ends`); with ``never`` the error names the cell, the conflicting labels and
-    side, and these rows."""
+    Why ``labels.join_ends: auto`` exists: ``docs/findings/petri-synth.md``."""
     repeat = repeatable_labels(cons.allowed[axis], cons.n_labels)
     rows = np.moveaxis(label_grid, axis, -1)
     stuck = [idx for idx in np.ndindex(rows.shape[:-1]) if not repeat[rows[idx]].any()]

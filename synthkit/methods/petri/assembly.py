@@ -24,18 +24,22 @@ class PieceLibrary:
     """
 
     def __init__(self, pieces, representative: np.ndarray, axes: tuple[int, int, int]):
+        looks = [pieces.look[int(p)] for p in representative] if pieces.look else None
+        self._set(axes, [pieces.local[int(p)][:, list(axes)] for p in representative],
+                  [pieces.faces[int(p)] for p in representative], looks)
+
+    @classmethod
+    def of(cls, axes, local: list, faces: list, looks: list | None) -> PieceLibrary:
+        """A library of the pieces ``local[label] (n, 3)`` (in (a, b, c) order), ``faces[label]``."""
+        out = cls.__new__(cls)
+        out._set(axes, local, faces, looks)
+        return out
+
+    def _set(self, axes, local: list, faces: list, looks: list | None) -> None:
         self.axes = tuple(axes)
-        self.local = []
-        self.faces = []
-        self.weights = []
-        self.looks = [pieces.look[int(p)] for p in representative] if pieces.look else None
-        self.face_sides = []
-        for p in representative:
-            L = pieces.local[int(p)][:, list(axes)]
-            self.local.append(L)
-            self.faces.append(pieces.faces[int(p)])
-            self.weights.append(trilinear_weights(L))
-            self.face_sides.append(face_sides(L, pieces.faces[int(p)]))
+        self.local, self.faces, self.looks = list(local), list(faces), looks
+        self.weights = [trilinear_weights(L) for L in self.local]
+        self.face_sides = [face_sides(L, F) for L, F in zip(self.local, self.faces, strict=True)]
 
     def open_edges(self, label: int) -> np.ndarray:
         """``(k, 2)`` vertex pairs of ``label``'s piece: its open edges (:func:`piece_open_edges`), cached."""
@@ -80,23 +84,18 @@ def preview_library(library: PieceLibrary, max_faces: int) -> PieceLibrary:
     """
     from synthkit.core.mesh import simplify
 
-    out = PieceLibrary.__new__(PieceLibrary)
-    out.axes = library.axes
-    out.local, out.faces, out.weights = [], [], []
-    out.looks = None if library.looks is None else []
-    for lab, (L, Fp, W) in enumerate(zip(library.local, library.faces, library.weights, strict=True)):
+    local, faces, looks = [], [], None if library.looks is None else []
+    for lab, (L, Fp) in enumerate(zip(library.local, library.faces, strict=True)):
         look = None if library.looks is None else library.looks[lab]
         if len(Fp) > max_faces:
             L2, F2, _ = simplify(L, Fp, max(max_faces, 4), preserve_boundary=True, preserve_topology=False)
             look = None if look is None else decimated_look(look, L, Fp, L2, F2)
-            L, Fp, W = L2, F2, trilinear_weights(L2)
-        out.local.append(L)
-        out.faces.append(Fp)
-        out.weights.append(W)
-        if out.looks is not None:
-            out.looks.append(look)
-    out.face_sides = [face_sides(L, Fp) for L, Fp in zip(out.local, out.faces, strict=True)]
-    return out
+            L, Fp = L2, F2
+        local.append(L)
+        faces.append(Fp)
+        if looks is not None:
+            looks.append(look)
+    return PieceLibrary.of(library.axes, local, faces, looks)
 
 
 def decimated_look(look: Look, L, F, L2, F2) -> Look:
@@ -110,14 +109,8 @@ def decimated_look(look: Look, L, F, L2, F2) -> Look:
 
 def reorder_library(library: PieceLibrary, axes: tuple[int, int, int]) -> PieceLibrary:
     """``library`` (in lattice axis order X, Y, Z) with local coordinates reordered to ``axes``."""
-    out = PieceLibrary.__new__(PieceLibrary)
-    out.axes = tuple(library.axes[a] for a in axes)
-    out.looks = library.looks
-    out.local = [L[:, list(axes)] for L in library.local]
-    out.faces = list(library.faces)
-    out.weights = [trilinear_weights(L) for L in out.local]
-    out.face_sides = [face_sides(L, F) for L, F in zip(out.local, out.faces, strict=True)]
-    return out
+    return PieceLibrary.of(tuple(library.axes[a] for a in axes), [L[:, list(axes)] for L in library.local],
+                           library.faces, library.looks)
 
 
 def assemble(library: PieceLibrary, labels, corners: np.ndarray):

@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
-from synthkit.methods.petri.construction import polyline_problem
+from synthkit.methods.petri.curves import polyline_problem
 
 COORDINATE_LIMIT = 1e9
 """Largest magnitude of a coordinate in model units (keeps lengths and products finite)."""
@@ -15,6 +15,17 @@ COORDINATE_LIMIT = 1e9
 Coordinate = Annotated[float, Field(ge=-COORDINATE_LIMIT, le=COORDINATE_LIMIT)]
 Point2 = tuple[Coordinate, Coordinate]
 Point3 = tuple[Coordinate, Coordinate, Coordinate]
+
+
+def checked_points(pts, info: ValidationInfo):
+    """A polyline's points as :func:`curves.polyline_problem` keeps them (None stays None); its
+    problem as the validation error."""
+    if pts is None:
+        return pts
+    problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
+    if problem is not None:
+        raise ValueError(problem)
+    return kept
 
 
 class Annotation(StrictModel):
@@ -126,10 +137,7 @@ class Curve(StrictModel):
     @field_validator("points")
     @classmethod
     def _points(cls, pts, info: ValidationInfo):
-        problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
-        if problem is not None:
-            raise ValueError(problem)
-        return kept
+        return checked_points(pts, info)
 
 
 class Construction(StrictModel):
@@ -182,12 +190,7 @@ class Construction(StrictModel):
     @field_validator("points")
     @classmethod
     def _points(cls, pts, info: ValidationInfo):
-        if pts is None:
-            return pts
-        problem, kept = polyline_problem(pts, bool(info.data.get("closed", False)))
-        if problem is not None:
-            raise ValueError(problem)
-        return kept
+        return checked_points(pts, info)
 
     @model_validator(mode="after")
     def _one_curve_source(self):

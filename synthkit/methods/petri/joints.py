@@ -1,11 +1,15 @@
-"""Closing T-junctions: a vertex of one face lying inside an open edge of another."""
+"""Joining the deformed pieces into the result: seams welded, walls between cells dropped, faces
+stored twice found, T-junctions (a vertex of one face inside an open edge of another) closed."""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from synthkit.core.mesh import weld
+from synthkit.core.mesh import merge_vertices, remove_unreferenced, weld
+from synthkit.core.quality import WELD_REL_TOL, degenerate_faces
 from synthkit.methods.petri.appearance import Look
 
 
@@ -149,3 +153,114 @@ def _split_faces(F, splits: dict, keep_with: list, look: Look | None):
         arrays.append(np.concatenate([arr[keep], np.einsum("mcb,mbk->mck", Wt, vals)]))
     mat = np.concatenate([look.face_material[keep], look.face_material[src]])
     return F2, kept, Look(arrays[0], arrays[1], mat)
+
+
+def welded_mesh(assembler, seams: np.ndarray, *, weld: bool):
+    """The deformed pieces with their seam vertices ``seams (k, 2)`` merged when ``weld`` (faces that
+    collapse dropped): the form of mesh the normal histograms of the curved result and of the
+    baseline are both taken on. Returns ``(V, F, face_label, face_cell, kept)``, ``kept`` the indices
+    of :meth:`Assembler.mesh`'s faces kept."""
+    V, F, face_label, face_cell = assembler.mesh()
+    kept = np.arange(len(F))
+    if weld:
+        V, F, keep = weld_seams(V, F, seams)
+        kept = kept[keep]
+    return V, F, face_label[kept], face_cell[kept], kept
+
+
+def joined_mesh(assembler, welded, graph):
+    """The result as written, from its :func:`welded_mesh` ``welded``: walls between cells
+    (:func:`drop_inner_walls`, ``graph = (neighbours, back)``), degenerate faces, faces that collapse
+    when positions are welded for the quality figures and faces stored twice (:func:`repeated_faces`)
+    dropped, then T-junctions closed (:func:`close_t_junctions`) and unused vertices dropped.
+    Returns ``(V, F, face_label, look, cls)`` (``look`` None without the example's look; ``cls (#V,)``
+    the positions' weld classes)."""
+    V, F, face_label, face_cell, kept = welded
+    look = assembler.look()
+    tol = WELD_REL_TOL * float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
+    cls = weld_classes(V, tol)
+    walls = drop_inner_walls(V, F, cls, face_cell, assembler.face_sides()[kept], graph, tol)
+    W = cls[F]
+    collapsed = (W[:, 0] == W[:, 1]) | (W[:, 1] == W[:, 2]) | (W[:, 2] == W[:, 0])
+    keep = ~walls & ~degenerate_faces(V, F) & ~collapsed & ~repeated_faces(W)
+    F, face_label, face_cell, kept = F[keep], face_label[keep], face_cell[keep], kept[keep]
+    look = None if look is None else look.take(kept)
+    # after the drops: a zero-area face that filled a T-junction leaves it to be closed here; the fans
+    # keep their face's height and split edges at vertices more than ``tol`` apart, so none is degenerate
+    F, _, (face_label,), look = close_t_junctions(V, F, face_cell, [face_label], look, tol, cls=cls)
+    V, F, used = remove_unreferenced(V, F)
+    return V, F, face_label, look, cls[used]
+
+
+def weld_classes(V: np.ndarray, tol: float) -> np.ndarray:
+    """``(#V,)``: the class of each position of ``V`` once positions within ``tol`` are welded."""
+    return weld(V, np.zeros((0, 3), np.int64), tol, return_index=True)[2]
+
+
+def drop_inner_walls(V, F, cls, face_cell, face_side, graph, tol: float) -> np.ndarray:
+    """``(#F,) bool``: walls inside the result where two pieces stand back to back (copies of the
+    example side by side: the end of one house's plate against the start of the next one's).
+
+    ``cls (#V,)`` are the weld classes of ``V`` (within ``tol``). A wall is the faces of one cell
+    (``face_cell (#F,)``) lying on one of its cell's faces
+    (``face_side (#F,)``, :func:`assembly.face_sides`); where the neighbour across that face
+    (``graph = (neighbours (N, 6), back (N, 6))``) has a wall on the face it shares, each connected part
+    of the one covering the same region as a part of the other (:func:`same_region`; they may be
+    triangulated differently) is dropped with it."""
+    nbr, back = graph
+    out = np.zeros(len(F), bool)
+    on = np.flatnonzero(face_side >= 0)
+    if len(on) == 0:
+        return out
+    side = face_side[on]
+    d = 2 * (side >> 1) + 1 - (side & 1)
+    cell = face_cell[on]
+    other = nbr[cell, d]
+    walls: dict = {}
+    for i in np.flatnonzero(other >= 0).tolist():
+        walls.setdefault((int(cell[i]), int(d[i])), []).append(int(on[i]))
+    T = V[F]
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    for (c, dc), idx in walls.items():
+        n = int(nbr[c, dc])
+        idx2 = walls.get((n, int(back[c, dc])))
+        if n < c or not idx2:
+            continue
+        parts2 = face_components(cls[F[idx2]], np.asarray(idx2))
+        for part in face_components(cls[F[idx]], np.asarray(idx)):
+            for k, part2 in enumerate(parts2):
+                if same_region(T[part], area[part], T[part2], area[part2], tol):
+                    out[part] = out[part2] = True
+                    parts2.pop(k)
+                    break
+    return out
+
+
+def face_components(W: np.ndarray, idx: np.ndarray) -> list[np.ndarray]:
+    """The faces ``idx (k,)`` grouped into connected pieces by their welded corners ``W (k, 3)``."""
+    _, inv = np.unique(W, return_inverse=True)
+    inv = inv.reshape(W.shape)
+    k, n = len(W), int(inv.max()) + 1
+    rows = np.repeat(np.arange(k), 3)
+    graph = csr_matrix((np.ones(3 * k), (rows, k + inv.ravel())), shape=(k + n, k + n))
+    _, comp = connected_components(graph, directed=False)
+    return [idx[comp[:k] == c] for c in np.unique(comp[:k])]
+
+
+def same_region(Ta, area_a, Tb, area_b, tol: float) -> bool:
+    """Whether two sets of coplanar triangles ``(k, 3, 3)`` (their doubled areas ``(k,)``) cover the same
+    region: the same area (to 1e-6) and the same bounding box (within ``tol``)."""
+    a, b = float(area_a.sum()), float(area_b.sum())
+    if abs(a - b) > 1e-6 * max(a, b):
+        return False
+    Pa, Pb = Ta.reshape(-1, 3), Tb.reshape(-1, 3)
+    return bool(np.abs(Pa.min(0) - Pb.min(0)).max() <= tol and np.abs(Pa.max(0) - Pb.max(0)).max() <= tol)
+
+
+def weld_seams(V, F, seams):
+    """Merge the matched seam vertices ``seams`` of ``V (n, 3)``, ``F (m, 3)``; faces that collapse
+    are dropped. Returns ``(V, F, keep (m,) bool)``, ``keep`` the faces kept."""
+    V, F2, old_to_new = merge_vertices(V, F, seams, return_index=True)
+    G = old_to_new[F]
+    keep = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 2] != G[:, 0])
+    return V, F2, keep

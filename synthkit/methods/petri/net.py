@@ -13,19 +13,8 @@ inference on 10^4 cells stays fast; :meth:`ColouredPetriNet.token` returns one t
 :meth:`ColouredPetriNet.places`, :meth:`transitions` and :meth:`arcs` enumerate the net, and
 :func:`to_pnml` / :func:`to_dot` export it.
 
-Inference (Algorithm 2) is :meth:`ColouredPetriNet.infer`. Choices where the paper is open:
-
-- Transitions fire by priority: enabled updating transitions first (a FIFO of cells whose
-  updating flags are set), then selecting (singleton candidate sets), then deforming; when nothing
-  is enabled the selecting transition of the selectable cell with the smallest candidate set
-  (ties: lowest cell index) is forced, its label drawn uniformly with the run's generator.
-- Before the origin cell is filled, every cell's updating transition fires once so that the
-  unary boundary constraints (which labels may end the model on each side) reach all cells. The
-  origin then takes the label of the example's piece e_000; when that label is no longer a
-  candidate there (a closed curve has no ends, so end pieces cannot occur), the label of the
-  example piece nearest to e_000 in lattice order that still is a candidate is used.
-- A contradiction (an empty candidate set; not in the paper) restarts the inference from the
-  initial marking with a seed derived from the run's generator, at most ``max_restarts`` times.
+Inference (Algorithm 2) is :meth:`ColouredPetriNet.infer`: transitions fire by priority (updating,
+selecting, deforming, then a forced seeded choice); where the paper is open: ``docs/findings/petri-synth.md``.
 """
 
 from __future__ import annotations
@@ -36,8 +25,6 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-
-from synthkit.errors import InputError
 
 STATES = ("selectable", "fillable", "filled", "deformed")
 SELECTABLE, FILLABLE, FILLED, DEFORMED = range(4)
@@ -73,6 +60,10 @@ _AXIS_NAMES = ("a (along the curve)", "b (across it)", "c (the sweep)")
 def _shown(labels: list[int], most: int = 8) -> str:
     """``labels`` for a message: the list, or its count when longer than ``most``."""
     return str(labels) if len(labels) <= most else f"({len(labels)} labels)"
+
+
+class Unfillable(ValueError):
+    """The example's adjacency constraints cannot fill the construction space (an input error)."""
 
 
 class Contradiction(Exception):
@@ -304,9 +295,10 @@ class ColouredPetriNet:
             exc.choices = self.fired["forced_selecting"] - 1  # the origin's choice is not random
             raise
 
-    def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
-        cand, state, su, nbr, support, tab = self.cand, self.state, self.su, self._nbr, self._support, self._tab
-        fired = self.fired
+    def _start(self) -> tuple[deque, bytearray, deque]:
+        """Every cell's updating flags set and queued; cells with one candidate fillable. Returns
+        ``(queue, queued, fillable)``."""
+        cand, state, su, nbr = self.cand, self.state, self.su, self._nbr
         queue: deque = deque(range(self.n_cells))
         queued = bytearray(b"\x01" * self.n_cells)
         for c in range(self.n_cells):
@@ -319,6 +311,29 @@ class ColouredPetriNet:
             if m & (m - 1) == 0:
                 state[c] = FILLABLE
                 fillable.append(c)
+        return queue, queued, fillable
+
+    def _fill_origin(self, origin_labels, queue: deque, queued: bytearray, fillable: deque, heap: list) -> None:
+        """Fire the origin's selecting transition with the first of ``origin_labels`` it may take, then
+        put every selectable cell on the ``heap`` of forced choices."""
+        cand, state = self.cand, self.state
+        m0 = cand[0]
+        choice = next((lab for lab in origin_labels if (m0 >> lab) & 1), None)
+        if choice is None:
+            raise Contradiction(0)
+        if state[0] == FILLABLE:
+            fillable.remove(0)
+        self.fill(0, choice, queue, queued, forced=True)
+        for c in range(self.n_cells):
+            if state[c] == SELECTABLE:
+                heapq.heappush(heap, (cand[c].bit_count(), c))
+
+    def _fire_all(self, rng, origin_labels, deform, filled: deque) -> None:
+        """Fire transitions by priority until none is enabled (module docstring): updating (inline,
+        the hot loop), the origin's selection, selecting, deforming, then a forced seeded choice."""
+        cand, state, su, nbr, support, tab = self.cand, self.state, self.su, self._nbr, self._support, self._tab
+        fired = self.fired
+        queue, queued, fillable = self._start()
         heap: list = []
         cache: dict = {}
         origin_done = False
@@ -358,17 +373,8 @@ class ColouredPetriNet:
                 continue
             if not origin_done:
                 origin_done = True
-                m0 = cand[0]
-                choice = next((lab for lab in origin_labels if (m0 >> lab) & 1), None)
-                if choice is None:
-                    raise Contradiction(0)
-                if state[0] == FILLABLE:
-                    fillable.remove(0)
-                self.fill(0, choice, queue, queued, forced=True)
+                self._fill_origin(origin_labels, queue, queued, fillable, heap)
                 filled.append(0)
-                for c in range(self.n_cells):
-                    if state[c] == SELECTABLE:
-                        heapq.heappush(heap, (cand[c].bit_count(), c))
                 continue
             if fillable:
                 c = fillable.popleft()
@@ -400,7 +406,7 @@ class ColouredPetriNet:
 
         ``origin_labels``: labels to try at the origin cell, best first (the example's e_000 first).
         ``deform(cell, label)`` is called by every deforming transition. ``on_restart()`` is called
-        before each restart (to discard deformed pieces). Raises InputError naming the cell of the
+        before each restart (to discard deformed pieces). Raises :class:`Unfillable` naming the cell of the
         last contradiction when ``max_restarts`` restarts all fail, or at once when the contradiction
         came before any random choice (then every restart would fail the same way).
         """
@@ -416,14 +422,14 @@ class ColouredPetriNet:
                     tuple(int(v) for v in self.coords[exc.cell]) if self.describe is None else self.describe(exc.cell)
                 )
                 if exc.choices <= 0:
-                    raise InputError(
+                    raise Unfillable(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
                         f"contradiction (empty candidate set) at cell {cell} before any random choice: "
                         f"{self._describe_conflict(exc.cell)}, so no restart can help "
                         f"({self.unfillable_hint or 'check the sizes S_Y, S_Z and labels.boundary'})"
                     ) from None
                 if restarts >= max_restarts:
-                    raise InputError(
+                    raise Unfillable(
                         f"petri-synth: the example's adjacency constraints cannot fill the construction space: "
                         f"contradiction (empty candidate set) at cell {cell} after {restarts} restarts "
                         f"(inference.max_restarts)"

@@ -5,49 +5,9 @@ mitre directions, tangential lines resampled by length, swept along the third ax
 plane, ``side``, ``size_y`` (S_Y), ``size_z`` (S_Z) and sweep for all curves. Where two curves
 cross, their bands of cells overlap; that overlap becomes one block of *junction cells* shared by
 both curves, and the rest of each curve is cut into *arms* ending at the junctions. All cells of all
-curves form one construction space whose adjacency the Petri net fills. Choices (none is in the
-paper, which shows Fig. 6d without saying how it was built):
-
-- **Locating a crossing.** Two curves cross where a segment of one properly crosses a segment of
-  the other (the user polylines themselves, not their offset bands). Touching at a point of a
-  polyline, a curve crossing itself, two curves overlapping along a common line (collinear
-  segments sharing a stretch), curves on different planes and crossings at less than
-  ``MIN_ANGLE_DEG`` are config errors (exit 2).
-- **The junction's hexahedra.** Near a crossing both curves must run straight (the junction lies
-  inside one segment of each curve, otherwise "too close to point k" / "too close to the end").
-  There the offset lines of curve A (rows jA = 0..S_Y) and of curve B (rows jB = 0..S_Y) are
-  straight; corner ``X(jA, jB)`` is the intersection of A's offset line jA with B's offset line jB,
-  computed once and reused by the junction and by the arms that end at it, so the cells meet
-  exactly. The junction is S_Y x S_Y plane cells (parallelograms when the curves cross at an angle)
-  swept into S_Y x S_Y x S_Z hexahedra; its cell (u, jA) has the corners ``X(jA + jb, order[u + ia])``
-  (trilinear corner ``ia + 2 jb + 4 kc``), where ``order`` lists B's offset lines in the order they
-  cross A's tangent. Each junction cell is one cell, owned by the curve given first in
-  ``construction.curves`` (its *frame*: local a along A's tangent, b along A's left normal, c the
-  sweep); B passes through it without a second cell.
-- **Trimming.** An arm's tangential line j runs from the line where it leaves one junction (B's
-  outermost offset line crossed last, or the curve's start) to the line where it enters the next
-  (B's offset line crossed first, or the curve's end); each is resampled by length into
-  ``S_X = floor(l / unit + 1/2)`` parts, ``l`` the user curve's length between the same two lines.
-  So an arm's last cells end exactly on the junction's outer edge and no cell of an arm reaches into
-  a junction: cells never overlap. Afterwards every cell is checked strictly convex and
-  counter-clockwise and no two cells may overlap (edges crossing, or a cell's centre inside another
-  cell); else a config error naming the curves.
-- **Direction labels across a junction.** Neighbours are found geometrically: two cells are
-  neighbours where they share a plane edge (the same two corner points). Each cell names that
-  edge in its own frame (+a, -a, +b, -b); within one frame the two names are opposite, across a
-  junction they differ (an arm of B entering the junction along +a_B meets the junction cell's -b_A
-  or +b_A side, depending on the side B comes from). The Petri net keeps both names
-  (:class:`~synthkit.methods.petri.net.ColouredPetriNet` ``graph``) and accepts a label pair only
-  when the example has it in that direction in both frames, so a junction takes only labels the
-  example itself has with neighbours on the sides the crossing needs (e.g. its interior pieces with
-  neighbours on all four sides). Along the sweep axis all frames agree (c is the sweep for every
-  curve). Whether the edge runs the same way in both frames (``flip``) is recorded for the crack
-  measure, which maps one piece's face coordinate u to ``u`` or ``1 - u`` on the other's face.
-- **Crossings too close.** An arm shorter than one unit (between two junctions, or between a
-  junction and a curve end), or two junctions on a curve that overlap (three curves through one
-  point) is a config error naming both curves and the crossing point.
-- **Closed curves.** A closed curve is cut at its junctions into arms that run on across its first
-  point; without junctions it is one periodic arm whose last column is its first.
+curves form one construction space whose adjacency the Petri net fills. The choices (locating
+crossings, junction hexahedra, trimming, direction labels across a junction, refusals):
+``docs/findings/petri-synth.md``.
 """
 
 from __future__ import annotations
@@ -57,8 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from synthkit.errors import ConfigError
-from synthkit.methods.petri.construction import (
+from synthkit.methods.petri.curves import (
     PLANE_AXES,
     PLANE_POINT_AXES,
     first_crossing,
@@ -69,6 +28,8 @@ from synthkit.methods.petri.construction import (
     resample_polyline,
     units_along,
 )
+from synthkit.methods.petri.errors import KeyedError
+from synthkit.methods.petri.options import SpaceOptions
 
 MIN_ANGLE_DEG = 30.0
 """Smallest crossing angle: below it the junction's parallelograms would be longer than about two
@@ -238,33 +199,56 @@ def _line_x(p, t, q, s) -> np.ndarray:
     return p + x * t
 
 
-def build_network(
-    curves,
-    *,
-    plane: str,
-    side: str,
-    units,
-    size_y: int,
-    size_z: int,
-    sweep_origin: float,
-    unit_key: str = "the lattice unit along the curve",
-) -> NetworkSpace:
+class _Cells:
+    """The plane cells of a network as they are added, part by part (:meth:`add`)."""
+
+    def __init__(self):
+        self.points: list = []
+        self.quads: list = []
+        self.parts: list = []
+        self.cell_part: list = []
+        self.cell_ij: list = []
+        self.cell_rows: list = []
+
+    def add(self, grid: np.ndarray, part: dict, rows_of) -> None:
+        """Append ``part`` and the cells of its corner ``grid (nI + 1, nJ + 1, 2)``; ``rows_of(i, j)``:
+        the (curve, row) pairs cell (i, j) must follow."""
+        self.parts.append(part)
+        index = len(self.parts) - 1
+        nI, nJ = grid.shape[0] - 1, grid.shape[1] - 1
+        for i in range(nI):
+            for j in range(nJ):
+                base = len(self.points)
+                self.points.extend([grid[i, j], grid[i + 1, j], grid[i, j + 1], grid[i + 1, j + 1]])
+                self.quads.append([base, base + 1, base + 2, base + 3])
+                self.cell_part.append(index)
+                self.cell_ij.append((i, j))
+                self.cell_rows.append(rows_of(i, j))
+
+
+def offset_origin(side: str, size_y: int) -> float:
+    """j0: the offset line on the curve (side "left": 0, "right": S_Y, "center": S_Y / 2)."""
+    return {"left": 0.0, "right": float(size_y), "center": size_y / 2.0}[side]
+
+
+def build_network(curves, opts: SpaceOptions) -> NetworkSpace:
     """The construction space of the curve network ``curves`` (list of ``(points (m, 2), closed)``).
 
-    Raises ConfigError for a bad polyline (as :func:`construction.polyline_problem`), curves that
-    touch, overlap along a line, cross themselves or at too shallow an angle, junctions too close to
-    a curve's point or end or to each other, arms shorter than one unit, and overlapping or folded cells.
+    Raises :class:`KeyedError` (key ``curves[i]``, ``curves[i].points`` or ``curves``) for a bad
+    polyline (as :func:`curves.polyline_problem`), curves that touch, overlap along a line, cross
+    themselves or at too shallow an angle, junctions too close to a curve's point or end or to each
+    other, arms shorter than one unit, and overlapping or folded cells.
     """
-    units = np.asarray(units, np.float64)
+    units = np.asarray(opts.units, np.float64)
     ua, ub = float(units[0]), float(units[1])
-    SY = int(size_y)
-    j0 = {"left": 0.0, "right": float(SY), "center": SY / 2.0}[side]
+    SY = int(opts.size_y)
+    j0 = offset_origin(opts.side, SY)
     cs: list[_Curve] = []
     for ci, (pts, closed) in enumerate(curves):
-        key = f"construction.curves[{ci}].points"
+        key = f"curves[{ci}].points"
         problem, kept = polyline_problem([list(p) for p in pts], bool(closed))
         if problem is not None:
-            raise ConfigError(f"{key}: {problem}")
+            raise KeyedError(key, problem)
         P = np.asarray(kept, np.float64)
         T, N, D, seg_len = mitre_directions(P, bool(closed), key)
         cs.append(_Curve(ci, P, bool(closed), T, N, D, seg_len))
@@ -272,53 +256,33 @@ def build_network(
     junctions = _find_crossings(cs, tol)
     for J in junctions:
         _junction_corners(J, cs, j0, ub, SY)
-    # order junctions along each curve, arms between them
-    points: list = []
-    quads: list = []
-    parts: list = []
-    cell_part: list = []
-    cell_ij: list = []
-    cell_rows: list = []
-
-    def add_quads(grid, part_idx, rows_of):
-        nI, nJ = grid.shape[0] - 1, grid.shape[1] - 1
-        for i in range(nI):
-            for j in range(nJ):
-                base = len(points)
-                points.extend([grid[i, j], grid[i + 1, j], grid[i, j + 1], grid[i + 1, j + 1]])
-                quads.append([base, base + 1, base + 2, base + 3])
-                cell_part.append(part_idx)
-                cell_ij.append((i, j))
-                cell_rows.append(rows_of(i, j))
-
-    junction_part = {}
-    for c in cs:
-        _arms_of(c, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part)
-    if not quads:
-        raise ConfigError("construction.curves: no cells")
-    pts = np.asarray(points, np.float64)
+    cells = _Cells()
+    for c in cs:  # each curve cut at its junctions into arms
+        _Arms(c, cs, junctions, opts, cells).build()
+    if not cells.quads:
+        raise KeyedError("curves", "no cells")
+    pts = np.asarray(cells.points, np.float64)
     # one id per distinct point (corners are computed once and copied exactly)
     scale = 1e-7 * max(ua, ub)
     keys = np.round(pts / scale).astype(np.int64)
     _, pid, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    Q = np.asarray(inverse, np.int64).reshape(-1)[np.asarray(quads, np.int64)]
-    uniq = pts[pid]
+    Q = np.asarray(inverse, np.int64).reshape(-1)[np.asarray(cells.quads, np.int64)]
     space = NetworkSpace(
-        points=uniq,
+        points=pts[pid],
         quads=Q,
-        sweep=sweep_origin + units[2] * np.arange(size_z + 1),
-        axes=PLANE_AXES[plane],
-        point_axes=PLANE_POINT_AXES[plane],
+        sweep=opts.sweep_origin + units[2] * np.arange(opts.size_z + 1),
+        axes=PLANE_AXES[opts.plane],
+        point_axes=PLANE_POINT_AXES[opts.plane],
         units=units,
         curves=[c.P for c in cs],
         directions=[c.D for c in cs],
         closed=[c.closed for c in cs],
         j0=j0,
         size_y=SY,
-        parts=parts,
-        cell_part=np.asarray(cell_part, np.int64),
-        cell_ij=np.asarray(cell_ij, np.int64).reshape(-1, 2),
-        cell_rows=cell_rows,
+        parts=cells.parts,
+        cell_part=np.asarray(cells.cell_part, np.int64),
+        cell_ij=np.asarray(cells.cell_ij, np.int64).reshape(-1, 2),
+        cell_rows=cells.cell_rows,
         plane_nbr=np.full((len(Q), 4), -1, np.int64),
         plane_back=np.tile(np.array([1, 0, 3, 2]), (len(Q), 1)),
         plane_flip=np.zeros((len(Q), 4), bool),
@@ -343,8 +307,8 @@ def _connect(space: NetworkSpace) -> None:
     for k, lst in owners.items():
         if len(lst) > 2:
             q = lst[0][0]
-            raise ConfigError(
-                f"construction.curves: self-intersecting construction cells: {len(lst)} cells share the edge at "
+            raise KeyedError(
+                "curves", f"self-intersecting construction cells: {len(lst)} cells share the edge at "
                 f"{_fmt(space.points[k[0]])} ({space.describe(q * space.size_z)})"
             )
         if len(lst) == 2:
@@ -376,8 +340,8 @@ def _find_crossings(cs: list[_Curve], tol: float) -> list[_Junction]:
                             lo, hi = max(0.0, min(t0, t1)), min(1.0, max(t0, t1))
                             if hi - lo > 1e-9:
                                 where = "itself" if A == B else f"construction.curves[{B}]"
-                                raise ConfigError(
-                                    f"construction.curves[{A}] overlaps {where} along a common line from "
+                                raise KeyedError(
+                                    f"curves[{A}]", f"overlaps {where} along a common line from "
                                     f"{_fmt(p + lo * r)} to {_fmt(p + hi * r)} (curves may cross, not run on top "
                                     f"of each other)"
                                 )
@@ -391,20 +355,20 @@ def _find_crossings(cs: list[_Curve], tol: float) -> list[_Junction]:
                         adjacent = sb == sa + 1 or (cs[A].closed and sa == 0 and sb == len(SA) - 1)
                         if adjacent:
                             continue
-                        raise ConfigError(
-                            f"construction.curves[{A}] crosses itself at {_fmt(p + t * r)} (a curve of a network "
+                        raise KeyedError(
+                            f"curves[{A}]", f"crosses itself at {_fmt(p + t * r)} (a curve of a network "
                             f"may cross other curves only)"
                         )
                     X = p + t * r
                     if min(t, 1 - t) * lr <= tol or min(u, 1 - u) * ls <= tol:
-                        raise ConfigError(
-                            f"construction.curves[{A}] and construction.curves[{B}] meet at {_fmt(X)} at a point of a "
+                        raise KeyedError(
+                            f"curves[{A}]", f"meets construction.curves[{B}] at {_fmt(X)} at a point of a "
                             f"polyline: curves must cross inside a straight segment of each"
                         )
                     sin = abs(den) / (lr * ls)
                     if sin < np.sin(np.radians(MIN_ANGLE_DEG)):
-                        raise ConfigError(
-                            f"construction.curves[{A}] and construction.curves[{B}] cross at {_fmt(X)} at "
+                        raise KeyedError(
+                            f"curves[{A}]", f"crosses construction.curves[{B}] at {_fmt(X)} at "
                             f"{np.degrees(np.arcsin(min(sin, 1.0))):.3g} degrees, less than {MIN_ANGLE_DEG:g}"
                         )
                     out.append(_Junction(A, B, sa, sb, X, {}, [], []))
@@ -437,8 +401,8 @@ def _junction_corners(J: _Junction, cs, j0: float, ub: float, SY: int) -> None:
                     other = J.B if own else J.A
                     is_end = not c.closed and end in (0, len(c.P) - 1)
                     what = "the end of the curve" if is_end else f"its point {end} {_fmt(c.P[end])}"
-                    raise ConfigError(
-                        f"construction.curves[{c.index}]: the crossing with construction.curves[{other}] at "
+                    raise KeyedError(
+                        f"curves[{c.index}]", f"the crossing with construction.curves[{other}] at "
                         f"{_fmt(J.point)} is too close to {what}: a junction needs the curve straight across it "
                         f"(S_Y = {SY} offset lines of {ub:g} each side)"
                     )
@@ -449,24 +413,18 @@ def _arc_position(line: np.ndarray, seg: int, X: np.ndarray) -> float:
     return float(cum[seg] + np.linalg.norm(X - line[seg]))
 
 
-def _arms_of(c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part) -> None:
-    """Cut curve ``c`` at its junctions into arms; append the arms' cells and the junctions it owns
-    (:class:`_Arms`)."""
-    _Arms(c, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part).build()
-
-
 class _Arms:
     """Curve ``c`` cut at its junctions into arms. ``rows``: the ``SY + 1`` offset lines of ``c``
     (``ub`` apart, line ``j0`` on the curve), ``crossings``: one record per junction on ``c`` sorted
-    along it (its entry and exit cut on every row and on the centre line). :meth:`build` appends each
-    arm and each junction ``c`` owns (the ones where it is curve A) to ``parts`` through
-    ``add_quads``, and records the junctions' part index in ``junction_part``."""
+    along it (its entry and exit cut on every row and on the centre line). :meth:`build` adds each
+    arm and each junction ``c`` owns (the ones where it is curve A) to ``cells``."""
 
-    def __init__(self, c: _Curve, cs, junctions, j0, ub, ua, SY, unit_key, parts, add_quads, junction_part):
-        self.c, self.ua, self.SY, self.unit_key = c, ua, SY, unit_key
-        self.parts, self.add_quads, self.junction_part = parts, add_quads, junction_part
-        self.name = f"construction.curves[{c.index}]"
-        rows = [c.P + (j - j0) * ub * c.D for j in range(SY + 1)]
+    def __init__(self, c: _Curve, cs, junctions, opts: SpaceOptions, cells: _Cells):
+        self.c, self.ua, self.SY, self.unit_key = c, float(opts.units[0]), int(opts.size_y), opts.unit_key
+        self.cells = cells
+        self.key = f"curves[{c.index}]"
+        j0, ub = offset_origin(opts.side, self.SY), float(opts.units[1])
+        rows = [c.P + (j - j0) * ub * c.D for j in range(self.SY + 1)]
         centre = c.P
         if c.closed:
             rows = [np.vstack([r, r[:1]]) for r in rows]
@@ -516,28 +474,27 @@ class _Arms:
 
     def _arm(self, label, a_start, a_end, near):
         """One arm between two cuts; ``a_start / a_end`` = (row positions, row points, centre position);
-        ``near``: the ConfigError message when the arm is shorter than one unit."""
+        ``near``: the :class:`KeyedError` message when the arm is shorter than one unit."""
         lines = []
         for j in range(self.SY + 1):
             ln, length = self._piece(j, a_start[0][j], a_end[0][j], a_start[1][j], a_end[1][j])
             if length <= 0:
-                raise ConfigError(near)
+                raise KeyedError(self.key, near)
             lines.append(ln)
         length = a_end[2] - a_start[2]
         if self.c.closed and length < 0:
             length += self.cen_len
         SX = units_along(length, self.ua) if length > 0 else 0
         if SX < 1:
-            raise ConfigError(near)
+            raise KeyedError(self.key, near)
         grid = np.stack([resample_polyline(ln, SX, False) for ln in lines], axis=1)
         for j, ln in enumerate(lines):  # the ends exactly on the cuts
             grid[0, j], grid[-1, j] = ln[0], ln[-1]
         self._add(grid, {"kind": "arm", "name": f"{label}", "curves": [self.c.index], "shape": [SX, self.SY]})
 
     def _add(self, grid, part) -> None:
-        self.parts.append(part)
         index = self.c.index
-        self.add_quads(grid, len(self.parts) - 1, lambda i, j: [(index, j)])
+        self.cells.add(grid, part, lambda i, j: [(index, j)])
 
     def _own_junction(self, r) -> None:
         J, SY = r["J"], self.SY
@@ -547,23 +504,21 @@ class _Arms:
         for u, jB in enumerate(J.order):
             for jA in range(SY + 1):
                 G[u, jA] = J.X[(jA, jB)]
-        self.parts.append({"kind": "junction", "name": f"junction of curves {J.A} and {J.B} at {_fmt(J.point)}",
-                           "curves": [J.A, J.B], "point": _fmt(J.point), "shape": [SY, SY]})
-        idx = len(self.parts) - 1
-        self.junction_part[id(J)] = idx
+        part = {"kind": "junction", "name": f"junction of curves {J.A} and {J.B} at {_fmt(J.point)}",
+                "curves": [J.A, J.B], "point": _fmt(J.point), "shape": [SY, SY]}
         order = J.order
-        self.add_quads(G, idx, lambda u, j: [(J.A, j), (J.B, min(order[u], order[u + 1]))])
+        self.cells.add(G, part, lambda u, j: [(J.A, j), (J.B, min(order[u], order[u + 1]))])
 
     def _whole_curve(self) -> None:
         """A curve without junctions: one arm (closed: a ring)."""
-        c, too_short = self.c, (f"{self.name}: the curve is {self.cen_len:.6g} long, shorter than one unit along "
+        c, too_short = self.c, (f"the curve is {self.cen_len:.6g} long, shorter than one unit along "
                                 f"it ({self.ua:.6g}, {self.unit_key})")
         if not c.closed:
             self._arm(f"curve {c.index}", self._start_cut(), self._end_cut(), too_short)
             return
         SX = units_along(self.cen_len, self.ua)
         if SX < 1:
-            raise ConfigError(too_short)
+            raise KeyedError(self.key, too_short)
         grid = np.stack([resample_polyline(r[:-1], SX, True) for r in self.rows], axis=1)
         self._add(np.concatenate([grid, grid[:1]], axis=0),
                   {"kind": "arm", "name": f"curve {c.index}", "curves": [c.index], "shape": [SX, self.SY]})
@@ -580,21 +535,21 @@ class _Arms:
         return ([p[k] for p in r["pos"]], r[which], r["cpos"][k])
 
     def _check_overlaps(self) -> None:
-        mine, name = self.crossings, self.name
+        mine = self.crossings
         for a, b in zip(mine, mine[1:], strict=False):
             if b["cpos"][0] <= a["cpos"][1] or any(pb[0] <= pa[1] for pa, pb in zip(a["pos"], b["pos"], strict=True)):
-                raise ConfigError(
-                    f"{name}: its crossings with construction.curves[{a['other']}] at {_fmt(a['J'].point)} and "
+                raise KeyedError(
+                    self.key, f"its crossings with construction.curves[{a['other']}] at {_fmt(a['J'].point)} and "
                     f"construction.curves[{b['other']}] at {_fmt(b['J'].point)} are too close to each other: their "
                     f"junctions overlap"
                 )
         if self.c.closed and len(mine) > 1:
             a, b = mine[-1], mine[0]
             if (b["cpos"][0] + self.cen_len) <= a["cpos"][1]:
-                raise ConfigError(f"{name}: its crossings at {_fmt(a['J'].point)} and {_fmt(b['J'].point)} overlap")
+                raise KeyedError(self.key, f"its crossings at {_fmt(a['J'].point)} and {_fmt(b['J'].point)} overlap")
 
     def build(self) -> None:
-        mine, name, ua, c = self.crossings, self.name, self.ua, self.c
+        mine, ua, c = self.crossings, self.ua, self.c
         if not mine:
             self._whole_curve()
             return
@@ -602,7 +557,7 @@ class _Arms:
         if not c.closed:
             r0 = mine[0]
             self._arm(f"curve {c.index} arm 0", self._start_cut(), self._cut_of(r0, "entry"),
-                      f"{name}: the crossing with construction.curves[{r0['other']}] at {_fmt(r0['J'].point)} is "
+                      f"the crossing with construction.curves[{r0['other']}] at {_fmt(r0['J'].point)} is "
                       f"too close to the start of the curve (the arm before it must be at least one unit, {ua:g}, "
                       f"long)")
         for t, r in enumerate(mine):
@@ -611,18 +566,18 @@ class _Arms:
             label = f"curve {c.index} arm {t + 1}"
             if nxt is not None:
                 self._arm(label, self._cut_of(r, "exit"), self._cut_of(nxt, "entry"),
-                          f"{name}: its crossings with construction.curves[{r['other']}] at {_fmt(r['J'].point)} and "
+                          f"its crossings with construction.curves[{r['other']}] at {_fmt(r['J'].point)} and "
                           f"construction.curves[{nxt['other']}] at {_fmt(nxt['J'].point)} are too close to each "
                           f"other (the arm between them must be at least one unit, {ua:g}, long)")
             else:
                 self._arm(label, self._cut_of(r, "exit"), self._end_cut(),
-                          f"{name}: the crossing with construction.curves[{r['other']}] at {_fmt(r['J'].point)} is "
+                          f"the crossing with construction.curves[{r['other']}] at {_fmt(r['J'].point)} is "
                           f"too close to the end of the curve (the arm after it must be at least one unit, {ua:g}, "
                           f"long)")
 
 
 def _check_network_cells(space: NetworkSpace) -> None:
-    """ConfigError unless every plane cell is strictly convex and counter-clockwise and no two cells overlap."""
+    """:class:`KeyedError` unless every plane cell is strictly convex and counter-clockwise and no two cells overlap."""
     P = space.points[space.quads]  # (Q, 4, 2) in corner order 00, 10, 01, 11
     ccw = P[:, [0, 1, 3, 2]]
     tol = 1e-9 * float(np.prod(space.units[:2]))
@@ -631,18 +586,18 @@ def _check_network_cells(space: NetworkSpace) -> None:
         cross = _cross2(b - a, d - a)
         bad = np.flatnonzero(cross <= tol)
         if len(bad):
-            raise ConfigError(
-                f"construction.curves with construction.size_y = {space.size_y}: self-intersecting construction "
-                f"cells: {space.describe(int(bad[0]) * space.size_z)} is folded or inverted; reduce "
+            raise KeyedError(
+                "curves", f"self-intersecting construction cells with construction.size_y = {space.size_y}: "
+                f"{space.describe(int(bad[0]) * space.size_z)} is folded or inverted; reduce "
                 f"construction.size_y or smooth the curves"
             )
     segs = space.plane_segments()
     hit = first_crossing(segs)
     if hit is not None:
-        raise ConfigError(
-            f"construction.curves with construction.size_y = {space.size_y}: self-intersecting construction "
-            f"cells: cells of the network overlap near {_fmt(segs[hit[0], 0])} (bands of curves that come close "
-            f"without crossing, or a junction too close to a bend)"
+        raise KeyedError(
+            "curves", f"self-intersecting construction cells with construction.size_y = {space.size_y}: cells of "
+            f"the network overlap near {_fmt(segs[hit[0], 0])} (bands of curves that come close without crossing, "
+            f"or a junction too close to a bend)"
         )
     C = P.mean(axis=1)
     radius = float(np.linalg.norm(P - C[:, None], axis=-1).max())
@@ -655,8 +610,8 @@ def _check_network_cells(space: NetworkSpace) -> None:
             e = np.roll(poly, -1, axis=0) - poly
             inside = _cross2(e, C[q] - poly) > tol
             if inside.all():
-                raise ConfigError(
-                    f"construction.curves with construction.size_y = {space.size_y}: self-intersecting "
-                    f"construction cells: {space.describe(q * space.size_z)} lies inside "
+                raise KeyedError(
+                    "curves", f"self-intersecting construction cells with construction.size_y = {space.size_y}: "
+                    f"{space.describe(q * space.size_z)} lies inside "
                     f"{space.describe(r * space.size_z)}"
                 )

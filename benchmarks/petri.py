@@ -36,6 +36,7 @@ from synthkit.core.mesh import weld  # noqa: E402
 from synthkit.io.meshes import save_mesh  # noqa: E402
 from synthkit.methods.petri import analysis, construction  # noqa: E402
 from synthkit.methods.petri.net import ColouredPetriNet, ac3_solve, adjacency_violations  # noqa: E402
+from synthkit.methods.petri.options import SpaceOptions  # noqa: E402
 from synthkit.methods.petri.pipeline import origin_preference  # noqa: E402
 from synthkit.runner import run_config  # noqa: E402
 from synthkit.samples import petri as sample  # noqa: E402
@@ -59,16 +60,9 @@ def bench_inference(repeats: int) -> None:
     t = np.linspace(0, np.pi / 2, 40)
     R = 500 / (np.pi / 2)
     pts = np.stack([R * np.sin(t), R * (1 - np.cos(t))], axis=1)
-    space = construction.build_construction_space(
-        pts,
-        plane="xz",
-        closed=False,
-        side="left",
-        units=spec.unit[[0, 2, 1]],
-        size_y=2,
-        size_z=20,
-        sweep_origin=0.0,
-    )
+    opts = SpaceOptions(plane="xz", side="left", units=spec.unit[[0, 2, 1]], size_y=2, size_z=20, sweep_origin=0.0,
+                        unit_key="lattice.unit[0], along X")
+    space = construction.build_construction_space(pts, False, opts)
     assert space.shape[0] * space.shape[1] * space.shape[2] == 10_000, space.shape
     allowed = cons.allowed[[0, 2, 1]]
     origin = origin_preference(grid)

@@ -34,7 +34,7 @@ from synthkit.methods.retarget.analysis import (
     vertex_normals,
 )
 from synthkit.methods.retarget.corners import carry, pack, unpack
-from synthkit.methods.retarget.pipeline import label_colours
+from synthkit.methods.retarget.outputs import label_colours
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     collapse_short_seam_edges,

@@ -1,13 +1,11 @@
-"""``synthkit retarget``: load a mesh, compute offset statistics, retarget by graph cut, write outputs.
+"""``synthkit retarget``: read a mesh, compute offset statistics, retarget by graph cut.
 
-Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (grid, voxel descriptor
-sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), and the
-same three prefixed ``baseline_`` when the regular-offset baseline runs. Outputs: the retargeted mesh
-in the input's format (glTF as GLB) with the input's materials, textures, UVs and colours carried
-onto every face (:mod:`~synthkit.methods.retarget.corners`; OBJ with its MTL and textures beside
-it), ``labels.npy`` (label index per output voxel), ``labels.ply`` (per-face
-int32 labels and their colours, :func:`label_colours`), PNG previews (sparsity curve, offset
-histogram, offsets over the model, before / after / labels renders) and metrics.
+:func:`compute` runs every stage on the inputs (files or objects given in memory) and returns a
+:class:`~synthkit.methods.retarget.outputs.RetargetResult`; :func:`run` (the command line) writes
+it (:mod:`~synthkit.methods.retarget.outputs`). Stages (``report.json`` ``timings``): ``load``,
+``analysis``, ``synthesis`` (grid, voxel descriptor sets, MRF terms), ``graphcut``
+(alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), the same three prefixed
+``baseline_`` when the regular-offset baseline runs, ``quality`` and ``output`` (the files).
 
 Each result's mesh is checked with the shared mesh-quality figures against retargeting's limits
 (:func:`_check_result`, ``metrics.mesh_quality``); degenerate faces are never written.
@@ -20,9 +18,10 @@ A GLB/glTF scene of several meshes is merged into one; the number merged is
 ``metrics.merged_meshes`` (1 for a single mesh) and a merge logs the warning "merged N meshes of
 <file>" on the ``synthkit`` logger.
 
-No repetition (no principal offset): the statistics and previews are written, ``ctx.metrics`` is
-filled, then :class:`~synthkit.errors.InputError` is raised with ``keep_outputs=True`` (exit 3; the
-runner keeps the folder, ``report.json`` has ``"status": "refused"``).
+No repetition (no principal offset): ``ctx.metrics`` is filled and :class:`NoRepetition` (an
+:class:`~synthkit.errors.InputError` with ``keep_outputs=True``, exit 3) is raised; from the
+command line the statistics and previews are written first (the runner keeps the folder,
+``report.json`` has ``"status": "refused"``).
 """
 
 from __future__ import annotations
@@ -36,13 +35,15 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from synthkit.api import result_fields
 from synthkit.core.mesh import merge_vertices, normalize_unit, weld
 from synthkit.core.quality import WELD_REL_TOL, degenerate_faces, mesh_quality
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.assets import Asset, load_asset, save_asset
-from synthkit.io.meshes import load_mesh, save_mesh
+from synthkit.io.assets import Asset
+from synthkit.io.inputs import Inputs
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
 from synthkit.methods.retarget.corners import carry, pack, unpack
+from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     VoxelGrid,
@@ -55,9 +56,9 @@ from synthkit.methods.retarget.synthesis import (
     sliver_figures,
     unique_faces,
 )
-from synthkit.preview import Appearance, before_after_png, heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
-__all__ = ["run", "Retargeted", "synthesize", "resolve_steps", "weld_seams"]
+__all__ = ["compute", "run", "NoRepetition", "Retargeted", "synthesize", "resolve_steps", "weld_seams",
+           "statistics_metrics"]
 
 _MESH_OUT = {".obj": ".obj", ".ply": ".ply", ".glb": ".glb", ".gltf": ".glb", ".off": ".off", ".stl": ".stl"}
 """Output mesh format per input format (glTF is written as GLB, with the textures embedded)."""
@@ -287,94 +288,6 @@ def resolve_steps(target, an: Analysis, Vn, *, source, keys: dict | None = None)
     return steps
 
 
-def _palette(n: int) -> np.ndarray:
-    """``(n, 3)`` distinct colours (golden-ratio hues)."""
-    import colorsys
-
-    return np.array([colorsys.hsv_to_rgb((0.13 + i * 0.618034) % 1.0, 0.55, 0.95) for i in range(max(n, 1))])
-
-
-def label_colours(labels, n_labels: int) -> np.ndarray:
-    """``(m, 3) uint8`` colour of each face label: :func:`_palette` of ``n_labels`` (by label index)."""
-    pal = np.rint(_palette(n_labels) * 255).astype(np.uint8)
-    return pal[np.asarray(labels, dtype=np.int64)]
-
-
-def _statistics_outputs(an: Analysis, V, F, center, scale, cfg, ctx) -> None:
-    """Metrics and previews of the analysis (Fig. 2, Fig. 5)."""
-    principal_n = an.principal
-    order = np.argsort(-an.dominant_counts, kind="stable")
-    ctx.metrics.update(
-        {
-            "principal_offsets": (principal_n * scale).tolist(),
-            "principal_offsets_normalised": principal_n.tolist(),
-            "n_principal": an.n_principal,
-            "basis_normalised": an.basis.T.tolist(),
-            "dominant_offsets": [
-                {
-                    "offset": (an.dominant_refined[i] * scale).tolist(),
-                    "offset_normalised": an.dominant_refined[i].tolist(),
-                    "before_icp_normalised": an.dominant[i].tolist(),
-                    "count": int(an.dominant_counts[i]),
-                    "overlap": float(an.dominant_overlap[i]),
-                    "grip": float(an.dominant_grip[i]),
-                    "principal": int(i) in an.principal_index,
-                }
-                for i in order
-            ],
-            "sparsity_top7": an.top7,
-            "sparsity_top20": an.top20,
-            "n_features": int(len(an.features.P)),
-            "n_vertex_features": int(an.features.n_vertex_features),
-            "n_dense_samples": int(len(an.features.dense_P)),
-            "n_offsets": int(len(an.offsets)),
-            "n_statistics_features": int(an.n_statistics_features),
-            "n_statistics_offsets": int(len(an.stat_offsets)),
-            "n_bins": int(len(an.bin_counts)),
-            "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
-        }
-    )
-    # the statistics are the summary of a run that stops after them (--analyze-only, no repetition)
-    level = "summary" if cfg.analyze_only or an.n_principal == 0 else "all"
-    if not ctx.wants_preview(level):
-        return
-    plot_curve_png(
-        ctx.path("sparsity_plot", "sparsity.png"),
-        an.curve_x * 100.0,
-        an.curve_y * 100.0,
-        xlabel="% of occupied bins (sorted)",
-        ylabel="% of offsets",
-        title=f"top 7%: {an.top7:.0%}  top 20%: {an.top20:.0%}",
-    )
-    if not ctx.wants_preview("all"):
-        return
-    keys, counts = an.bin_keys, an.bin_counts
-    views = []
-    for a0, a1 in ((0, 1), (0, 2)):
-        if len(keys):
-            lo = keys[:, [a0, a1]].min(axis=0)
-            shape = keys[:, [a0, a1]].max(axis=0) - lo + 1
-            img = np.zeros(tuple(shape))
-            np.add.at(img, tuple((keys[:, [a0, a1]] - lo).T), counts)
-        else:
-            img = np.zeros((1, 1))
-        views.append(np.log1p(img.T[::-1]))
-    tiles = [
-        heatmap_png(ctx.path(f"histogram_{i}", f"histogram_{n}.png"), v, title=f"offsets {n} (log)")
-        for i, (v, n) in enumerate(zip(views, ("xy", "xz"), strict=True))
-    ]
-    montage_png(ctx.path("histogram", "histogram.png"), tiles, titles=["bins x-y", "bins x-z"])
-    c0 = V.mean(axis=0)
-    segs = [[c0, c0 + v * scale] for v in an.dominant_refined] + [[c0, c0 + v * scale] for v in principal_n]
-    render_mesh_png(
-        ctx.path("offsets_preview", "offsets.png"),
-        V,
-        F,
-        size=cfg.preview_size,
-        lines=np.array(segs).reshape(-1, 2, 3) if segs else None,
-    )
-
-
 def _written_faces(res: Retargeted, Vm, asset: Asset):
     """The result's faces as written: ``(F (k, 3), face_material (k,), corner_uv (k, 3, 2) or None,
     corner_color (k, 3, 4) uint8 or None, dropped)``, without its degenerate faces
@@ -396,42 +309,6 @@ def _degenerate(V, F) -> np.ndarray:
     Fw = weld(V, np.zeros((0, 3), np.int64), WELD_REL_TOL * diag, return_index=True)[2][F]
     collapsed = (Fw[:, 0] == Fw[:, 1]) | (Fw[:, 1] == Fw[:, 2]) | (Fw[:, 2] == Fw[:, 0])
     return degenerate_faces(V, F) | collapsed
-
-
-def _save_result(res: Retargeted, asset: Asset, center, scale, suffix: str, cfg, ctx, *, prefix: str):
-    """Write mesh (with the input's materials, textures, UVs and colours), label volume, labelled
-    PLY and renders of one result; returns ``(label render or None when previews are off, written
-    faces (k, 3))``. Degenerate faces are left out, with one warning line saying how many."""
-    Vm = res.V * scale + center
-    F, mat, uv, col, dropped = _written_faces(res, Vm, asset)
-    if dropped:
-        log.warning("%s: %d degenerate faces left out of %sretargeted%s", cfg.input, dropped, prefix, suffix)
-    ctx.metrics.setdefault("degenerate_faces_dropped", {})[f"{prefix}mesh"] = dropped
-    names = save_asset(ctx.path(f"{prefix}mesh", f"{prefix}retargeted{suffix}"), Vm, F, like=asset,
-                       corner_uv=uv, face_material=mat, corner_color=col)
-    for k, extra in enumerate(names[1:]):
-        ctx.outputs[f"{prefix}mesh_file_{k}"] = extra
-    np.save(
-        ctx.path(f"{prefix}labels_volume", f"{prefix}labels.npy"), res.problem.volume(res.labeling).astype(np.int32)
-    )
-    lab_keep = ~_degenerate(Vm, res.labelled_F)
-    fl, Fl = res.face_label[lab_keep], res.labelled_F[lab_keep]
-    save_mesh(trimesh.Trimesh(Vm, Fl, process=False), ctx.path(f"{prefix}labels_mesh", f"{prefix}labels.ply"),
-              face_labels=fl, face_colors=label_colours(fl, res.problem.n_labels))
-    look = Appearance.of(asset, uv, mat, col)
-    if ctx.wants_preview("all"):
-        render_mesh_png(ctx.path(f"{prefix}after", f"{prefix}after.png"), Vm, F, size=cfg.preview_size,
-                        appearance=look)
-    if (asset.textured or asset.corner_color is not None) and ctx.wants_preview("summary" if not prefix else "all"):
-        before_after_png(ctx.path(f"{prefix}before_after", f"{prefix}before_after.png"),
-                         (asset.V, asset.F, Appearance.of(asset, like_input=True)), (Vm, F, look),
-                         size=cfg.preview_size)
-    if not ctx.wants_preview("summary"):
-        return None, F
-    colours = _palette(res.problem.n_labels)[fl] if len(fl) else None
-    render = render_mesh_png(ctx.preview_path(f"{prefix}labels_preview", f"{prefix}labels.png"), Vm, Fl,
-                             face_colors=colours, size=cfg.preview_size)
-    return render, F
 
 
 def _input_quality(V, F) -> dict:
@@ -550,7 +427,16 @@ def check_analysis_budget(budget, a, area: float, n_vertices: int) -> None:
     budget.require("analysis.bin_size", a.bin_size, side**3, "histogram bins", bytes_each=BIN_BYTES)
 
 
-def _load(cfg, ctx):
+class NoRepetition(InputError):
+    """No principal offset was found: a refusal (exit 3) that keeps the statistics, which
+    ``result`` (the :class:`RetargetResult` of the analysis) writes."""
+
+    def __init__(self, message: str, *, keep_outputs: bool = True, result: RetargetResult | None = None):
+        super().__init__(message, keep_outputs=keep_outputs)
+        self.result = result
+
+
+def _load(cfg, inputs: Inputs, ctx):
     """Read the input with its appearance: ``(asset, Vn (#V, 3) normalised, center (3,), scale,
     (Va, Fa) the mesh the analysis samples, normalised, suffix of the output mesh)``. A scene of
     several meshes (a GLB/glTF scene) becomes one mesh (materials kept per face; the nodes are not:
@@ -562,11 +448,14 @@ def _load(cfg, ctx):
     drawn per face in order, and on house1_baked the other sample (1,313 features against 1,314)
     picks a 0.403 x slide instead of the 0.383 floor as principal offset, along which no labeling
     is seamless. Both are the same surface; only the stitching needs the asset's corners."""
-    asset = load_asset(cfg.input)
+    asset = inputs.asset(cfg.input)
     V, F = asset.V, asset.F
-    suffix = Path(cfg.input).suffix.lower()
-    mesh = load_mesh(cfg.input)
-    merged = int(mesh.metadata.get("merged_geometries", 1)) if suffix in (".glb", ".gltf") else 1
+    mesh = inputs.mesh(cfg.input)
+    if inputs.is_memory(cfg.input):
+        suffix = ".glb" if asset.corner_uv is not None or asset.materials else ".ply"
+    else:
+        suffix = _MESH_OUT.get(Path(cfg.input).suffix.lower(), ".ply")
+    merged = int(mesh.metadata.get("merged_geometries", 1)) if suffix == ".glb" else 1
     ctx.metrics["merged_meshes"] = merged
     if merged > 1:
         log.warning("merged %d meshes of %s", merged, cfg.input)
@@ -577,58 +466,73 @@ def _load(cfg, ctx):
     Vn = (V - center) / scale
     Va, Fa = (np.asarray(mesh.vertices, dtype=np.float64) - center) / scale, np.asarray(mesh.faces, dtype=np.int64)
     ctx.metrics["input_faces"] = int(len(F))
-    return asset, Vn, center, scale, (Va, Fa), _MESH_OUT.get(suffix, ".ply")
+    return asset, Vn, center, scale, (Va, Fa), suffix
 
 
-def run(cfg, ctx) -> None:
-    """Run the retargeting described by ``cfg`` (a :class:`RetargetConfig`) into ``ctx``."""
-    with ctx.stage("load"):
-        asset, Vn, center, scale, (Va, Fa), suffix = _load(cfg, ctx)
-        V, F = asset.V, asset.F
-        attr = pack(asset.face_material, asset.corner_uv, asset.corner_color)
-        area = 0.5 * np.linalg.norm(np.cross(Vn[F[:, 1]] - Vn[F[:, 0]], Vn[F[:, 2]] - Vn[F[:, 0]]), axis=1)
-        if not area.sum() > 1e-12:
-            raise InputError(f"{cfg.input}: degenerate mesh: all {len(F)} triangles have zero area")
+def _analyze(cfg, Va, Fa, ctx) -> Analysis:
+    """The offset statistics of the normalised mesh ``Va``, ``Fa`` under ``cfg.analysis``."""
     a = cfg.analysis
-    check_analysis_budget(ctx.budget, a, float(area.sum()), len(np.unique(F)))
-    with ctx.stage("analysis"):
-        an = analyze(
-            Va,
-            Fa,
-            dense_radius=a.dense_radius,
-            feature_radius=a.feature_radius,
-            use_vertices=a.use_vertices,
-            descriptor=a.descriptor,
-            descriptor_radius=a.descriptor_radius,
-            tau=a.tau,
-            bin_size=a.bin_size,
-            nms_window=a.nms_window,
-            min_peak_share=a.min_peak_share,
-            max_dominant=a.max_dominant,
-            min_overlap=a.min_overlap,
-            min_grip=a.min_grip,
-            min_angle=np.radians(a.min_angle_deg),
-            max_principal=a.max_principal,
-            dummy_length=a.dummy_length,
-            statistics_features=a.statistics_features,
-            generator_grip_ratio=a.generator_grip_ratio,
-            rng=ctx.rng,
-        )
-    _statistics_outputs(an, V, F, center, scale, cfg, ctx)
-    before = None
-    if ctx.wants_preview("all") or (ctx.wants_preview("summary") and not cfg.analyze_only):
-        before = render_mesh_png(ctx.preview_path("before", "before.png"), V, F, size=cfg.preview_size,
-                                 appearance=Appearance.of(asset, like_input=True))
-    ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
-    if cfg.analyze_only:
-        return
-    if an.n_principal == 0:
-        ctx.metrics["error"] = "no repetition found"
-        raise InputError(
-            f"{cfg.input}: no repetition found (no dominant offset maps at least {a.min_overlap:.0%} of the surface "
-            f"onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); refusing to resize",
-            keep_outputs=True,
-        )
+    return analyze(
+        Va,
+        Fa,
+        dense_radius=a.dense_radius,
+        feature_radius=a.feature_radius,
+        use_vertices=a.use_vertices,
+        descriptor=a.descriptor,
+        descriptor_radius=a.descriptor_radius,
+        tau=a.tau,
+        bin_size=a.bin_size,
+        nms_window=a.nms_window,
+        min_peak_share=a.min_peak_share,
+        max_dominant=a.max_dominant,
+        min_overlap=a.min_overlap,
+        min_grip=a.min_grip,
+        min_angle=np.radians(a.min_angle_deg),
+        max_principal=a.max_principal,
+        dummy_length=a.dummy_length,
+        statistics_features=a.statistics_features,
+        generator_grip_ratio=a.generator_grip_ratio,
+        rng=ctx.rng,
+    )
+
+
+def statistics_metrics(an: Analysis, center, scale: float) -> dict:
+    """``report.json``'s figures of the analysis (model units unless ``_normalised``)."""
+    order = np.argsort(-an.dominant_counts, kind="stable")
+    return {
+        "principal_offsets": (an.principal * scale).tolist(),
+        "principal_offsets_normalised": an.principal.tolist(),
+        "n_principal": an.n_principal,
+        "basis_normalised": an.basis.T.tolist(),
+        "dominant_offsets": [
+            {
+                "offset": (an.dominant_refined[i] * scale).tolist(),
+                "offset_normalised": an.dominant_refined[i].tolist(),
+                "before_icp_normalised": an.dominant[i].tolist(),
+                "count": int(an.dominant_counts[i]),
+                "overlap": float(an.dominant_overlap[i]),
+                "grip": float(an.dominant_grip[i]),
+                "principal": int(i) in an.principal_index,
+            }
+            for i in order
+        ],
+        "sparsity_top7": an.top7,
+        "sparsity_top20": an.top20,
+        "n_features": int(len(an.features.P)),
+        "n_vertex_features": int(an.features.n_vertex_features),
+        "n_dense_samples": int(len(an.features.dense_P)),
+        "n_offsets": int(len(an.offsets)),
+        "n_statistics_features": int(an.n_statistics_features),
+        "n_statistics_offsets": int(len(an.stat_offsets)),
+        "n_bins": int(len(an.bin_counts)),
+        "normalisation": {"center": np.asarray(center).tolist(), "scale": float(scale)},
+    }
+
+
+def _retarget_all(cfg, an: Analysis, Vn, F, attr, ctx) -> list[tuple[str, Retargeted, np.ndarray, float]]:
+    """The retargeted meshes the config asks for: ``(prefix, result, steps, graph-cut seconds)``
+    of the statistics result (prefix ``""``) and of the regular baseline (``"baseline_"``, or
+    ``""`` with ``offsets: regular``)."""
     step_keys: dict[int, str] = {}
     steps = resolve_steps(cfg.target, an, Vn, source=cfg.input, keys=step_keys)
     growth = an.basis @ steps
@@ -647,21 +551,79 @@ def run(cfg, ctx) -> None:
         results.append((prefix, res_b, reg_steps, ctx.timings[f"{prefix or 'regular_'}graphcut"]))
     if cfg.offsets == "regular":
         ctx.timings["graphcut"] = ctx.timings.get("regular_graphcut", 0.0)
-    with ctx.stage("output"):
+    return results
+
+
+def _in_model_units(res: Retargeted, asset: Asset, center, scale, suffix: str, cfg, ctx, prefix: str) -> RetargetedMesh:
+    """One result as written, in model units, without its degenerate faces (one warning line
+    saying how many, ``metrics.degenerate_faces_dropped``)."""
+    Vm = res.V * scale + center
+    F, mat, uv, col, dropped = _written_faces(res, Vm, asset)
+    if dropped:
+        log.warning("%s: %d degenerate faces left out of %sretargeted%s", cfg.input, dropped, prefix, suffix)
+    ctx.metrics.setdefault("degenerate_faces_dropped", {})[f"{prefix}mesh"] = dropped
+    lab_keep = ~_degenerate(Vm, res.labelled_F)
+    out = Asset(V=Vm, F=F, corner_uv=uv, corner_color=col, face_material=mat, materials=asset.materials,
+                name=asset.name, source=asset.source)
+    return RetargetedMesh(
+        asset=out, mesh=trimesh.Trimesh(Vm, F, process=False),
+        label_volume=res.problem.volume(res.labeling).astype(np.int32),
+        labelled_mesh=trimesh.Trimesh(Vm, res.labelled_F[lab_keep], process=False),
+        face_labels=res.face_label[lab_keep], label_shifts=res.problem.labels, n_nodes=int(res.problem.n_nodes),
+    )
+
+
+def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
+    """Run the retargeting described by ``cfg`` (a :class:`RetargetConfig`) on ``inputs``; write
+    nothing. Raises :class:`NoRepetition` (an InputError that keeps the statistics) when the
+    analysis finds no principal offset and the config asks for more than the analysis."""
+    with ctx.stage("load"):
+        asset, Vn, center, scale, (Va, Fa), suffix = _load(cfg, inputs, ctx)
+        V, F = asset.V, asset.F
+        attr = pack(asset.face_material, asset.corner_uv, asset.corner_color)
+        area = 0.5 * np.linalg.norm(np.cross(Vn[F[:, 1]] - Vn[F[:, 0]], Vn[F[:, 2]] - Vn[F[:, 0]]), axis=1)
+        if not area.sum() > 1e-12:
+            raise InputError(f"{cfg.input}: degenerate mesh: all {len(F)} triangles have zero area")
+    check_analysis_budget(ctx.budget, cfg.analysis, float(area.sum()), len(np.unique(F)))
+    with ctx.stage("analysis"):
+        an = _analyze(cfg, Va, Fa, ctx)
+    ctx.metrics.update(statistics_metrics(an, center, scale))
+    ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
+    result = RetargetResult(**result_fields(cfg, ctx, inputs), input_asset=asset, analysis=an, center=center,
+                            scale=float(scale), suffix=suffix)
+    if cfg.analyze_only:
+        return result
+    if an.n_principal == 0:
+        ctx.metrics["error"] = "no repetition found"
+        raise NoRepetition(
+            f"{cfg.input}: no repetition found (no dominant offset maps at least {cfg.analysis.min_overlap:.0%} of "
+            f"the surface onto itself; {len(an.dominant)} histogram peaks, top-7% share {an.top7:.2f}); "
+            "refusing to resize",
+            result=result,
+        )
+    results = _retarget_all(cfg, an, Vn, F, attr, ctx)
+    with ctx.stage("quality"):
         input_quality = _input_quality(V, F)
-        renders = [before]
-        titles = ["input"]
         for prefix, res, st, secs in results:
-            render, F_written = _save_result(res, asset, center, scale, suffix, cfg, ctx, prefix=prefix)
-            renders.append(render)
+            out = _in_model_units(res, asset, center, scale, suffix, cfg, ctx, prefix)
             metrics = _result_metrics(res, st, secs, scale)
-            metrics.update(_check_result(res, F_written, center, scale, Vn, F, input_quality, ctx, f"{prefix}mesh"))
+            metrics.update(_check_result(res, out.asset.F, center, scale, Vn, F, input_quality, ctx, f"{prefix}mesh"))
             if prefix:
                 ctx.metrics["baseline"] = metrics
+                result.baseline = out
             else:
                 ctx.metrics.update(metrics)
-            titles.append(
-                f"{prefix.rstrip('_') or cfg.offsets}: {res.problem.n_nodes} nodes, {res.problem.n_labels} labels"
-            )
-        if ctx.wants_preview("summary"):
-            montage_png(ctx.path("comparison", "comparison.png"), renders, titles=titles)
+                result.retargeted = out
+    return result
+
+
+def run(cfg, ctx) -> None:
+    """Run the retargeting described by ``cfg`` into ``ctx`` (the command line's path): compute,
+    then write; a mesh without repetition writes its statistics before it is refused."""
+    try:
+        result = compute(cfg, Inputs(), ctx)
+    except NoRepetition as exc:
+        if exc.result is not None:
+            exc.result.write(ctx)
+        raise
+    result.write(ctx)

@@ -34,6 +34,7 @@ from synthkit.methods.retarget.analysis import (
     vertex_normals,
 )
 from synthkit.methods.retarget.corners import carry, pack, unpack
+from synthkit.methods.retarget.options import AnalysisOptions
 from synthkit.methods.retarget.outputs import label_colours
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
@@ -687,7 +688,7 @@ def test_analysis_is_deterministic_for_a_seed():
 def test_fpfh_descriptor_finds_the_railing_period():
     V, F, truth = samples.build_railing()
     Vn, _, scale = normalize_unit(V)
-    an = analyze(Vn, F, descriptor="fpfh", descriptor_radius=0.1, rng=0)
+    an = analyze(Vn, F, AnalysisOptions(descriptor="fpfh", descriptor_radius=0.1), rng=0)
     assert an.n_principal == 1
     np.testing.assert_allclose(np.abs(an.principal[0]) * scale, truth["lattice"][0], atol=1e-6)
 

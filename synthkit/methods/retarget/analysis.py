@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import fpfh, shot
 from synthkit.core.mesh import poisson_disk_sample
+from synthkit.methods.retarget.options import AnalysisOptions
 
 __all__ = [
     "FeatureSet",
@@ -542,31 +543,10 @@ def _refine_dominant(feats: FeatureSet, dom, gen, *, icp_sources: int, dense_rad
     return refined, overlap, grip
 
 
-def analyze(
-    Vn,
-    F,
-    *,
-    dense_radius: float = 0.02,
-    feature_radius: float = 0.06,
-    use_vertices: bool = True,
-    descriptor: str = "shot",
-    descriptor_radius: float = 0.2,
-    tau: float = 0.15,
-    bin_size: float = 0.05,
-    nms_window: float = 0.15,
-    min_peak_share: float = 0.01,
-    max_dominant: int = 20,
-    min_overlap: float = 0.15,
-    min_grip: float = 0.005,
-    min_angle: float = np.pi / 3,
-    max_principal: int = 3,
-    dummy_length: float = 0.2,
-    icp_sources: int = 4000,
-    statistics_features: str = "samples",
-    generator_grip_ratio: float = 2.0,
-    rng=None,
-) -> Analysis:
-    """Offset statistics of the normalised mesh ``Vn (#V, 3)``, ``F (#F, 3)`` (sections III-A, V).
+def analyze(Vn, F, opt: AnalysisOptions | None = None, *, rng=None) -> Analysis:
+    """Offset statistics of the normalised mesh ``Vn (#V, 3)``, ``F (#F, 3)`` (sections III-A, V)
+    under the settings ``opt`` (:class:`~synthkit.methods.retarget.options.AnalysisOptions`, whose
+    names the text below uses; default: the paper's).
 
     Eligible refined offsets get a last ICP step on the mesh vertices (:func:`snap_to_vertices`,
     radius ``dense_radius / 4``) when vertices are features. Randomness enters through the
@@ -614,35 +594,38 @@ def analyze(
     storeys are hollow shells with inner walls) thus score higher than the 344 of the thin PSB
     human, whatever the shapes.
     """
+    opt = AnalysisOptions() if opt is None else opt
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))
-    feats = sample_features(
-        Vn, F, dense_radius=dense_radius, feature_radius=feature_radius, use_vertices=use_vertices, seed=seed
-    )
-    feats.D = describe(feats.P, feats.N, feats.dense_P, feats.dense_N, descriptor=descriptor, radius=descriptor_radius)
-    match, offsets, _ = match_offsets(feats.P, feats.D, tau=tau)
+    feats = sample_features(Vn, F, dense_radius=opt.dense_radius, feature_radius=opt.feature_radius,
+                            use_vertices=opt.use_vertices, seed=seed)
+    feats.D = describe(feats.P, feats.N, feats.dense_P, feats.dense_N, descriptor=opt.descriptor,
+                       radius=opt.descriptor_radius)
+    match, offsets, _ = match_offsets(feats.P, feats.D, tau=opt.tau)
     offsets = offsets[match >= 0]
-    n_stat, stat_offsets = _statistics_offsets(feats, offsets, statistics_features, tau)
-    keys, counts = offset_histogram(stat_offsets, bin_size=bin_size)
+    n_stat, stat_offsets = _statistics_offsets(feats, offsets, opt.statistics_features, opt.tau)
+    keys, counts = offset_histogram(stat_offsets, bin_size=opt.bin_size)
     cx, cy = sparsity_curve(counts)
-    min_count = max(5, int(np.ceil(min_peak_share * len(offsets))))
+    min_count = max(5, int(np.ceil(opt.min_peak_share * len(offsets))))
     dom, mags = dominant_offsets(
-        offsets, bin_size=bin_size, window=nms_window, min_count=min_count, max_peaks=max_dominant
+        offsets, bin_size=opt.bin_size, window=opt.nms_window, min_count=min_count, max_peaks=opt.max_dominant
     )
-    refined, overlap, grip = _refine_dominant(feats, dom, gen, icp_sources=icp_sources, dense_radius=dense_radius)
-    stayed = (np.linalg.norm(refined, axis=1) > tau) & (np.linalg.norm(refined - dom, axis=1) <= nms_window)
-    eligible = (overlap >= min_overlap) & (grip >= min_grip) & stayed
-    if use_vertices:
+    refined, overlap, grip = _refine_dominant(feats, dom, gen, icp_sources=opt.icp_sources,
+                                              dense_radius=opt.dense_radius)
+    stayed = (np.linalg.norm(refined, axis=1) > opt.tau) & (np.linalg.norm(refined - dom, axis=1) <= opt.nms_window)
+    eligible = (overlap >= opt.min_overlap) & (grip >= opt.min_grip) & stayed
+    if opt.use_vertices:
         verts = np.unique(np.asarray(Vn, dtype=np.float64)[np.unique(np.asarray(F))], axis=0)
         for i in np.flatnonzero(eligible):
-            refined[i] = snap_to_vertices(verts, refined[i], radius=dense_radius / 4)[0]
+            refined[i] = snap_to_vertices(verts, refined[i], radius=opt.dense_radius / 4)[0]
     gen_index = reduce_to_generators(
-        refined, eligible=eligible, grip=grip, tol=bin_size, grip_ratio=generator_grip_ratio
+        refined, eligible=eligible, grip=grip, tol=opt.bin_size, grip_ratio=opt.generator_grip_ratio
     )
-    cand = select_principal(refined[gen_index], min_angle=min_angle, max_count=max_principal, eligible=eligible)
+    cand = select_principal(refined[gen_index], min_angle=opt.min_angle, max_count=opt.max_principal,
+                            eligible=eligible)
     chosen = [int(gen_index[i]) for i in cand]
     principal = np.array([_canonical_sign(refined[i]) for i in chosen]).reshape(-1, 3)
-    basis, k = offset_basis(principal, dummy_length=dummy_length)
+    basis, k = offset_basis(principal, dummy_length=opt.dummy_length)
     return Analysis(
         features=feats,
         offsets=offsets,

@@ -43,6 +43,7 @@ from synthkit.io.assets import Asset
 from synthkit.io.inputs import Inputs
 from synthkit.methods.retarget.analysis import Analysis, analyze, describe
 from synthkit.methods.retarget.corners import carry, pack, unpack
+from synthkit.methods.retarget.options import options_of
 from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
@@ -469,33 +470,6 @@ def _load(cfg, inputs: Inputs, ctx):
     return asset, Vn, center, scale, (Va, Fa), suffix
 
 
-def _analyze(cfg, Va, Fa, ctx) -> Analysis:
-    """The offset statistics of the normalised mesh ``Va``, ``Fa`` under ``cfg.analysis``."""
-    a = cfg.analysis
-    return analyze(
-        Va,
-        Fa,
-        dense_radius=a.dense_radius,
-        feature_radius=a.feature_radius,
-        use_vertices=a.use_vertices,
-        descriptor=a.descriptor,
-        descriptor_radius=a.descriptor_radius,
-        tau=a.tau,
-        bin_size=a.bin_size,
-        nms_window=a.nms_window,
-        min_peak_share=a.min_peak_share,
-        max_dominant=a.max_dominant,
-        min_overlap=a.min_overlap,
-        min_grip=a.min_grip,
-        min_angle=np.radians(a.min_angle_deg),
-        max_principal=a.max_principal,
-        dummy_length=a.dummy_length,
-        statistics_features=a.statistics_features,
-        generator_grip_ratio=a.generator_grip_ratio,
-        rng=ctx.rng,
-    )
-
-
 def statistics_metrics(an: Analysis, center, scale: float) -> dict:
     """``report.json``'s figures of the analysis (model units unless ``_normalised``)."""
     order = np.argsort(-an.dominant_counts, kind="stable")
@@ -586,7 +560,7 @@ def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
             raise InputError(f"{cfg.input}: degenerate mesh: all {len(F)} triangles have zero area")
     check_analysis_budget(ctx.budget, cfg.analysis, float(area.sum()), len(np.unique(F)))
     with ctx.stage("analysis"):
-        an = _analyze(cfg, Va, Fa, ctx)
+        an = analyze(Va, Fa, options_of(cfg)[0], rng=ctx.rng)
     ctx.metrics.update(statistics_metrics(an, center, scale))
     ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
     result = RetargetResult(**result_fields(cfg, ctx, inputs), input_asset=asset, analysis=an, center=center,

@@ -1,0 +1,72 @@
+"""The settings of retargeting's stages, built from the config in one place (:func:`options_of`):
+the one map from config keys to the stages' arguments."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["AnalysisOptions", "SynthesisOptions", "options_of"]
+
+
+@dataclass(frozen=True)
+class AnalysisOptions:
+    """Settings of :func:`~synthkit.methods.retarget.analysis.analyze` (config section ``analysis``,
+    whose descriptions say what each does; lengths in normalised units). ``min_angle`` is in
+    radians (``min_angle_deg``); ``icp_sources`` is how many dense samples the ICP moves at most."""
+
+    dense_radius: float = 0.02
+    feature_radius: float = 0.06
+    use_vertices: bool = True
+    descriptor: str = "shot"
+    descriptor_radius: float = 0.2
+    tau: float = 0.15
+    bin_size: float = 0.05
+    nms_window: float = 0.15
+    min_peak_share: float = 0.01
+    max_dominant: int = 20
+    min_overlap: float = 0.15
+    min_grip: float = 0.005
+    min_angle: float = np.pi / 3
+    max_principal: int = 3
+    dummy_length: float = 0.2
+    icp_sources: int = 4000
+    statistics_features: str = "samples"
+    generator_grip_ratio: float = 2.0
+
+
+@dataclass(frozen=True)
+class SynthesisOptions:
+    """Settings of the label problem and the stitching (:mod:`~synthkit.methods.retarget.problem`,
+    :mod:`~synthkit.methods.retarget.seams`): ``label_margin`` extra shifts on each side,
+    ``pins`` ``[(voxel (3,), shift (3,)), ...]``, ``max_cycles`` of alpha-expansion,
+    ``weld_tolerance`` of the seams, and the analysis's ``dense_radius``, ``descriptor`` and
+    ``descriptor_radius`` (voxels are described as the features are)."""
+
+    label_margin: int = 0
+    pins: list = field(default_factory=list)
+    max_cycles: int = 20
+    weld_tolerance: float = 1e-6
+    dense_radius: float = 0.02
+    descriptor: str = "shot"
+    descriptor_radius: float = 0.2
+
+
+def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions]:
+    """The stages' settings from a :class:`~synthkit.methods.retarget.config.RetargetConfig`."""
+    a = cfg.analysis
+    analysis = AnalysisOptions(
+        dense_radius=a.dense_radius, feature_radius=a.feature_radius, use_vertices=a.use_vertices,
+        descriptor=a.descriptor, descriptor_radius=a.descriptor_radius, tau=a.tau, bin_size=a.bin_size,
+        nms_window=a.nms_window, min_peak_share=a.min_peak_share, max_dominant=a.max_dominant,
+        min_overlap=a.min_overlap, min_grip=a.min_grip, min_angle=np.radians(a.min_angle_deg),
+        max_principal=a.max_principal, dummy_length=a.dummy_length, statistics_features=a.statistics_features,
+        generator_grip_ratio=a.generator_grip_ratio,
+    )
+    synthesis = SynthesisOptions(
+        label_margin=cfg.label_margin, pins=[(p.voxel, p.shift) for p in cfg.pins], max_cycles=cfg.max_cycles,
+        weld_tolerance=cfg.weld_tolerance, dense_radius=a.dense_radius, descriptor=a.descriptor,
+        descriptor_radius=a.descriptor_radius,
+    )
+    return analysis, synthesis

@@ -114,7 +114,7 @@ def test_key_errors_carry_the_command_lines_messages(shelf):
 def test_no_repetition_is_refused_and_analyze_only_says_why():
     blob = trimesh.creation.icosphere(subdivisions=2)
     blob.vertices = blob.vertices * (1 + 0.15 * np.random.default_rng(0).random((len(blob.vertices), 1)))
-    with pytest.raises(InputError, match=r"^synthkit.retarget\(\): \S*input\S*: no repetition found"):
+    with pytest.raises(InputError, match=r"^synthkit.retarget\(\): input: no repetition found"):
         synthkit.retarget(blob, seed=0)
     stats = synthkit.retarget(blob, analyze_only=True, seed=0)
     assert stats.mesh is None and stats.asset is None and stats.retargeted is None

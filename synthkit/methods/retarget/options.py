@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["AnalysisOptions", "SynthesisOptions", "options_of"]
+__all__ = ["AnalysisOptions", "SynthesisOptions", "Target", "options_of"]
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,19 @@ class SynthesisOptions:
     descriptor_radius: float = 0.2
 
 
-def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions]:
+@dataclass(frozen=True)
+class Target:
+    """The size asked for (config section ``target``; at most one given): ``steps`` per principal
+    offset, ``axis_steps`` along the principal offset nearest each named world axis
+    (``{"x": 2}``), or a ``scale`` factor per principal offset. None of them: one step along the
+    first principal offset."""
+
+    steps: list[int] | None = None
+    axis_steps: dict[str, int] | None = None
+    scale: list[float] | None = None
+
+
+def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions, Target]:
     """The stages' settings from a :class:`~synthkit.methods.retarget.config.RetargetConfig`."""
     a = cfg.analysis
     analysis = AnalysisOptions(
@@ -69,4 +81,5 @@ def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions]:
         weld_tolerance=cfg.weld_tolerance, dense_radius=a.dense_radius, descriptor=a.descriptor,
         descriptor_radius=a.descriptor_radius,
     )
-    return analysis, synthesis
+    t = cfg.target
+    return analysis, synthesis, Target(steps=t.steps, axis_steps=t.axis_steps, scale=t.scale)

@@ -67,15 +67,9 @@ class Target:
 
 def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions, Target]:
     """The stages' settings from a :class:`~synthkit.methods.retarget.config.RetargetConfig`."""
-    a = cfg.analysis
-    analysis = AnalysisOptions(
-        dense_radius=a.dense_radius, feature_radius=a.feature_radius, use_vertices=a.use_vertices,
-        descriptor=a.descriptor, descriptor_radius=a.descriptor_radius, tau=a.tau, bin_size=a.bin_size,
-        nms_window=a.nms_window, min_peak_share=a.min_peak_share, max_dominant=a.max_dominant,
-        min_overlap=a.min_overlap, min_grip=a.min_grip, min_angle=np.radians(a.min_angle_deg),
-        max_principal=a.max_principal, dummy_length=a.dummy_length, statistics_features=a.statistics_features,
-        generator_grip_ratio=a.generator_grip_ratio,
-    )
+    keys = cfg.analysis.model_dump()  # every key of the section, by its name
+    keys["min_angle"] = np.radians(keys.pop("min_angle_deg"))
+    analysis, a = AnalysisOptions(**keys), cfg.analysis
     synthesis = SynthesisOptions(
         label_margin=cfg.label_margin, pins=[(p.voxel, p.shift) for p in cfg.pins], max_cycles=cfg.max_cycles,
         weld_tolerance=cfg.weld_tolerance, dense_radius=a.dense_radius, descriptor=a.descriptor,

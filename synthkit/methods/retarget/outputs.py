@@ -24,7 +24,7 @@ from synthkit.io.meshes import save_mesh
 from synthkit.methods.retarget.analysis import Analysis
 from synthkit.preview import Appearance, before_after_png, heatmap_png, montage_png, plot_curve_png, render_mesh_png
 
-__all__ = ["RetargetResult", "RetargetedMesh", "label_colours", "palette"]
+__all__ = ["RetargetResult", "RetargetedMesh", "label_colours", "palette", "write_statistics", "write_mesh"]
 
 
 def palette(n: int) -> np.ndarray:

@@ -1,35 +1,22 @@
 """``synthkit retarget``: read a mesh, compute offset statistics, retarget by graph cut.
 
-The only module of the method that knows config keys and exit codes: the stage modules
-(:mod:`~synthkit.methods.retarget.analysis`, :mod:`~synthkit.methods.retarget.problem`,
-:mod:`~synthkit.methods.retarget.seams`, :mod:`~synthkit.methods.retarget.figures`) take arrays and
-the settings of :mod:`~synthkit.methods.retarget.options` and raise ValueError; here each is
-mapped to a :class:`~synthkit.errors.ConfigError` or :class:`~synthkit.errors.InputError` that
-names the input and the config key.
-
 :func:`compute` runs every stage on the inputs (files or objects given in memory) and returns a
-:class:`~synthkit.methods.retarget.outputs.RetargetResult`; :func:`run` (the command line) writes
-it (:mod:`~synthkit.methods.retarget.outputs`). Stages (``report.json`` ``timings``): ``load``,
-``analysis``, ``synthesis`` (grid, voxel descriptor sets, MRF terms), ``graphcut``
-(alpha-expansion), ``assemble`` (pieces, weld along the seams, map back), the same three prefixed
-``baseline_`` when the regular-offset baseline runs, ``quality`` and ``output`` (the files).
-
-Each result's mesh is checked with the shared mesh-quality figures against retargeting's limits
-(:func:`~synthkit.methods.retarget.figures.output_quality`, ``metrics.mesh_quality``); degenerate
-faces are never written.
+:class:`~synthkit.methods.retarget.outputs.RetargetResult`; :func:`run` (the command line) also
+writes it. Stages (``report.json`` ``timings``): ``load``, ``analysis``, ``synthesis`` (grid,
+voxel descriptor sets, MRF terms), ``graphcut`` (alpha-expansion), ``assemble`` (pieces, weld
+along the seams, map back), the same three prefixed ``baseline_`` when the regular-offset baseline
+runs, ``quality`` (:func:`~synthkit.methods.retarget.figures.output_quality`) and ``output``.
+The stage modules take arrays and the settings of :mod:`~synthkit.methods.retarget.options` and
+raise ValueError; this module alone maps them to a ConfigError or InputError naming the input
+and the config key.
 
 The regular baseline (``offsets: regular`` or ``compare_baseline``) keeps its best labeling even
 when it joins empty to non-empty voxels (infinite energy, reported as null with the number of such
 seams in ``infinite_terms``), as the paper's conventional MRF shows its artifacts.
 
-A GLB/glTF scene of several meshes is merged into one; the number merged is
-``metrics.merged_meshes`` (1 for a single mesh) and a merge logs the warning "merged N meshes of
-<file>" on the ``synthkit`` logger.
-
-No repetition (no principal offset): ``ctx.metrics`` is filled and :class:`NoRepetition` (an
-:class:`~synthkit.errors.InputError` with ``keep_outputs=True``, exit 3) is raised; from the
-command line the statistics and previews are written first (the runner keeps the folder,
-``report.json`` has ``"status": "refused"``).
+No repetition (no principal offset): :class:`NoRepetition` (an InputError with
+``keep_outputs=True``, exit 3) is raised; from the command line the statistics and previews are
+written first (the runner keeps the folder, ``report.json`` has ``"status": "refused"``).
 """
 
 from __future__ import annotations
@@ -68,7 +55,6 @@ _MESH_OUT = {".obj": ".obj", ".ply": ".ply", ".glb": ".glb", ".gltf": ".glb", ".
 """Output mesh format per input format (glTF is written as GLB, with the textures embedded)."""
 
 log = logging.getLogger("synthkit")
-
 
 SAMPLE_BYTES = 200
 """Bytes per Poisson-disk sample: position, normal, pool share, kd-tree (estimate)."""
@@ -150,13 +136,10 @@ def _load(cfg, inputs: Inputs, src: str, ctx):
 def _synthesize(Vn, F, an: Analysis, basis, steps, opt: SynthesisOptions, ctx, *, src: str, prefix: str,
                 step_keys=None, attr=None) -> Retargeted:
     """Retarget the normalised mesh ``Vn``, ``F`` on the grid spanned by ``basis (3, 3)`` by
-    ``steps (3,)`` voxels per axis; stages timed on ``ctx`` as ``<prefix>synthesis``,
-    ``<prefix>graphcut``, ``<prefix>assemble``. Raises InputError when no finite labeling exists,
-    except for the regular baseline (prefix ``regular_`` or ``baseline_``: like the paper's
-    conventional MRF it still yields its best labeling, whose infinite seams are counted in the
-    metrics). Steps that leave fewer than 2 cells along an axis, and bad pins, are a ConfigError
-    naming the config key and value (``step_keys[axis]``, from
-    :func:`~synthkit.methods.retarget.problem.resolve_steps`)."""
+    ``steps (3,)`` voxels per axis, timing ``<prefix>synthesis``, ``<prefix>graphcut`` and
+    ``<prefix>assemble``. Steps that leave fewer than 2 cells along an axis and bad pins are a
+    ConfigError naming the key (``step_keys[axis]``); no finite labeling is an InputError, except
+    for the regular baseline, which keeps its best labeling as the paper's conventional MRF does."""
     regular = prefix in ("regular_", "baseline_")
     with ctx.stage(f"{prefix}synthesis"):
         try:

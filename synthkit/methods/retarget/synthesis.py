@@ -28,20 +28,9 @@ from synthkit.core.graphcut import ExpansionResult, alpha_expansion
 from synthkit.core.mesh import boundary_loops, triangulate_polygons, weld
 from synthkit.methods.retarget.corners import carry, same_map
 
-__all__ = [
-    "VoxelGrid",
-    "grid_phase",
-    "make_grid",
-    "label_set",
-    "hausdorff",
-    "RetargetProblem",
-    "label_regions",
-    "seam_planes",
-    "assemble",
-    "repair_t_junctions",
-    "sliver_figures",
-    "merge_coplanar_faces",
-]
+__all__ = ["VoxelGrid", "grid_phase", "make_grid", "label_set", "hausdorff", "RetargetProblem", "label_regions",
+           "seam_planes", "assemble", "collapse_short_seam_edges", "flip_sliver_edges", "repair_t_junctions",
+           "unique_faces", "sliver_figures", "merge_coplanar_faces", "SLIVER_DEG", "POSITION_TOL"]
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import synthkit
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.assets import load_asset
 from synthkit.methods.retarget import api
-from synthkit.runner import run_config
+from synthkit.runner import load_method_config, run_config
 from synthkit.samples.retarget import build_bookshelf
 
 COARSE = {"dense_radius": 0.04, "feature_radius": 0.1}
@@ -102,11 +102,20 @@ def test_save_writes_what_the_command_line_writes(shelf, grown, tmp_path):
         k: v for k, v in cli["metrics"].items() if k not in drop}
 
 
-def test_key_errors_carry_the_command_lines_messages(shelf):
-    with pytest.raises(ConfigError, match=r"^synthkit.retarget\(\): .*analysis.tua.*tau"):
-        synthkit.retarget(shelf, analysis={"tua": 0.1})
-    with pytest.raises(ConfigError, match=r"^synthkit.retarget\(\): .*analysis.dense_radius"):
-        synthkit.retarget(shelf, analysis={"dense_radius": -1})
+@pytest.mark.parametrize("keys", [{"analysis": {"tua": 0.1}}, {"analysis": {"dense_radius": -1}},
+                                  {"target": {"steps": [1], "scale": [2.0]}}], ids=["typo", "range", "target"])
+def test_key_errors_carry_the_command_lines_messages(shelf, tmp_path, keys):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": "m.obj", **keys}))
+    with pytest.raises(ConfigError) as cli:
+        load_method_config(cfg, check_files=False)
+    with pytest.raises(ConfigError) as api_error:
+        synthkit.retarget(shelf, **keys)
+    assert str(api_error.value) == str(cli.value).replace(str(cfg), "synthkit.retarget()")
+    assert list(keys)[0] in str(api_error.value)
+
+
+def test_steps_error_names_the_key(shelf):
     with pytest.raises(ConfigError, match=r"target.steps\[1\]=-6: would shrink below one cell"):
         synthkit.retarget(shelf, target={"steps": [0, -6]}, analysis=COARSE, seed=0)
 

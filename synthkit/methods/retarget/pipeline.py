@@ -43,7 +43,7 @@ from synthkit.methods.retarget.figures import (
     statistics_metrics,
     written_faces,
 )
-from synthkit.methods.retarget.options import SynthesisOptions, options_of
+from synthkit.methods.retarget.options import SynthesisOptions, Target, options_of
 from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
 from synthkit.methods.retarget.problem import KeyedError, build_problem, resolve_steps
 from synthkit.methods.retarget.seams import Retargeted, stitch
@@ -161,11 +161,11 @@ def _synthesize(Vn, F, an: Analysis, basis, steps, opt: SynthesisOptions, ctx, *
         return stitch(Vn, F, attr, grid, problem, result, weld_tol=opt.weld_tolerance, dense_radius=opt.dense_radius)
 
 
-def _retarget_all(cfg, an: Analysis, Vn, F, attr, ctx, src: str) -> list[tuple[str, Retargeted, np.ndarray, float]]:
+def _retarget_all(cfg, opt: SynthesisOptions, target: Target, an: Analysis, Vn, F, attr, ctx,
+                  src: str) -> list[tuple[str, Retargeted, np.ndarray, float]]:
     """The retargeted meshes the config asks for: ``(prefix, result, steps, graph-cut seconds)``
     of the statistics result (prefix ``""``) and of the regular baseline (``"baseline_"``, or
     ``""`` with ``offsets: regular``)."""
-    _, opt, target = options_of(cfg)
     step_keys: dict[int, str] = {}
     try:
         steps = resolve_steps(target, an, Vn, keys=step_keys)
@@ -219,9 +219,10 @@ def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
         area = 0.5 * np.linalg.norm(np.cross(Vn[F[:, 1]] - Vn[F[:, 0]], Vn[F[:, 2]] - Vn[F[:, 0]]), axis=1)
         if not area.sum() > 1e-12:
             raise InputError(f"{src}: degenerate mesh: all {len(F)} triangles have zero area")
+    analysis_options, synthesis_options, target = options_of(cfg)
     check_analysis_budget(ctx.budget, cfg.analysis, float(area.sum()), len(np.unique(F)))
     with ctx.stage("analysis"):
-        an = analyze(Va, Fa, options_of(cfg)[0], rng=ctx.rng)
+        an = analyze(Va, Fa, analysis_options, rng=ctx.rng)
     ctx.metrics.update(statistics_metrics(an, center, scale))
     ctx.metrics["analyze_only"] = bool(cfg.analyze_only)
     result = RetargetResult(**result_fields(cfg, ctx, inputs), input_asset=asset, analysis=an, center=center,
@@ -237,7 +238,7 @@ def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
             result=result,
         )
     attr = pack(asset.face_material, asset.corner_uv, asset.corner_color)
-    results = _retarget_all(cfg, an, Vn, F, attr, ctx, src)
+    results = _retarget_all(cfg, synthesis_options, target, an, Vn, F, attr, ctx, src)
     with ctx.stage("quality"):
         in_quality = input_quality(V, F)
         for prefix, res, st, secs in results:

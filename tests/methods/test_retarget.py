@@ -4,6 +4,7 @@ known lattices, end-to-end runs, bad input."""
 import itertools
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -34,7 +35,9 @@ from synthkit.methods.retarget.analysis import (
     vertex_normals,
 )
 from synthkit.methods.retarget.corners import carry, pack, unpack
-from synthkit.methods.retarget.pipeline import label_colours
+from synthkit.methods.retarget.options import AnalysisOptions, Target, options_of
+from synthkit.methods.retarget.outputs import label_colours
+from synthkit.methods.retarget.problem import KeyedError, resolve_steps
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     collapse_short_seam_edges,
@@ -47,7 +50,7 @@ from synthkit.methods.retarget.synthesis import (
     sliver_figures,
     unique_faces,
 )
-from synthkit.runner import run_config
+from synthkit.runner import load_method_config, run_config
 from synthkit.samples import retarget as samples
 
 REPO = Path(__file__).resolve().parents[2]
@@ -676,6 +679,30 @@ def test_pinned_voxel_keeps_its_label(tmp_path, sample_dir):
     assert np.isfinite(rep["metrics"]["energy"])
 
 
+def test_resolve_steps_names_the_target_entry():
+    an = SimpleNamespace(n_principal=1, basis=np.diag([0.4, 0.2, 0.2]))  # one principal offset along x
+    Vn = np.array([[-1.0, 0, 0], [1.0, 0.5, 0.2]])  # 5 steps of 0.4 along x
+    keys: dict = {}
+    assert resolve_steps(Target(axis_steps={"x": 2, "y": 0}), an, Vn, keys=keys).tolist() == [2, 0, 0]
+    assert keys == {0: "target.axis_steps.x=2"}
+    assert resolve_steps(Target(scale=[2.0]), an, Vn).tolist() == [5, 0, 0]
+    with pytest.raises(KeyedError, match=r"^target.steps\[1\]=1: only 1 principal offset") as info:
+        resolve_steps(Target(steps=[0, 1]), an, Vn)
+    assert isinstance(info.value, ValueError) and info.value.key == "target.steps[1]=1"
+    with pytest.raises(KeyedError, match=r"^target.axis_steps.y=1: no principal offset was found"):
+        resolve_steps(Target(axis_steps={"y": 1}), SimpleNamespace(n_principal=0, basis=np.eye(3)), Vn)
+
+
+def test_options_map_every_analysis_key(tmp_path):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(json.dumps({"method": "retarget", "input": "m.obj", "label_margin": 1,
+                               "analysis": {"tau": 0.2, "min_angle_deg": 45.0, "descriptor": "fpfh"}}))
+    _, config, _ = load_method_config(cfg, check_files=False)
+    analysis, synthesis, target = options_of(config)
+    assert analysis == AnalysisOptions(tau=0.2, min_angle=np.pi / 4, descriptor="fpfh")
+    assert synthesis.label_margin == 1 and synthesis.descriptor == "fpfh" and target == Target(steps=[1])
+
+
 def test_analysis_is_deterministic_for_a_seed():
     V, F, _ = samples.build_bridge()
     Vn, _, _ = normalize_unit(V)
@@ -687,7 +714,7 @@ def test_analysis_is_deterministic_for_a_seed():
 def test_fpfh_descriptor_finds_the_railing_period():
     V, F, truth = samples.build_railing()
     Vn, _, scale = normalize_unit(V)
-    an = analyze(Vn, F, descriptor="fpfh", descriptor_radius=0.1, rng=0)
+    an = analyze(Vn, F, AnalysisOptions(descriptor="fpfh", descriptor_radius=0.1), rng=0)
     assert an.n_principal == 1
     np.testing.assert_allclose(np.abs(an.principal[0]) * scale, truth["lattice"][0], atol=1e-6)
 

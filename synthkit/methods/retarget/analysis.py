@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import fpfh, shot
 from synthkit.core.mesh import poisson_disk_sample
+from synthkit.methods.retarget.options import AnalysisOptions
 
 __all__ = [
     "FeatureSet",
@@ -150,21 +151,10 @@ def sample_features(
     with no incident face are ignored, vertices are merged on a grid of ``vertex_merge`` (finer
     detail than half the dense spacing cannot be told apart by descriptors built on it, and
     duplicates of unwelded meshes would only repeat features), and a vertex's normal is the
-    angle-weighted normal of all faces incident to its merged cell. Finding (issue 15): the normal
-    used to be area-weighted over the faces of one copy of the vertex only, the first in the file;
-    a flat-shaded asset (the Kenney GLBs, most game assets) stores a corner once per face group,
-    so a window corner got the normal of whichever wall, sill or lintel came first, and identical
-    corners of two windows could get different keypoint normals and so different SHOT
-    descriptors. Angle weights make the normal independent of how the faces are triangulated.
-    ``oversample`` is the Poisson pool size per disk: 3 keeps about 90%
-    of the samples of MeshLab's 10 at about half the sampling time (0.3 s against 0.7 s for the
-    18k dense samples of the bookshelf); it stays the default because at 10 the railing's vertical
-    near-repeats (hand rail against bottom rail, 0.62 up, or a baluster block slid 0.14 up) reach
-    an ICP overlap of 0.15-0.18 instead of 0.14, pass ``min_overlap`` and become a second,
-    spurious principal offset, while the statistics barely change (top-7% share 0.77-0.79 on the
-    bookshelf, 0.68-0.70 on the 20k-triangle facade at either size, measured on all features before
-    issue 15). ``seed``
-    feeds the two samplers (``seed`` and ``seed + 1``).
+    angle-weighted normal of all faces incident to its merged cell, the same for every copy of a
+    vertex whatever the triangulation (docs/findings/retarget.md, "Vertex normals").
+    ``oversample`` is the Poisson pool size per disk (why 3: the findings, "Poisson pool").
+    ``seed`` feeds the two samplers (``seed`` and ``seed + 1``).
     """
     Vn = np.asarray(Vn, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -385,11 +375,8 @@ def reduce_to_generators(
     a generator pins at least as much surface as its multiples, so ``v`` is reduced to ``u`` only
     when ``grip[u] >= grip[v] / grip_ratio``; and an eligible ``u`` whose eligible multiple ``v``
     pins more than ``grip_ratio`` times as much stands for that multiple (the best-gripping one).
-    Finding (issue 15): on building-small-a the walls slide onto themselves by any vertical step,
-    so a 0.1 step up holds more histogram votes (87) than the 0.4 floor height (67) and overlaps
-    more (0.28 against 0.18), but only chance coincidences of ledges pin it (grip 0.0055 against
-    0.016 for the floor); the floor height, 4 such steps, was reduced to the slide.
-    ``grip_ratio = 0`` (or no ``grip``) turns both grip rules off.
+    ``grip_ratio = 0`` (or no ``grip``) turns both grip rules off. Why the grip rules: docs/findings/retarget.md,
+    "Slides and generators".
     """
     V = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
     ok = np.ones(len(V), bool) if eligible is None else np.asarray(eligible, bool)
@@ -542,31 +529,10 @@ def _refine_dominant(feats: FeatureSet, dom, gen, *, icp_sources: int, dense_rad
     return refined, overlap, grip
 
 
-def analyze(
-    Vn,
-    F,
-    *,
-    dense_radius: float = 0.02,
-    feature_radius: float = 0.06,
-    use_vertices: bool = True,
-    descriptor: str = "shot",
-    descriptor_radius: float = 0.2,
-    tau: float = 0.15,
-    bin_size: float = 0.05,
-    nms_window: float = 0.15,
-    min_peak_share: float = 0.01,
-    max_dominant: int = 20,
-    min_overlap: float = 0.15,
-    min_grip: float = 0.005,
-    min_angle: float = np.pi / 3,
-    max_principal: int = 3,
-    dummy_length: float = 0.2,
-    icp_sources: int = 4000,
-    statistics_features: str = "samples",
-    generator_grip_ratio: float = 2.0,
-    rng=None,
-) -> Analysis:
-    """Offset statistics of the normalised mesh ``Vn (#V, 3)``, ``F (#F, 3)`` (sections III-A, V).
+def analyze(Vn, F, opt: AnalysisOptions | None = None, *, rng=None) -> Analysis:
+    """Offset statistics of the normalised mesh ``Vn (#V, 3)``, ``F (#F, 3)`` (sections III-A, V)
+    under the settings ``opt`` (:class:`~synthkit.methods.retarget.options.AnalysisOptions`, whose
+    names the text below uses; default: the paper's).
 
     Eligible refined offsets get a last ICP step on the mesh vertices (:func:`snap_to_vertices`,
     radius ``dense_radius / 4``) when vertices are features. Randomness enters through the
@@ -583,66 +549,41 @@ def analyze(
     The sparsity statistics (``top7``, ``top20``, the curve and the histogram bins, Fig. 5) follow
     section IV's protocol: with ``statistics_features="samples"`` (default) they are taken over the
     Poisson-disk features only, each matched (eq. 1) among those features alone; ``"all"`` takes
-    them over the offsets of every feature, vertices included, as the dominant offsets are.
-    Finding (issue 15): section III-A adds all mesh vertices to improve the matching, but the
-    study of section IV describes its feature set as the 0.06 Poisson-disk resampling only, and
-    the top-7% share of *occupied* bins grows with the number of offsets for any distribution
-    that is not uniform (singleton bins dilute it when offsets are few, saturated bins concentrate
-    it when they are many). A 10k-vertex scan brought 30 times more offsets than the protocol's
-    features: the PSB human (10,007 vertices against 344 samples) scored 0.56, above both Kenney
-    buildings; with the protocol's features it scores 0.23, the bunny 0.23 and spot 0.25, while
-    building-small-a keeps 0.53. The generated samples' 0.75-0.80 also came from their grid
-    tessellation; they score 0.41-0.49 under the protocol. Other candidates measured on the
-    issue's nine meshes (seed 0) and not adopted: keeping only crease/corner vertices (dihedral
-    >= 60 degrees) in the statistics lifts fandisk from 0.31 to 0.39 but the faceted PSB human to
-    0.32, for the same gap between man-made and organic means (0.16); resampling the features
-    from the dense cloud (the section IV wording) moves every figure by at most 0.04; dropping
-    matches whose descriptor distance exceeds 0.3 leaves the PSB human with 11 bins (the paper
-    lets every feature vote; its remark that 3-D models give few false matches is about tau, not
-    a threshold). "The top 7% of bins" is read over the occupied bins: over all bins of the
-    histogram's box every mesh puts 100% of its offsets in the top 7%, since a 0.05 lattice over
-    offsets up to 4 long has far more bins than there are features. Measured later (same nine
-    meshes, seed 0; means of man-made against organic, 0.403 against 0.238 today): matching each
-    feature against the 0.02 dense cloud instead of the other features lifts both (0.459 against
-    0.305); matching the features against features and vertices, 0.434 against 0.280; adding the
-    vertices thinned to 0.06 spacing (so corners of low-poly models count and scans do not flood),
-    0.446 against 0.334; leaving out features whose 0.2 support is flat (every normal within 5-20
-    degrees) changes no figure by more than 0.04. The separation needs the features' density: a
-    feature of a repeated part votes for the repetition only when its twin was sampled at nearly
-    the same place, so 300 features drawn from each mesh's set give 0.156 against 0.165 (no
-    separation) and 900 give 0.27-0.37 against 0.19-0.22. Building-small-a's 4,220 features (its
-    storeys are hollow shells with inner walls) thus score higher than the 344 of the thin PSB
-    human, whatever the shapes.
+    them over the offsets of every feature, vertices included, as the dominant offsets are. Why,
+    and the candidates measured and not adopted: docs/findings/retarget.md, "Sparsity statistics".
     """
+    opt = AnalysisOptions() if opt is None else opt
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))
-    feats = sample_features(
-        Vn, F, dense_radius=dense_radius, feature_radius=feature_radius, use_vertices=use_vertices, seed=seed
-    )
-    feats.D = describe(feats.P, feats.N, feats.dense_P, feats.dense_N, descriptor=descriptor, radius=descriptor_radius)
-    match, offsets, _ = match_offsets(feats.P, feats.D, tau=tau)
+    feats = sample_features(Vn, F, dense_radius=opt.dense_radius, feature_radius=opt.feature_radius,
+                            use_vertices=opt.use_vertices, seed=seed)
+    feats.D = describe(feats.P, feats.N, feats.dense_P, feats.dense_N, descriptor=opt.descriptor,
+                       radius=opt.descriptor_radius)
+    match, offsets, _ = match_offsets(feats.P, feats.D, tau=opt.tau)
     offsets = offsets[match >= 0]
-    n_stat, stat_offsets = _statistics_offsets(feats, offsets, statistics_features, tau)
-    keys, counts = offset_histogram(stat_offsets, bin_size=bin_size)
+    n_stat, stat_offsets = _statistics_offsets(feats, offsets, opt.statistics_features, opt.tau)
+    keys, counts = offset_histogram(stat_offsets, bin_size=opt.bin_size)
     cx, cy = sparsity_curve(counts)
-    min_count = max(5, int(np.ceil(min_peak_share * len(offsets))))
+    min_count = max(5, int(np.ceil(opt.min_peak_share * len(offsets))))
     dom, mags = dominant_offsets(
-        offsets, bin_size=bin_size, window=nms_window, min_count=min_count, max_peaks=max_dominant
+        offsets, bin_size=opt.bin_size, window=opt.nms_window, min_count=min_count, max_peaks=opt.max_dominant
     )
-    refined, overlap, grip = _refine_dominant(feats, dom, gen, icp_sources=icp_sources, dense_radius=dense_radius)
-    stayed = (np.linalg.norm(refined, axis=1) > tau) & (np.linalg.norm(refined - dom, axis=1) <= nms_window)
-    eligible = (overlap >= min_overlap) & (grip >= min_grip) & stayed
-    if use_vertices:
+    refined, overlap, grip = _refine_dominant(feats, dom, gen, icp_sources=opt.icp_sources,
+                                              dense_radius=opt.dense_radius)
+    stayed = (np.linalg.norm(refined, axis=1) > opt.tau) & (np.linalg.norm(refined - dom, axis=1) <= opt.nms_window)
+    eligible = (overlap >= opt.min_overlap) & (grip >= opt.min_grip) & stayed
+    if opt.use_vertices:
         verts = np.unique(np.asarray(Vn, dtype=np.float64)[np.unique(np.asarray(F))], axis=0)
         for i in np.flatnonzero(eligible):
-            refined[i] = snap_to_vertices(verts, refined[i], radius=dense_radius / 4)[0]
+            refined[i] = snap_to_vertices(verts, refined[i], radius=opt.dense_radius / 4)[0]
     gen_index = reduce_to_generators(
-        refined, eligible=eligible, grip=grip, tol=bin_size, grip_ratio=generator_grip_ratio
+        refined, eligible=eligible, grip=grip, tol=opt.bin_size, grip_ratio=opt.generator_grip_ratio
     )
-    cand = select_principal(refined[gen_index], min_angle=min_angle, max_count=max_principal, eligible=eligible)
+    cand = select_principal(refined[gen_index], min_angle=opt.min_angle, max_count=opt.max_principal,
+                            eligible=eligible)
     chosen = [int(gen_index[i]) for i in cand]
     principal = np.array([_canonical_sign(refined[i]) for i in chosen]).reshape(-1, 3)
-    basis, k = offset_basis(principal, dummy_length=dummy_length)
+    basis, k = offset_basis(principal, dummy_length=opt.dummy_length)
     return Analysis(
         features=feats,
         offsets=offsets,

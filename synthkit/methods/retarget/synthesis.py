@@ -28,20 +28,9 @@ from synthkit.core.graphcut import ExpansionResult, alpha_expansion
 from synthkit.core.mesh import boundary_loops, triangulate_polygons, weld
 from synthkit.methods.retarget.corners import carry, same_map
 
-__all__ = [
-    "VoxelGrid",
-    "grid_phase",
-    "make_grid",
-    "label_set",
-    "hausdorff",
-    "RetargetProblem",
-    "label_regions",
-    "seam_planes",
-    "assemble",
-    "repair_t_junctions",
-    "sliver_figures",
-    "merge_coplanar_faces",
-]
+__all__ = ["VoxelGrid", "grid_phase", "make_grid", "label_set", "hausdorff", "RetargetProblem", "label_regions",
+           "seam_planes", "assemble", "collapse_short_seam_edges", "flip_sliver_edges", "repair_t_junctions",
+           "unique_faces", "sliver_figures", "merge_coplanar_faces", "SLIVER_DEG", "POSITION_TOL"]
 
 
 @dataclass(frozen=True)
@@ -390,12 +379,10 @@ def assemble(
     must be cut: a face whose bounding box of voxels lies wholly inside the label's region is
     copied whole, one that touches none of it is left out, and only the faces straddling the
     region's boundary are split (exactly, shared cut vertices) along the planes of
-    :func:`seam_planes` and kept by their pieces' centroids. Finding (issue 15): the input used to
-    be split as a whole along every seam plane of every label, so each plane cut every face it
-    crossed, also far from any seam, and on building-small-a grown by two 0.1 steps 452 faces
-    became 10,477 (23 times, for a volume 1.21 times larger), with 1,519 slivers. Where a split
-    face meets an uncut neighbour of the same copy, the cut point is a T-junction on the
-    neighbour's edge, closed by :func:`repair_t_junctions` after the weld.
+    :func:`seam_planes` and kept by their pieces' centroids (why: docs/findings/retarget.md,
+    "Cutting per label"). Where a split face meets an uncut neighbour of the same copy, the cut
+    point is a T-junction on the neighbour's edge, closed by :func:`repair_t_junctions` after the
+    weld.
     """
     Vc = np.asarray(Vc, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -435,12 +422,9 @@ def collapse_short_seam_edges(V, F, on_seam, max_length: float) -> tuple[np.ndar
     around the edge grows (:func:`_smallest_angle`; the faces over the edge are dropped, the others
     must keep their orientation). Returns ``(F2 (m2, 3), src (m2,))``.
 
-    Finding (issue 15): a seam plane passing 0.003 from a row of house1's window vertices crosses
-    the edges leaving each vertex a few thousandths apart; each such seam edge, 0.004-0.01 long,
-    fanned to a corner 0.3-0.4 away, made a face with an angle below 1 degree (13 of them). Both
-    ends lie on the plane, so a collapse moves a vertex along the seam only (by at most
+    Both ends lie on the plane, so a collapse moves a vertex along the seam only (by at most
     ``max_length``); cut points are numbered after the input's vertices, so where one end is an
-    input vertex it is the one that stays."""
+    input vertex it is the one that stays. Why: docs/findings/retarget.md, "Short seam edges"."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     Ek = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
@@ -516,13 +500,8 @@ def flip_sliver_edges(V, F, face_label=None, *, max_rounds: int = 4, attr=None, 
     ``active (m,) bool`` (all when None) are tried first; later rounds revisit the faces around a
     flip. Rounds repeat until nothing flips.
 
-    Finding (issue 22): the generated 24k-triangle facade has 9,216 slivers of its own (thin
-    boxes), none flippable; trying them all took most of its 12-15 s pipeline. The pipeline passes
-    the faces touching a seam plane, so the pass grows with the seams, not with the mesh.
-
-    Finding (issue 15): after the seam collapse, house1 shrunk by a floor kept 8 faces below one
-    degree, caps of 176-178 degrees whose long edge splits a flat wall; ear clipping keeps every
-    boundary vertex of a region, so only a flip across the edge removes them."""
+    Why the flips and ``active``: docs/findings/retarget.md, "Slivers after the seam collapse" and
+    "Slivers of the input"."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3).copy()
     lab = None if face_label is None else np.asarray(face_label).reshape(-1)
@@ -588,11 +567,8 @@ def repair_t_junctions(V, F, *, tol: float, max_rounds: int = 8, split_at=None) 
     ``(V, F2 (m2, 3), src (m2,))`` with the new faces' source face. Vertices are not moved, so no
     geometry is invented.
 
-    Finding (issue 22): low-poly assets have T-junctions of their own (building-small-a: a wall's
-    top edge runs under the corners of the double-sided slab above it, 58 open edges). Splitting
-    those too made the wall's pieces meet both faces of the slab: 7 non-manifold edges in
-    building-small-a grown by one step (input 0). The pipeline passes the vertices on voxel
-    planes, where seams cut and copies meet, so the input's own junctions stay as they are.
+    The pipeline passes the vertices on voxel planes, where seams cut and copies meet, so the
+    input's own junctions stay as they are (docs/findings/retarget.md, "T-junctions of the input").
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -657,10 +633,8 @@ def _smallest_first(F: np.ndarray) -> np.ndarray:
 def unique_faces(V, F, *, tol: float = POSITION_TOL) -> np.ndarray:
     """``keep (m,) bool``: False for each face of ``F (m, 3)`` over the same three vertices of
     ``V (n, 3)`` (welded by position within ``tol``) in the same cyclic orientation as an earlier
-    face, i.e. a surface stored twice (issue 15). Finding: house1_baked stores 56 of its 284
-    polygons twice with the same UVs (106 of its 528 triangles); every copy of the model then
-    carried them into the retargeted mesh. Faces in the opposite orientation (double-sided walls)
-    are kept."""
+    face, i.e. a surface stored twice (docs/findings/retarget.md, "Surfaces stored twice in the
+    input"). Faces in the opposite orientation (double-sided walls) are kept."""
     V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     if len(F) == 0:
@@ -708,9 +682,7 @@ def merge_coplanar_faces(
     seam become one region (the retargeted mesh). Returns ``(F2 (m2, 3),
     src (m2,))`` with each new face's source face (one face of its region).
 
-    Finding (issue 15): cutting a low-poly asset along the seams splits each large face (a wall
-    is two triangles) into a fan of pieces per seam plane it crosses, and the weld's T-junction
-    repair fans them again; a flat region has no need for them once its copy is cut out.
+    Why: docs/findings/retarget.md, "Flat regions".
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)

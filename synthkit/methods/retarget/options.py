@@ -1,0 +1,79 @@
+"""The settings of retargeting's stages, built from the config in one place (:func:`options_of`):
+the one map from config keys to the stages' arguments."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["AnalysisOptions", "SynthesisOptions", "Target", "options_of"]
+
+
+@dataclass(frozen=True)
+class AnalysisOptions:
+    """Settings of :func:`~synthkit.methods.retarget.analysis.analyze` (config section ``analysis``,
+    whose descriptions say what each does; lengths in normalised units). ``min_angle`` is in
+    radians (``min_angle_deg``); ``icp_sources`` is how many dense samples the ICP moves at most."""
+
+    dense_radius: float = 0.02
+    feature_radius: float = 0.06
+    use_vertices: bool = True
+    descriptor: str = "shot"
+    descriptor_radius: float = 0.2
+    tau: float = 0.15
+    bin_size: float = 0.05
+    nms_window: float = 0.15
+    min_peak_share: float = 0.01
+    max_dominant: int = 20
+    min_overlap: float = 0.15
+    min_grip: float = 0.005
+    min_angle: float = np.pi / 3
+    max_principal: int = 3
+    dummy_length: float = 0.2
+    icp_sources: int = 4000
+    statistics_features: str = "samples"
+    generator_grip_ratio: float = 2.0
+
+
+@dataclass(frozen=True)
+class SynthesisOptions:
+    """Settings of the label problem and the stitching (:mod:`~synthkit.methods.retarget.problem`,
+    :mod:`~synthkit.methods.retarget.seams`): ``label_margin`` extra shifts on each side,
+    ``pins`` ``[(voxel (3,), shift (3,)), ...]``, ``max_cycles`` of alpha-expansion,
+    ``weld_tolerance`` of the seams, and the analysis's ``dense_radius``, ``descriptor`` and
+    ``descriptor_radius`` (voxels are described as the features are)."""
+
+    label_margin: int = 0
+    pins: list = field(default_factory=list)
+    max_cycles: int = 20
+    weld_tolerance: float = 1e-6
+    dense_radius: float = 0.02
+    descriptor: str = "shot"
+    descriptor_radius: float = 0.2
+
+
+@dataclass(frozen=True)
+class Target:
+    """The size asked for (config section ``target``; at most one given): ``steps`` per principal
+    offset, ``axis_steps`` along the principal offset nearest each named world axis
+    (``{"x": 2}``), or a ``scale`` factor per principal offset. None of them: one step along the
+    first principal offset."""
+
+    steps: list[int] | None = None
+    axis_steps: dict[str, int] | None = None
+    scale: list[float] | None = None
+
+
+def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions, Target]:
+    """The stages' settings from a :class:`~synthkit.methods.retarget.config.RetargetConfig`."""
+    keys = cfg.analysis.model_dump()  # every key of the section, by its name
+    keys["min_angle"] = np.radians(keys.pop("min_angle_deg"))
+    analysis, a = AnalysisOptions(**keys), cfg.analysis
+    synthesis = SynthesisOptions(
+        label_margin=cfg.label_margin, pins=[(p.voxel, p.shift) for p in cfg.pins], max_cycles=cfg.max_cycles,
+        weld_tolerance=cfg.weld_tolerance, dense_radius=a.dense_radius, descriptor=a.descriptor,
+        descriptor_radius=a.descriptor_radius,
+    )
+    t = cfg.target
+    return analysis, synthesis, Target(steps=t.steps, axis_steps=t.axis_steps, scale=t.scale)

@@ -195,3 +195,10 @@ def test_save_writes_the_output_folder_whole(echo_method, tmp_path):
     with pytest.raises(ConfigError, match=r"is not a synthkit output"):
         result.save(tmp_path / "mine")
     assert result.save(tmp_path / "out", overwrite=True, previews="none")["previews"] == "none"
+
+
+def test_a_scene_in_memory_counts_its_meshes_and_names_its_key():
+    scene = trimesh.Scene([trimesh.creation.box(), trimesh.creation.icosphere()])
+    inputs = Inputs({"<memory:input>": scene})
+    assert inputs.mesh("<memory:input>").metadata["merged_geometries"] == 2
+    assert inputs.source("<memory:input>") == "input" and inputs.source("/a/b.obj") == "/a/b.obj"

@@ -16,6 +16,8 @@ from scipy.spatial import cKDTree
 
 __all__ = [
     "TOL",
+    "checked_plane_args",
+    "split_by_plane",
     "as_mesh_arrays",
     "normalize_unit",
     "face_normals",
@@ -384,11 +386,11 @@ def clip_by_planes(V, F, normals, offsets, *, src_face=None, cap: bool = False):
     within ``TOL`` x (bbox diagonal) of a plane counts as on it (kept, never split), so no sliver
     triangles appear; unused vertices are dropped, faces with repeated corners removed.
     """
-    V, F, normals, offsets, src, eps = _plane_args(V, F, normals, offsets, src_face)
+    V, F, normals, offsets, src, eps = checked_plane_args(V, F, normals, offsets, src_face)
     for n, d in zip(normals, offsets, strict=True):
         if len(F) == 0:
             break
-        V, F, src = _split_one(V, F, src, n, d, eps * np.linalg.norm(n))[:3]
+        V, F, src = split_by_plane(V, F, src, n, d, eps * np.linalg.norm(n))[:3]
         if cap and len(F):
             scale = np.linalg.norm(n)
             C = cap_plane(V, F, n, d / scale, tol=eps * 10)
@@ -398,7 +400,7 @@ def clip_by_planes(V, F, normals, offsets, *, src_face=None, cap: bool = False):
     return V, F, src
 
 
-def _split_one(V, F, src, n, d, eps):
+def split_by_plane(V, F, src, n, d, eps):
     """Split every triangle by the plane ``n . x = d``.
 
     Returns ``(V2, F_in, src_in, F_out, src_out)``: the faces on the ``n . x <= d`` side and on the
@@ -464,7 +466,7 @@ def split_by_planes(V, F, normals, offsets):
     the vertices along the cuts exactly. Same crossing-point rule and tolerance as
     :func:`clip_by_planes`.
     """
-    V, F, normals, offsets, src, eps = _plane_args(V, F, normals, offsets, None)
+    V, F, normals, offsets, src, eps = checked_plane_args(V, F, normals, offsets, None)
     for n, d in zip(normals, offsets, strict=True):
         # only faces with corners strictly on both sides change: split those, keep the rest in place
         e = eps * np.linalg.norm(n)
@@ -475,14 +477,17 @@ def split_by_planes(V, F, normals, offsets):
         mixed = cross.view(bool)
         if not mixed.any():
             continue
-        V, Fi, Si, Fo, So = _split_one(V, F[mixed], src[mixed], n, d, e)
+        V, Fi, Si, Fo, So = split_by_plane(V, F[mixed], src[mixed], n, d, e)
         F = np.concatenate([F[~mixed], Fi, Fo])
         src = np.concatenate([src[~mixed], Si, So])
     V, F, _ = remove_unreferenced(V, F)
     return V, F, src
 
 
-def _plane_args(V, F, normals, offsets, src_face):
+def checked_plane_args(V, F, normals, offsets, src_face):
+    """The arguments of a cut by planes, checked: ``(V, F, normals (k, 3), offsets (k,), src (#F,),
+    eps)``, ``src`` the source face of each face (``arange`` when ``src_face`` is None) and ``eps``
+    the side tolerance (:data:`TOL` of the bounding-box diagonal, at least 1)."""
     V, F = as_mesh_arrays(V, F)
     normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     offsets = np.asarray(offsets, dtype=np.float64).reshape(-1)

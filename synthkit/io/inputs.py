@@ -86,6 +86,11 @@ class Inputs:
         """Whether ``path`` stands for an object given in memory."""
         return str(path) in self.objects
 
+    def source(self, path: Path | str) -> str:
+        """What a message names an input by: the config key of an object given in memory
+        (``"input"``), else the file's path."""
+        return self._given(path)[2]
+
     def mesh(self, path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
         """The mesh at ``path`` (:func:`~synthkit.io.meshes.load_mesh`) or given for it: a copy,
         so that a pipeline may change it; ``process`` merges duplicate vertices as trimesh does."""
@@ -103,6 +108,7 @@ class Inputs:
             if not geoms:
                 raise InputError(f"{key}: scene holds no triangle mesh")
             mesh = geoms[0].copy() if len(geoms) == 1 else trimesh.util.concatenate(geoms)
+            mesh.metadata["merged_geometries"] = len(geoms)
         elif isinstance(obj, trimesh.Trimesh):
             mesh = obj.copy()
         else:

@@ -12,6 +12,7 @@ from synthkit.core.mesh import weld
 from synthkit.methods.petri.analysis import SEAM_TOL, curve_gap
 from synthkit.methods.petri.appearance import Look, carry, concat
 from synthkit.methods.petri.joints import edge_uses, repeated_faces
+from synthkit.preview import golden_hues
 
 
 class PieceLibrary:
@@ -298,23 +299,8 @@ def _gap_and_seam(lib, A, B, ia, ib, corners, cells_a, cells_b, offsets):
 
 
 def label_colors(n: int) -> np.ndarray:
-    """``(n, 3)`` distinct colours in [0, 1] (golden-ratio hues)."""
-    h = (np.arange(n) * 0.618033988749895) % 1.0
-    s, v = 0.55, 0.92
-    i = np.floor(h * 6).astype(int) % 6
-    f = h * 6 - np.floor(h * 6)
-    p, q, tt = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
-    table = np.stack(
-        [
-            np.stack([np.full(n, v), tt, np.full(n, p)], 1),
-            np.stack([q, np.full(n, v), np.full(n, p)], 1),
-            np.stack([np.full(n, p), np.full(n, v), tt], 1),
-            np.stack([np.full(n, p), q, np.full(n, v)], 1),
-            np.stack([tt, np.full(n, p), np.full(n, v)], 1),
-            np.stack([np.full(n, v), np.full(n, p), q], 1),
-        ]
-    )
-    return table[i, np.arange(n)]
+    """``(n, 3)`` distinct colours in [0, 1] (:func:`synthkit.preview.golden_hues`)."""
+    return golden_hues(n)
 
 
 def crack_measure_graph(library: PieceLibrary, labels, corners: np.ndarray, graph, *, tol: float = SEAM_TOL,

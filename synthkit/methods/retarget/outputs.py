@@ -11,7 +11,6 @@ the same prefixed ``baseline_`` for the regular baseline.
 
 from __future__ import annotations
 
-import colorsys
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -22,14 +21,22 @@ from synthkit.api import Result
 from synthkit.io.assets import Asset, save_asset
 from synthkit.io.meshes import save_mesh
 from synthkit.methods.retarget.analysis import Analysis
-from synthkit.preview import Appearance, before_after_png, heatmap_png, montage_png, plot_curve_png, render_mesh_png
+from synthkit.preview import (
+    Appearance,
+    before_after_png,
+    golden_hues,
+    heatmap_png,
+    montage_png,
+    plot_curve_png,
+    render_mesh_png,
+)
 
 __all__ = ["RetargetResult", "RetargetedMesh", "label_colours", "palette", "write_statistics", "write_mesh"]
 
 
 def palette(n: int) -> np.ndarray:
-    """``(n, 3)`` float distinct colours in [0, 1] (golden-ratio hues)."""
-    return np.array([colorsys.hsv_to_rgb((0.13 + i * 0.618034) % 1.0, 0.55, 0.95) for i in range(max(n, 1))])
+    """``(n, 3)`` float distinct colours in [0, 1] (:func:`synthkit.preview.golden_hues` from hue 0.13)."""
+    return golden_hues(max(n, 1), start=0.13, value=0.95)
 
 
 def label_colours(labels, n_labels: int) -> np.ndarray:

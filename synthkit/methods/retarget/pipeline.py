@@ -212,7 +212,7 @@ def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
     :class:`~synthkit.methods.retarget.config.RetargetConfig`) on ``inputs``; write nothing. Raises
     :class:`NoRepetition` (an InputError that keeps the statistics) when the analysis finds no
     principal offset and the config asks for more than the analysis."""
-    src = "input" if inputs.is_memory(cfg.input) else str(cfg.input)
+    src = inputs.source(cfg.input)
     with ctx.stage("load"):
         asset, Vn, center, scale, (Va, Fa), suffix = _load(cfg, inputs, src, ctx)
         V, F = asset.V, asset.F

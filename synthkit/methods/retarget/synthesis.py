@@ -334,9 +334,9 @@ def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.
     ``F``. Faces are cut plane by plane, and after each cut only the pieces whose voxel box still
     straddles the region are cut further, so a face is split only where the region's boundary
     passes through it."""
-    from synthkit.core.mesh import _plane_args, _split_one
+    from synthkit.core.mesh import checked_plane_args, split_by_plane
 
-    V, F, normals, offsets, src, eps = _plane_args(Vc, F, normals, offsets, None)
+    V, F, normals, offsets, src, eps = checked_plane_args(Vc, F, normals, offsets, None)
     done, done_src = [], []
 
     def sort_out(V, F, src):
@@ -357,7 +357,7 @@ def _cut_to_region(Vc, F, grid: VoxelGrid, mask3, normals, offsets) -> tuple[np.
         mixed = (sd > e)[F].any(axis=1) & (sd < -e)[F].any(axis=1)
         if not mixed.any():
             continue
-        V, Fi, Si, Fo, So = _split_one(V, F[mixed], src[mixed], n, d, e)
+        V, Fi, Si, Fo, So = split_by_plane(V, F[mixed], src[mixed], n, d, e)
         F, src = sort_out(V, np.concatenate([F[~mixed], Fi, Fo]), np.concatenate([src[~mixed], Si, So]))
     if len(F):  # pieces crossing no plane but straddling by their box: keep by the centroid
         vox = np.clip(grid.voxel_of(V[F].mean(axis=1)), 0, np.asarray(grid.shape) - 1)

@@ -23,27 +23,27 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
+from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.assets import load_asset
-from synthkit.io.images import save_image
-from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
+from synthkit.io.inputs import Inputs
+from synthkit.io.textured import TexturedMesh, load_textured
 from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape import retexture as RT
-from synthkit.methods.reshape import texture_previews as TP
 from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
-from synthkit.methods.reshape.outputs import edge_colours, reshape_image
+from synthkit.methods.reshape.memory import textured_from_asset
+from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
 from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
-from synthkit.preview import Appearance, before_after_png, montage_png
 
-__all__ = ["run", "System", "build_system"]
+__all__ = ["compute", "run", "System", "build_system"]
 
 log = logging.getLogger("synthkit")
 
@@ -78,9 +78,15 @@ class System:
     attachment: object
 
 
-def _pieces(cfg) -> list[tuple[str, object, dict]]:
+MEMORY_PIECE = "mesh"
+"""The piece name (and output file stem) of an ``input`` mesh given in memory."""
+
+
+def _pieces(cfg, inputs: Inputs | None = None) -> list[tuple[str, object, dict]]:
+    """``(name, input, portals)`` per piece; an ``input`` given in memory is named ``mesh``."""
     if cfg.input is not None:
-        return [(cfg.input.stem, cfg.input, {})]
+        memory = inputs is not None and inputs.is_memory(cfg.input)
+        return [(MEMORY_PIECE if memory else cfg.input.stem, cfg.input, {})]
     return [(p.name, p.input, p.portals) for p in cfg.pieces]
 
 
@@ -364,69 +370,6 @@ def _baseline(graph, known, X_known, backend) -> np.ndarray:
     return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
 
 
-def _write_previews(ctx, cfg, F, graph, X, Xb, handles, level: str = "summary"):
-    """before.png, after.png, baseline.png and comparison.png (the summary preview unless ``level``
-    is "all": a textured before_after.png is the summary then)."""
-    if not ctx.wants_preview(level):
-        return
-
-    def image(Xn, key, name):
-        Vn = Xn[graph.node_of_vertex]
-        seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
-        rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
-        ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
-        img = reshape_image(Vn, F, seg, edge_colours(ratio), Xn[handles], view=cfg.view, size=cfg.preview_size)
-        if ctx.wants_preview("all"):
-            save_image(ctx.path(key, name), img)
-        return img
-
-    imgs = [image(graph.X0, "before", "before.png"), image(X, "after", "after.png")]
-    titles = ["before", "after (reshape)"]
-    if Xb is not None:
-        imgs.append(image(Xb, "baseline_preview", "baseline.png"))
-        titles.append("Laplacian baseline")
-    montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
-
-
-def _textured_summary(ctx, cfg, sc) -> bool:
-    """``before_after.png`` (the summary): the input above the written result, textured as a DCC
-    shows them (read back from the files), from three views framed alike. For a single textured
-    input; chains of pieces keep ``comparison.png`` as their summary."""
-    if len(sc.meshes) != 1 or not ctx.wants_preview("summary"):
-        return False
-    before = load_asset(sc.meshes[0].source)
-    if not before.textured and before.corner_color is None:
-        return False
-    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{sc.names[0]}"])
-    before_after_png(ctx.path("before_after", "before_after.png"),
-                     *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
-                     size=cfg.preview_size)
-    return True
-
-
-def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
-    """Each piece in its input's format, with its companion files and, with ``retex`` (piece index
-    -> :class:`~synthkit.io.textured.Retexture` entries), its reshaped surfaces' MTL and textures."""
-    written = set()
-    retex = retex or {}
-    for i, (name, m, off, r) in enumerate(zip(names, meshes, offsets, ranges, strict=True)):
-        P = m.positions.copy()
-        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
-        suffix = m.source.suffix.lower()
-        target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
-        entries = retex.get(i, [])
-        for extra in companion_files(m, entries):
-            if extra not in written:
-                ctx.path(f"file_{extra}", extra)
-                written.add(extra)
-        if entries:
-            ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
-            for e in entries:
-                ctx.path(f"texture_{e.material}", e.image_name)
-        save_textured(m, P, target, retexture=entries)
-        _check_quality(ctx, name, m, P)
-
-
 def _check_quality(ctx, name: str, mesh, P) -> None:
     """``ctx.check_quality`` of a written piece against its input: a reshape moves vertices and
     keeps the faces, so no figure may exceed the input's (a face collapsed by the move shows as a
@@ -465,11 +408,19 @@ class Scene:
     source: object
 
 
-def _load(cfg, ctx) -> Scene:
-    specs = _pieces(cfg)
+def _read(inputs: Inputs, path) -> TexturedMesh:
+    """The textured mesh at ``path``, or given in memory for it (:mod:`memory`)."""
+    if not inputs.is_memory(path):
+        return load_textured(path)
+    asset = inputs.asset(path)
+    return textured_from_asset(asset, str(asset.source))
+
+
+def _load(cfg, inputs: Inputs, ctx) -> Scene:
+    specs = _pieces(cfg, inputs)
     names = [n for n, _, _ in specs]
     with ctx.stage("load"):
-        meshes = [load_textured(path) for _, path, _ in specs]
+        meshes = [_read(inputs, path) for _, path, _ in specs]
     with ctx.stage("assemble"):
         lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
         hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
@@ -478,7 +429,7 @@ def _load(cfg, ctx) -> Scene:
         V, F, fm, ranges = _assemble(names, meshes, offsets)
         _snap_joined(V, ranges, joined)
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
-    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, specs[0][1])
+    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, meshes[0].source)
 
 
 def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
@@ -524,12 +475,13 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
     return m
 
 
-def _textures(cfg, ctx, sc, graph, X) -> dict:
-    """The texture stage (``texture: reshape``): per piece index the Retexture entries; metrics
-    ``surfaces`` and their worst case go into the report; previews of the largest surfaces."""
+def _textures(cfg, ctx, sc, graph, X) -> tuple[dict, dict]:
+    """The texture stage (``texture: reshape``): per piece index the Retexture entries, and per
+    surface ``(job, result, analysis)`` (the previews draw them); metrics ``surfaces`` and their
+    worst case go into the report."""
     ctx.metrics["texture"] = cfg.texture
     if cfg.texture == "stretch":
-        return {}
+        return {}, {}
     with ctx.stage("texture"):
         images, skipped = {}, {}
         jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images, skipped)
@@ -540,38 +492,7 @@ def _textures(cfg, ctx, sc, graph, X) -> dict:
         entries, boxes = RT.atlas_entries(sc, results, images)
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
         ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
-    with ctx.stage("texture_previews"):
-        _texture_previews(ctx, cfg, results)
-    return entries
-
-
-def _texture_previews(ctx, cfg, results) -> None:
-    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` surfaces the naive stretch would
-    distort most (largest ``baseline_rigid_scale_error`` times baked texels)."""
-    if not ctx.wants_preview("all"):
-        return
-    tau = cfg.texture_reshape.tau
-    def distortion(item):
-        res = item[1][1]
-        return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
-
-    paper = {k: v for k, v in results.items() if v[2] is not None}
-    order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
-    for name, (job, res, tex) in order:
-        rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
-        stem = f"texture/{RT._safe(name)}"
-        montage_png(ctx.path(f"autosim_{name}", f"{stem}_autosimilarity.png"),
-                    [tex.img[rows, cols], TP.autosimilarity_image(tex.T[:, rows, cols], tau)],
-                    titles=["texture", "autosimilarity x red, y green"], height=cfg.preview_size // 2)
-        montage_png(ctx.path(f"grid_{name}", f"{stem}_grid.png"),
-                    [TP.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
-                     TP.grid_image(res.texture, res.Y, res.grid.edges)],
-                    titles=["grid before", "grid after"], height=cfg.preview_size)
-        montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
-                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
-                    titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
-        montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
-                    titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)
+    return entries, results
 
 
 def _free_parts(cfg, graph, sc, links) -> list[dict]:
@@ -652,9 +573,10 @@ def _resize_metrics(resize, graph, X) -> dict:
                        "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}
 
 
-def run(cfg, ctx) -> None:
-    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
-    sc = _load(cfg, ctx)
+def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
+    """Reshape the pieces of a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`
+    read through ``inputs``; every stage, nothing written (:meth:`ReshapeResult.write` writes)."""
+    sc = _load(cfg, inputs, ctx)
     graph = _graph(cfg, ctx, sc)
     with ctx.stage("constraints"):
         resize = _resize(cfg, graph, sc)
@@ -689,10 +611,31 @@ def run(cfg, ctx) -> None:
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12
         )
-    retex = _textures(cfg, ctx, sc, graph, result.X)
-    with ctx.stage("outputs"):
-        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X, retex)
-        textured = _textured_summary(ctx, cfg, sc)
-        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles, level="all" if textured else "summary")
+    retex, surfaces = _textures(cfg, ctx, sc, graph, result.X)
+    pieces = _reshaped_pieces(ctx, sc, graph, result.X)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)
+    return ReshapeResult(
+        **result_fields(cfg, ctx, inputs),
+        meshes={n: trimesh.Trimesh(m.positions, m.position_index[m.F], process=False) for n, m in pieces.items()},
+        textured=pieces, retexture={n: retex.get(i, []) for i, n in enumerate(sc.names)}, X=result.X,
+        previews=PreviewData(sc.F, graph, result.X, Xb, handles, surfaces),
+    )
+
+
+def _reshaped_pieces(ctx, sc: Scene, graph, X) -> dict[str, TexturedMesh]:
+    """Piece name -> its textured mesh at the reshaped positions; each checked against its input
+    (:func:`_check_quality`)."""
+    out = {}
+    for name, m, off, r in zip(sc.names, sc.meshes, sc.offsets, sc.ranges, strict=True):
+        P = m.positions.copy()
+        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
+        out[name] = reshaped(m, P)
+        _check_quality(ctx, name, m, P)
+    return out
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`:
+    :func:`compute` with the config's files, then write the outputs."""
+    compute(cfg, Inputs(), ctx).write(ctx)

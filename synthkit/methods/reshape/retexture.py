@@ -21,6 +21,7 @@ import hashlib
 import logging
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -28,11 +29,12 @@ import numpy as np
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.textured import Retexture, material_textures
+from synthkit.methods.reshape.memory import MemoryMesh
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled, patch_mask
 from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
 
-__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of", "safe_name",
            "UNCHANGED_TOL", "WORST"]
 
 log = logging.getLogger("synthkit")
@@ -140,11 +142,11 @@ def _degenerate(C, F) -> str | None:
     return None
 
 
-def _texture(cfg, path, images) -> tuple[int, int]:
-    """``(W, H)`` of the texture at ``path`` (read once into ``images``); ConfigError when the grid
-    spacing is below one of its texels."""
+def _texture(cfg, path, images, given) -> tuple[int, int]:
+    """``(W, H)`` of the texture at ``path`` (read once into ``images``, or taken from ``given``,
+    path -> texture given in memory); ConfigError when the grid spacing is below one of its texels."""
     if path not in images:
-        images[path] = load_image(path)
+        images[path] = given[path] if path in given else load_image(path)
     H, W = images[path].shape[:2]
     spacing = cfg.texture_reshape.spacing
     if spacing * min(H, W) < 1:
@@ -153,7 +155,8 @@ def _texture(cfg, path, images) -> tuple[int, int]:
     return W, H
 
 
-def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped) -> tuple[list[SurfaceJob], int]:
+def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped,
+                given) -> tuple[list[SurfaceJob], int]:
     """The changed textured surfaces of piece ``p`` (render vertices ``r.start..r.stop``, faces from
     ``fstart``) and the number of its textured surfaces left untouched (no texture-space edge would
     move by ``unchanged_texels``); surfaces whose UVs cannot carry a grid go into ``skipped``
@@ -177,7 +180,7 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             continue
         name = f"{r.name}.{material}.{k}"
         toroidal, UV = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
-        W, H = _texture(cfg, path, images)
+        W, H = _texture(cfg, path, images, given)
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
         if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
             untouched += 1
@@ -201,18 +204,24 @@ def surface_jobs(cfg, sc, graph, V1, images: dict, skipped: dict) -> tuple[list[
     ``skipped`` (surface -> reason) with the surfaces that keep the naive stretch."""
     jobs, notes, fstart, untouched = [], {}, 0, 0
     for p, (mesh, r) in enumerate(zip(sc.meshes, sc.ranges, strict=True)):
-        if mesh.source.suffix.lower() != ".obj":
-            notes[r.name] = "GLB: embedded textures keep the naive stretch"
+        given = {}
+        if isinstance(mesh, MemoryMesh):
+            textures = {m: Path(str(mesh.source), m) for m in mesh.textures}
+            given = {textures[m]: img for m, img in mesh.textures.items()}
+        elif mesh.source.suffix.lower() == ".obj":
+            textures = material_textures(mesh)
         else:
-            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, material_textures(mesh), images,
-                                       skipped)
+            notes[r.name] = "GLB: embedded textures keep the naive stretch"
+        if isinstance(mesh, MemoryMesh) or mesh.source.suffix.lower() == ".obj":
+            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, textures, images, skipped, given)
             jobs += found
             untouched += kept
         fstart += len(mesh.F)
     return jobs, notes, untouched
 
 
-def _safe(name: str) -> str:
+def safe_name(name: str) -> str:
+    """``name`` with every run of characters other than letters, digits, ``_.-`` replaced by ``_``."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
@@ -263,7 +272,7 @@ def _own_entry(job, res) -> Retexture:
     UVs repeat the baked tile)."""
     UV = np.zeros((int(job.vertices.max()) + 1, 2))
     UV[job.vertices] = res.UV
-    material = _safe(f"{job.material}_retex{job.name.rsplit('.', 1)[1]}")
+    material = safe_name(f"{job.material}_retex{job.name.rsplit('.', 1)[1]}")
     return Retexture(job.faces, UV, material, f"{material}.png", res.texture)
 
 
@@ -309,7 +318,7 @@ equal patches are packed once."""
     source = np.where(_source_in_use(mesh, rest, source.shape)[..., None], source, 0).astype(source.dtype)
     atlas, spot0, spots = pack_atlas(source, [r.texture for r in res_of.values()])
     slot = {key: spots[i] for i, key in enumerate(res_of)}
-    UV, boxes, file = np.zeros((len(mesh.V), 2)), {}, f"{_safe(material)}_atlas.png"
+    UV, boxes, file = np.zeros((len(mesh.V), 2)), {}, f"{safe_name(material)}_atlas.png"
     for name, job, res in packed:
         spot = slot[_content(res.texture)]
         UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
@@ -344,7 +353,7 @@ def atlas_entries(sc, results, images) -> tuple[dict, dict]:
         UV = np.zeros((len(sc.meshes[p].V), 2))
         for job, res in items:
             UV[job.vertices] = res.UV
-        file = f"{_safe(material)}_tiled.png"
+        file = f"{safe_name(material)}_tiled.png"
         entries.setdefault(p, []).append(Retexture(np.concatenate([job.faces for job, _ in items]), UV, file[:-4],
                                                    file, images[items[0][0].texture]))
     return entries, boxes

@@ -15,8 +15,8 @@ from synthkit.io.textured import load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ANGLE, CONTOUR, build_graph, contour_loops
-from synthkit.methods.reshape.previews import COMPRESSED, ELONGATED, edge_colours
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.previews import COMPRESSED, ELONGATED, edge_colours
 from synthkit.methods.reshape.solver import ReshapeSolver, floating_anchors
 from synthkit.runner import run_config
 

@@ -456,7 +456,6 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
         status=result.status, steps_done=result.steps_done, max_angle_error_deg=quality["max_angle_error_deg"],
         factor_ms=solver.factor_ms, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
         nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        normal_ms=solver.normal_ms,
         solve_ms=float(np.median(solver.solve_ms)) if solver.solve_ms else None,
         backend=solver.backend, steps=cfg.solver.steps,
         length_raises=result.length_raises, edge_groups=len(system.groups),

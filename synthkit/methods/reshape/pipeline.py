@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -29,14 +30,16 @@ from scipy.spatial import cKDTree
 from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
+from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
-from synthkit.io.textured import TexturedMesh, load_textured
+from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape import retexture as RT
 from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
-from synthkit.methods.reshape.memory import textured_from_asset
+from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
+from synthkit.methods.reshape.options import texture_options
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
@@ -481,17 +484,43 @@ def _textures(cfg, ctx, sc, graph, X) -> tuple[dict, dict]:
     ctx.metrics["texture"] = cfg.texture
     if cfg.texture == "stretch":
         return {}, {}
+    options = texture_options(cfg)
     with ctx.stage("texture"):
+        textures, notes, given = _texture_sources(sc)
         images, skipped = {}, {}
-        jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images, skipped)
-        texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
-        ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
-                           bytes_each=_BYTES_PER_TEXEL)
-        results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
-        entries, boxes = RT.atlas_entries(sc, results, images)
+        try:
+            jobs, untouched = RT.surface_jobs(
+                sc.meshes, textures, sc.ranges, graph.face_surface, sc.V, X[graph.node_of_vertex], options=options,
+                read=lambda path: given[path] if path in given else load_image(path), images=images, skipped=skipped,
+            )
+            texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
+            ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
+                               bytes_each=_BYTES_PER_TEXEL)
+            results = RT.reshape_jobs(jobs, images, ctx.rng, options=options)
+        except RT.TextureError as exc:
+            raise ConfigError(f"{exc.key}: {exc}") if exc.key else InputError(str(exc)) from None
+        entries, boxes = RT.atlas_entries(sc.meshes, results, images)
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
         ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
     return entries, results
+
+
+def _texture_sources(sc: Scene) -> tuple[list[dict | None], dict, dict]:
+    """Per piece material -> texture path (an OBJ's ``map_Kd`` files; for a mesh given in memory a
+    stand-in path ``<key>/<material>``), or None for a GLB (embedded textures keep the naive
+    stretch: a note per such piece); and the stand-in path -> texture of meshes given in memory."""
+    textures, notes, given = [], {}, {}
+    for mesh, r in zip(sc.meshes, sc.ranges, strict=True):
+        if isinstance(mesh, MemoryMesh):
+            found = {m: Path(str(mesh.source), m) for m in mesh.textures}
+            given.update({found[m]: img for m, img in mesh.textures.items()})
+        elif mesh.source.suffix.lower() == ".obj":
+            found = material_textures(mesh)
+        else:
+            found = None
+            notes[r.name] = "GLB: embedded textures keep the naive stretch"
+        textures.append(found)
+    return textures, notes, given
 
 
 def _free_parts(cfg, graph, sc, links) -> list[dict]:

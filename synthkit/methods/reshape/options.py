@@ -1,0 +1,63 @@
+"""The one map from ``synthkit reshape``'s config keys to the stages' arguments.
+
+Stage modules take these dataclasses (or plain arrays), never the config: :func:`texture_options`
+for the texture stage (:mod:`retexture`), :func:`drag_options` for the solve (:mod:`solver`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from synthkit.methods.reshape.texture.surface import TextureParams
+
+__all__ = ["TextureOptions", "texture_options", "DragOptions", "drag_options"]
+
+PARAM_KEYS = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
+              "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
+              "sigma_r", "ramp", "max_side")
+"""Keys of ``texture_reshape`` that are :class:`TextureParams` fields of the same name."""
+
+
+@dataclass(frozen=True)
+class TextureOptions:
+    """The texture stage's options.
+
+    Attributes
+    ----------
+    mode : ``texture``: "continue", "reshape" or "stretch"
+    params : section 4's parameters (``texture_reshape``, with ``solver.backend``)
+    toroidal : ``texture_reshape.toroidal``: "auto" or the materials whose textures tile
+    unchanged_texels : ``texture_reshape.unchanged_texels``
+    """
+
+    mode: str
+    params: TextureParams
+    toroidal: str | tuple[str, ...]
+    unchanged_texels: float
+
+
+def texture_options(cfg) -> TextureOptions:
+    """The :class:`TextureOptions` of a :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    t = cfg.texture_reshape
+    params = TextureParams(**{n: getattr(t, n) for n in PARAM_KEYS}, backend=cfg.solver.backend)
+    toroidal = t.toroidal if isinstance(t.toroidal, str) else tuple(t.toroidal)
+    return TextureOptions(cfg.texture, params, toroidal, t.unchanged_texels)
+
+
+@dataclass(frozen=True)
+class DragOptions:
+    """How the handles are dragged (``solver``): ``steps``, eq. 4's ``short_ratio`` and
+    ``raise_factor``, the ``flip_ratio`` that refuses a motion, the factorization ``backend``."""
+
+    steps: int
+    short_ratio: float
+    raise_factor: float
+    flip_ratio: float
+    backend: str
+
+
+def drag_options(cfg) -> DragOptions:
+    """The :class:`DragOptions` of a config: one step for a resize (its rest shape is the target)."""
+    sv = cfg.solver
+    steps = 1 if cfg.handles == [] else sv.steps
+    return DragOptions(steps, sv.short_ratio, sv.raise_factor, sv.flip_ratio, sv.backend)

@@ -39,7 +39,7 @@ from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, 
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
-from synthkit.methods.reshape.options import texture_options
+from synthkit.methods.reshape.options import drag_options, texture_options
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
@@ -568,10 +568,10 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
     T = rest.copy()
     T[handles] = targets
     frozen = _frozen_nodes(cfg, sc, graph, handles)
-    sv = cfg.solver
-    steps = 1 if cfg.handles == [] else sv.steps
+    options = drag_options(cfg)
+    steps = options.steps
     with ctx.stage("factor"):
-        cache = FactorCache(system.A, backend=sv.backend)
+        cache = FactorCache(system.A, backend=options.backend)
         try:
             full = cache.get(known)
             limited = cache.get(np.union1d(known, frozen)) if len(frozen) else full
@@ -579,12 +579,11 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
             raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
     with ctx.stage("solve"):
         result = drag(
-            lambda step: full if step == steps else limited, system.b, X0=rest, T=T, steps=steps,
-            edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
-            short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
+            lambda step: full if step == steps else limited, system.b, X0=rest, T=T, edges=graph.edges,
+            stress_slice=system.slices["stress"], stress_weights=system.stress_weights, options=options,
             progress=lambda s: ctx.progress(s, total=steps, desc="reshape steps"), lengths=system.lengths,
         )
-    if result.status == "partial" and not sv.allow_partial:
+    if result.status == "partial" and not cfg.solver.allow_partial:
         _refuse(cfg, result, graph, sc.ranges, steps)
     reached = rest[known] + (result.steps_done / steps) * (T[known] - rest[known])
     return result, reached, full, cache, frozen

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from synthkit.core.lsq import LeastSquares, have_cholespy
+from synthkit.methods.reshape.options import DragOptions
 
 __all__ = ["ReshapeSolver", "FactorCache", "DragResult", "drag", "known_columns", "floating_anchors"]
 
@@ -124,17 +125,15 @@ def drag(
     *,
     X0,
     T,
-    steps: int,
     edges,
     stress_slice: slice,
     stress_weights,
-    short_ratio: float,
-    raise_factor: float,
-    flip_ratio: float,
+    options: DragOptions,
     progress=None,
     lengths=None,
 ) -> DragResult:
-    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
+    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``options.steps`` increments
+    (``options``: eq. 4's ``short_ratio`` and ``raise_factor``, the ``flip_ratio`` that refuses).
 
     ``solver_at(s)`` gives the :class:`ReshapeSolver` of step ``s`` (1..steps; the same solver for
     every step, or a limited-propagation one while dragging and a full one at release); at step
@@ -152,19 +151,20 @@ def drag(
     u /= np.maximum(rest, 1e-300)[:, None]
     lengths = rest.copy() if lengths is None else np.array(lengths, np.float64)
     X_prev, raises = X0, 0
+    steps = options.steps
     step_numbers = range(1, steps + 1)
     for s in progress(step_numbers) if progress is not None else step_numbers:
         solver = solver_at(s)
         Xk = X0[solver.known] + (s / steps) * (T[solver.known] - X0[solver.known])
         X = solver.solve(b, Xk)
-        short = _projected(X, edges, u) < short_ratio * rest
+        short = _projected(X, edges, u) < options.short_ratio * rest
         if short.any():
-            lengths[short] *= raise_factor
+            lengths[short] *= options.raise_factor
             raises += int(short.sum())
             b[stress_slice] = stress_weights * lengths
             X = solver.solve(b, Xk)
         proj = _projected(X, edges, u)
-        flipped = np.flatnonzero(proj <= flip_ratio * rest)
+        flipped = np.flatnonzero(proj <= options.flip_ratio * rest)
         if len(flipped):
             worst = flipped[np.argmin(proj[flipped] / rest[flipped])]
             edge = (int(edges[worst, 0]), int(edges[worst, 1]))

@@ -1,16 +1,18 @@
-"""``synthkit reshape``: load pieces, build the constraint graph and system, drag the handles, write.
+"""``synthkit reshape``: read the pieces, build the constraint graph and system, drag the handles,
+reshape the textures; the only module that knows config keys and exit codes.
 
+:func:`compute` runs every stage over inputs read through an :class:`~synthkit.io.inputs.Inputs`
+(files, or meshes given in memory) and returns a
+:class:`~synthkit.methods.reshape.outputs.ReshapeResult`; :func:`run` (the command line) writes it.
 Stages (``report.json`` ``timings``): ``load``, ``assemble`` (portals, chain placement), ``graph``
 (3.1), ``constraints`` (3.2, handles, links), ``factor`` and ``solve`` (3.3-3.4), ``baseline``
-(Laplacian edge-vector deformation with the same handles) and ``outputs``.
+(Laplacian edge-vector deformation with the same handles), ``texture`` (section 4), then
+``texture_previews`` and ``outputs`` when written. Metrics: the paper's Table 4 columns (``vars``,
+``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``, ``factor_ms``, ``solve_ms``) and the
+quality figures (docs/reshape.md).
 
-Outputs: each piece reshaped in its input's format (OBJ with its MTL and textures copied beside
-it, or GLB) with UVs and materials unchanged; ``before.png``, ``after.png`` (elongated edges blue,
-compressed red, handles green), ``baseline.png`` and ``comparison.png``; metrics in the paper's
-Table 4 columns (``vars``, ``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``,
-``factor_ms``, ``solve_ms``) and the quality figures (see the README).
-
-The method has no random choice: the seed does not change the result.
+The geometry has no random choice; the texture stage draws tile seeds and quilting patches from
+the run's ``rng`` (same seed, same textures).
 
 A motion that would flip an edge is refused: by default an InputError (exit 3) naming the edge
 and the step, nothing written; with ``solver.allow_partial`` the last valid step is written and

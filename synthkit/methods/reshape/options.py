@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from synthkit.methods.reshape.texture.surface import TextureParams
 
-__all__ = ["TextureOptions", "texture_options", "DragOptions", "drag_options"]
+__all__ = ["TextureOptions", "texture_options", "DragOptions", "drag_options", "SystemOptions", "system_options"]
 
 PARAM_KEYS = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
               "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
@@ -61,3 +61,34 @@ def drag_options(cfg) -> DragOptions:
     sv = cfg.solver
     steps = 1 if cfg.handles == [] else sv.steps
     return DragOptions(steps, sv.short_ratio, sv.raise_factor, sv.flip_ratio, sv.backend)
+
+
+@dataclass(frozen=True)
+class SystemOptions:
+    """The constraint rows of section 3.2: ``stiffness`` (``l_min`` or its ``l_min_quantile``,
+    ``w_small``, ``w_long``), ``strict`` (``strict_weight``, ``direction_form``), ``contacts``
+    (on/off, ``contact_tol``, ``w_c``) and ``groups`` (on/off, ``group_angle_deg``,
+    ``group_length_tol``, ``group_distance``, ``w_g``)."""
+
+    l_min: float | None
+    l_min_quantile: float
+    w_small: float
+    w_long: float
+    strict_weight: float
+    direction_form: str
+    contacts: bool
+    contact_tol: float
+    w_c: float
+    groups: bool
+    group_angle_deg: float
+    group_length_tol: float
+    group_distance: float
+    w_g: float
+
+
+def system_options(cfg) -> SystemOptions:
+    """The :class:`SystemOptions` of a config."""
+    st, c, g = cfg.stiffness, cfg.contacts, cfg.groups
+    return SystemOptions(st.l_min, st.l_min_quantile, st.w_small, st.w_long, cfg.strict.weight,
+                         cfg.strict.direction_form, c.enabled, c.tol, c.w_c, g.enabled, g.angle_deg, g.length_tol,
+                         g.distance, g.w_g)

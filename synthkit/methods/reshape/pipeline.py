@@ -35,20 +35,24 @@ from synthkit.errors import ConfigError, InputError
 from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
 from synthkit.io.textured import TexturedMesh, load_textured, material_textures
-from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape import retexture as RT
-from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
-from synthkit.methods.reshape.options import drag_options, texture_options
+from synthkit.methods.reshape.options import drag_options, system_options, texture_options
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
-from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
+from synthkit.methods.reshape.parts import mesh_parts, part_distances
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
-from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
+from synthkit.methods.reshape.solver import DragResult, FactorCache, drag
+from synthkit.methods.reshape.system import (
+    baseline_positions,
+    build_system,
+    quality_figures,
+    strict_residuals,
+)
 
-__all__ = ["compute", "run", "System", "build_system"]
+__all__ = ["compute", "run"]
 
 log = logging.getLogger("synthkit")
 
@@ -63,24 +67,6 @@ float64 loses the model itself. Farther motions are refused (ConfigError, issue 
 
 _BYTES_PER_TEXEL = 160.0
 """Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
-
-
-@dataclass
-class System:
-    """The weighted rows of one reshape: ``A (m, 3 n)``, ``b (m,)``, each block's row slice, the
-    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups, l_min,
-    the stress targets ``lengths (E,)`` and the parts carried by a host (``attachment``)."""
-
-    A: object
-    b: np.ndarray
-    slices: dict
-    stress_weights: np.ndarray
-    rigid: np.ndarray
-    contacts: np.ndarray
-    groups: list
-    l_min: float
-    lengths: np.ndarray
-    attachment: object
 
 
 MEMORY_PIECE = "mesh"
@@ -185,58 +171,6 @@ def _assemble(names, meshes, offsets):
     return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
 
 
-def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float, known=(), rest=None,
-                 factors=None) -> System:
-    """All weighted rows of section 3.2 for ``graph`` (lengths relative to ``size`` resolved).
-
-    The paper's weights weight squared residuals (weighted least squares, ``A^T W A`` as in
-    :class:`synthkit.core.lsq.LeastSquares`), so each row is scaled by the square root of its weight:
-    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``. ``rest (n, 3)`` (a
-    resize's rest shape, :mod:`resize`; default the model) is what the rows keep, except the rest
-    lengths of rigid edges, measured on the model like ``l_min``, contacts and groups, and hole-plane
-    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape (plane rows keep the
-    rest shape's offset along the normal: a hole's rim may move with its window). Clusters that hold
-    none of the ``known`` nodes and no contact are carried by the nearest surface
-    (:func:`parts.attach_clusters`, strict rows).
-    """
-    X0, edges = graph.X0, graph.edges
-    R = X0 if rest is None else np.asarray(rest, np.float64)
-    _, length = C.edge_frames(X0, edges)
-    st = cfg.stiffness
-    l_min = st.l_min if st.l_min is not None else float(np.quantile(length, st.l_min_quantile))
-    w = np.sqrt(C.stiffness(length, l_min=l_min, w_small=st.w_small, w_long=st.w_long))
-    targets = np.where(length < l_min, length, C.edge_frames(R, edges)[1])
-    W = float(np.sqrt(cfg.strict.weight))
-    w_c = float(np.sqrt(cfg.contacts.w_c))
-    blocks = {
-        "direction": C.direction_rows(R, edges, weight=W, form=cfg.strict.direction_form),
-        "stress": C.stress_rows(R, edges, w, targets),
-    }
-    contacts = np.zeros((0, 2), np.int64)
-    if cfg.contacts.enabled:
-        contacts = C.find_contacts(X0, graph.Fn, graph.component, tol=cfg.contacts.tol * size)
-        blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
-            R, graph.Fn, contacts, strict_weight=W, w_c=w_c
-        )
-    normals = graph.bridge_normals / (1.0 if factors is None else np.asarray(factors)[graph.bridges[:, 0]])
-    normals = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
-    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(R, graph.bridges, normals, strict_weight=W, w_c=w_c)
-    groups = []
-    if cfg.groups.enabled:
-        g = cfg.groups
-        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance)
-        blocks["groups"] = C.group_rows(R, edges, groups, w_g=float(np.sqrt(g.w_g)))
-    blocks["links"] = C.link_rows(R, links, strict_weight=W)
-    pairs = np.vstack([edges, links, graph.bridges, np.column_stack([contacts[:, 0], graph.Fn[contacts[:, 1], 0]])])
-    attachment = attach_clusters(X0, graph.Fn, pairs, np.asarray(known, np.int64))
-    blocks["attach"] = C.attach_rows(R, graph.Fn, attachment, strict_weight=W)
-    A, b, slices = C.stack_rows(blocks, graph.n_nodes)
-    if rest is not None:
-        for name in ("coplanarity", "hole_plane"):
-            b[slices[name]] = A[slices[name]] @ R.ravel()
-    return System(A, b, slices, w, length < l_min, contacts, groups, l_min, targets, attachment)
-
-
 def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
     """'vertex 12 of piece' for a node (its first render vertex)."""
     r = int(np.flatnonzero(graph.node_of_vertex == node)[0])
@@ -325,54 +259,6 @@ def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
         frontier = nxt
     far = [nodes for n, nodes in zip(sc.names, piece_nodes, strict=True) if dist.get(n, limit + 1) > limit]
     return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
-
-
-def _quality(graph, system, X, known, targets_all, size, rest=None) -> dict:
-    """Angle (against ``rest (n, 3)``, default the model), rigid-length, handle, contact and stretch
-    (against the model) figures of node positions ``X (n, 3)``."""
-    X0, edges = graph.X0, graph.edges
-    ang = angle_errors_deg(X0 if rest is None else rest, X, edges)
-    _, rest_len = C.edge_frames(X0, edges)
-    new = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
-    rigid = system.rigid
-    contact = 0.0
-    if len(system.contacts):
-        i, t = system.contacts[:, 0], system.contacts[:, 1]
-        T = graph.Fn[t]
-        n = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
-        n /= np.linalg.norm(n, axis=1)[:, None]
-        contact = float(np.abs(np.einsum("ij,ij->i", X[i] - X[T[:, 0]], n)).max() / size)
-    return {
-        "max_angle_error_deg": float(ang.max()) if len(ang) else 0.0,
-        "mean_angle_error_deg": float(ang.mean()) if len(ang) else 0.0,
-        "rigid_length_error": float(np.abs(new[rigid] / rest_len[rigid] - 1).max()) if rigid.any() else 0.0,
-        "handle_residual": float(np.linalg.norm(X[known] - targets_all, axis=1).max() / size),
-        "contact_residual": contact,
-        "max_stretch": float((new / rest_len).max()),
-        "min_stretch": float((new / rest_len).min()),
-    }
-
-
-def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float) -> dict:
-    """Largest residual of each strict block, unweighted and relative to the model size."""
-    r = system.A @ X.ravel() - system.b
-    out = {}
-    for name in ("direction", "coplanarity", "hole_plane", "links", "attach"):
-        sl = system.slices.get(name)
-        if sl is not None and sl.stop > sl.start:
-            out[name] = float(np.abs(r[sl]).max() / np.sqrt(weight) / size)
-    return out
-
-
-def _baseline(graph, known, X_known, backend) -> np.ndarray:
-    """Laplacian baseline positions ``(n, 3)``; floating mesh components get their own anchor."""
-    edges = mesh_edges(graph.Fn)
-    used = np.zeros(graph.n_nodes, bool)
-    used[graph.Fn.reshape(-1)] = True
-    extra = floating_anchors(graph.n_nodes, edges, known, used)
-    A, b = laplacian_rows(graph.X0, edges)
-    Xk = np.vstack([X_known, graph.X0[extra]])
-    return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
 
 
 def _check_quality(ctx, name: str, mesh, P) -> None:
@@ -467,7 +353,7 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
         grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
         l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
         strict_weight=cfg.strict.weight,
-        strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
+        strict_residuals=strict_residuals(system, result.X, cfg.strict.weight, sc.size),
         **extra,
     )
     m.update(quality)
@@ -615,7 +501,8 @@ def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
                            60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
                            "matrix entries", bytes_each=_BYTES_PER_NNZ)
         rest = graph.X0 if resize is None else resize.R
-        system = build_system(cfg, graph, links, size=sc.size, known=np.concatenate([handles, fixed]),
+        system = build_system(graph, links, options=system_options(cfg), size=sc.size,
+                              known=np.concatenate([handles, fixed]),
                               rest=None if resize is None else rest,
                               factors=None if resize is None else resize.node_factors())
         known = _known(graph, handles, fixed)
@@ -624,7 +511,7 @@ def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
                   attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
-    quality = _quality(graph, system, result.X, known, reached, sc.size, rest)
+    quality = quality_figures(graph, system, result.X, known, reached, sc.size, rest)
     _stretches_nothing(cfg, quality)
     if resize is not None:
         counts.update(_resize_metrics(resize, graph, result.X))
@@ -634,8 +521,8 @@ def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):
-            Xb = _baseline(graph, known, reached, cfg.solver.backend)
-        base = _quality(graph, system, Xb, known, reached, sc.size, rest)
+            Xb = baseline_positions(graph, known, reached, cfg.solver.backend)
+        base = quality_figures(graph, system, Xb, known, reached, sc.size, rest)
         ctx.metrics["baseline"] = base
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12

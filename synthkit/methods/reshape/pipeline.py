@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
@@ -36,13 +35,14 @@ from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
 from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import retexture as RT
+from synthkit.methods.reshape.assemble import assemble, place_pieces, portal_gaps, snap_joined
+from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
 from synthkit.methods.reshape.options import drag_options, system_options, texture_options
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import mesh_parts, part_distances
-from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
 from synthkit.methods.reshape.solver import DragResult, FactorCache, drag
 from synthkit.methods.reshape.system import (
@@ -79,96 +79,6 @@ def _pieces(cfg, inputs: Inputs | None = None) -> list[tuple[str, object, dict]]
         memory = inputs is not None and inputs.is_memory(cfg.input)
         return [(MEMORY_PIECE if memory else cfg.input.stem, cfg.input, {})]
     return [(p.name, p.input, p.portals) for p in cfg.pieces]
-
-
-def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
-    """Portal name -> render vertices of one piece (detected end planes and boundary loops, given
-    indices)."""
-    found = {**detect_portals(mesh.V, tol=tol), **boundary_portals(mesh.V, mesh.F, tol=tol)}
-    for name, idx in extra.items():
-        idx = np.asarray(idx, np.int64)
-        bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
-        if len(bad):
-            raise ConfigError(
-                f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)"
-            )
-        found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
-    return found
-
-
-def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict], list[tuple]]:
-    """World offset ``(3,)`` of each piece, the joins made (for the report) and, per join, the
-    joined render vertices ``(piece a, indices, piece b, indices)``."""
-    names = [n for n, _, _ in _pieces(cfg)]
-    if not cfg.chain and len(names) == 1:
-        return [np.zeros(3)], [], []
-    offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
-    portals = {
-        n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")
-        for i, ((n, _, extra), m) in enumerate(zip(_pieces(cfg), meshes, strict=True))
-    }
-    joins, joined = [], []
-    for i, j in enumerate(cfg.chain):
-        key = f"chain[{i}]"
-        for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
-            if piece not in portals:
-                raise ConfigError(f"{key}.{side}: no piece named {piece!r} (pieces: {', '.join(names)})")
-            if portal not in portals[piece]:
-                raise ConfigError(
-                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} "
-                    f"(portals: {', '.join(portals[piece])})"
-                )
-        if j.a not in offsets:
-            raise ConfigError(f"{key}.a: piece {j.a!r} is not placed yet (join pieces in chain order)")
-        if j.b in offsets:
-            raise ConfigError(f"{key}.b: piece {j.b!r} is placed already")
-        ma, mb = meshes[names.index(j.a)], meshes[names.index(j.b)]
-        Pa = portal_positions(ma.V, portals[j.a][j.a_portal], tol=tol) + offsets[j.a]
-        Pb = portal_positions(mb.V, portals[j.b][j.b_portal], tol=tol)
-        try:
-            t, gap = align_portals(Pa, Pb, tol=100 * tol)
-        except ValueError as exc:
-            raise ConfigError(f"{key}: {j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
-        offsets[j.b] = t
-        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "placed_gap": gap})
-        joined.append((names.index(j.a), portals[j.a][j.a_portal], names.index(j.b), portals[j.b][j.b_portal]))
-    missing = [n for n in names if n not in offsets]
-    if missing:
-        raise ConfigError(f"chain: pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
-    return [offsets[n] for n in names], joins, joined
-
-
-def _portal_gaps(joined, ranges, Vout) -> list[float]:
-    """Largest distance from a joined portal vertex of piece a to the nearest of piece b, per join,
-    in the reshaped world positions ``Vout (#V, 3)``."""
-    gaps = []
-    for ia, va, ib, vb in joined:
-        Pa, Pb = Vout[ranges[ia].start + va], Vout[ranges[ib].start + vb]
-        gaps.append(float(np.linalg.norm(Pa[:, None] - Pb[None], axis=2).min(axis=1).max()))
-    return gaps
-
-
-def _snap_joined(V, ranges, joined) -> None:
-    """Move each joined portal vertex of piece b onto its nearest partner of piece a (in place), so
-    that the graph welds every joined pair into one node even when the placed portals differ by
-    more than the weld tolerance (they may differ up to the portal match tolerance)."""
-    for ia, va, ib, vb in joined:
-        Pa = V[ranges[ia].start + va]
-        _, j = cKDTree(Pa).query(V[ranges[ib].start + vb])
-        V[ranges[ib].start + vb] = Pa[j]
-
-
-def _assemble(names, meshes, offsets):
-    """Concatenated ``V (#V, 3)`` (world), ``F (#F, 3)``, ``face_material (#F,)`` and piece ranges."""
-    Vs, Fs, fms, ranges, base, mbase = [], [], [], [], 0, 0
-    for name, m, off in zip(names, meshes, offsets, strict=True):
-        Vs.append(m.V + off)
-        Fs.append(m.F + base)
-        fms.append(m.face_material + mbase)
-        ranges.append(PieceRange(name, base, base + len(m.V), m.position_index, len(m.positions)))
-        base += len(m.V)
-        mbase += len(m.materials)
-    return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
 
 
 def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
@@ -299,6 +209,11 @@ class Scene:
     source: object
 
 
+def _mapped(exc: StageError) -> ConfigError | InputError:
+    """A stage's error as the command line reports it: ConfigError naming its key, else InputError."""
+    return ConfigError(f"{exc.key}: {exc}") if exc.key else InputError(str(exc))
+
+
 def _read(inputs: Inputs, path) -> TexturedMesh:
     """The textured mesh at ``path``, or given in memory for it (:mod:`memory`)."""
     if not inputs.is_memory(path):
@@ -316,9 +231,13 @@ def _load(cfg, inputs: Inputs, ctx) -> Scene:
         lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
         hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
-        offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
-        V, F, fm, ranges = _assemble(names, meshes, offsets)
-        _snap_joined(V, ranges, joined)
+        try:
+            offsets, joins, joined = place_pieces(names, meshes, [p for _, _, p in specs], cfg.chain,
+                                                  tol=cfg.graph.portal_tol * piece_size)
+        except StageError as exc:
+            raise _mapped(exc) from None
+        V, F, fm, ranges = assemble(names, meshes, offsets)
+        snap_joined(V, ranges, joined)
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
     return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, meshes[0].source)
 
@@ -357,7 +276,7 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
         **extra,
     )
     m.update(quality)
-    for join, gap in zip(sc.joins, _portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
+    for join, gap in zip(sc.joins, portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
         join["gap"] = gap / sc.size
     if result.status == "partial":
         m["refused_edge"] = [_vertex_name(n, graph, sc.ranges) for n in result.edge]
@@ -385,8 +304,8 @@ def _textures(cfg, ctx, sc, graph, X) -> tuple[dict, dict]:
             ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
                                bytes_each=_BYTES_PER_TEXEL)
             results = RT.reshape_jobs(jobs, images, ctx.rng, options=options)
-        except RT.TextureError as exc:
-            raise ConfigError(f"{exc.key}: {exc}") if exc.key else InputError(str(exc)) from None
+        except StageError as exc:
+            raise _mapped(exc) from None
         entries, boxes = RT.atlas_entries(sc.meshes, results, images)
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
         ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())

@@ -10,7 +10,7 @@ UVs and material, so its texture comes back unchanged. Each texture is analysed 
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
-Errors are :class:`TextureError` (a ValueError) naming the file and the surface, and carrying the
+Errors are :class:`StageError` (a ValueError) naming the file and the surface, and carrying the
 config ``key`` a value of which is at fault: a grid spacing below one texel
 (``texture_reshape.spacing``), a bake over ``texture_reshape.max_side``; None when the input is: a
 textured surface without UVs, UVs spanning a whole tile on a texture that is not toroidal, a
@@ -30,13 +30,14 @@ import cv2
 import numpy as np
 
 from synthkit.io.textured import Retexture, TexturedMesh
+from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.options import TextureOptions
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled, patch_mask
 from synthkit.methods.reshape.texture.surface import analyse_texture, reshape_surface
 
-__all__ = ["SurfaceJob", "TextureError", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics",
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics",
            "check_uv", "safe_name", "UNCHANGED_TOL", "WORST"]
 
 log = logging.getLogger("synthkit")
@@ -54,15 +55,6 @@ WORST = {"grid_nodes": max, "equations": max, "factor_ms": max, "solve_ms": max,
          "rigid_scale_error": max, "stochastic_stretch": max, "detail_energy_ratio": min, "tiles": min,
          "baseline_rigid_scale_error": max, "baseline_detail_energy_ratio": min}
 """Per-surface metrics and how their worst case over surfaces is taken (report top level)."""
-
-
-class TextureError(ValueError):
-    """A surface the texture stage cannot reshape as asked; ``key`` is the config key whose value
-    is at fault, None when the input is."""
-
-    def __init__(self, message: str, key: str | None = None):
-        super().__init__(message)
-        self.key = key
 
 
 @dataclass
@@ -101,10 +93,10 @@ def check_uv(source, name, material, path, UV, toroidal) -> tuple[bool, np.ndarr
     [0, 1] and span more than a whole tile (plus :data:`WHOLE_TILE_SLACK`) along an axis; otherwise
     they are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small
     excursion past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A ``material``
-    listed in ``toroidal`` is toroidal whatever its UVs. TextureError for missing UVs, or for UVs
+    listed in ``toroidal`` is toroidal whatever its UVs. StageError for missing UVs, or for UVs
     spanning a whole tile when ``toroidal`` lists other materials only."""
     if np.isnan(UV).any():
-        raise TextureError(f"{source}: surface {name} (material {material}) has no UVs, but its texture "
+        raise StageError(f"{source}: surface {name} (material {material}) has no UVs, but its texture "
                            f"{path.name} needs them")
     outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
     whole = outside and bool((np.ptp(UV, axis=0) > 1 + WHOLE_TILE_SLACK).any())
@@ -113,7 +105,7 @@ def check_uv(source, name, material, path, UV, toroidal) -> tuple[bool, np.ndarr
         return True, UV
     if whole:
         lo, hi = UV.min(axis=0), UV.max(axis=0)
-        raise TextureError(
+        raise StageError(
             f"{source}: surface {name} (material {material}) has UVs spanning a whole tile "
             f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal "
             "(texture_reshape.toroidal)"
@@ -145,13 +137,13 @@ def _degenerate(C, F) -> str | None:
 
 
 def _texture(path, images, read, spacing: float) -> tuple[int, int]:
-    """``(W, H)`` of the texture at ``path`` (``read(path)`` once into ``images``); TextureError on
+    """``(W, H)`` of the texture at ``path`` (``read(path)`` once into ``images``); StageError on
     ``texture_reshape.spacing`` when the grid spacing is below one of its texels."""
     if path not in images:
         images[path] = read(path)
     H, W = images[path].shape[:2]
     if spacing * min(H, W) < 1:
-        raise TextureError(f"{spacing:g} of {path.name} ({W} x {H}) is {spacing * min(H, W):.3g} texels, "
+        raise StageError(f"{spacing:g} of {path.name} ({W} x {H}) is {spacing * min(H, W):.3g} texels, "
                            "below one texel", "texture_reshape.spacing")
     return W, H
 
@@ -240,7 +232,7 @@ def reshape_jobs(jobs, images, rng, *, options: TextureOptions) -> dict:
     non-toroidal surface whose map is affine is extended (:func:`texture.extend.extend_surface`,
     analysis None), the others take the paper's reshape. A surface mapping the same
     texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
-    patch), shares its result. A stage ValueError becomes a TextureError naming the surface."""
+    patch), shares its result. A stage ValueError becomes a StageError naming the surface."""
     params, analyses, results, done = options.params, {}, {}, {}
     for job in jobs:
         same = _job_key(job)
@@ -263,8 +255,8 @@ def reshape_jobs(jobs, images, rng, *, options: TextureOptions) -> dict:
                                   params=params, rng=rng)
         except ValueError as exc:
             if "max_side" in str(exc):
-                raise TextureError(f"surface {job.name}: {exc}", "texture_reshape.max_side") from None
-            raise TextureError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
+                raise StageError(f"surface {job.name}: {exc}", "texture_reshape.max_side") from None
+            raise StageError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
         results[job.name] = (job, res, analyses[key])
     return results
 

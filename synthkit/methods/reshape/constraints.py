@@ -254,7 +254,7 @@ def link_rows(X0, links, *, strict_weight: float) -> Rows:
 
 
 def attach_rows(X0, Fn, attachment, *, strict_weight: float) -> Rows:
-    """Parts carried by a host surface (issue 23, beyond the paper): for each attached cluster of
+    """Parts carried by a host surface (beyond the paper): for each attached cluster of
     nodes N with host triangle T and barycentric coordinates lam (a :class:`parts.Attachment`),
     three strict rows ``mean_{i in N} x_i - sum_k lam_k x_Tk = (the same on X0)``: the cluster's
     centroid keeps its offset to the host point beneath it, so a window goes where its wall takes

@@ -60,10 +60,8 @@ _BYTES_PER_NNZ = 400.0
 """Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
 
 MAX_MOTION = 100.0
-"""Largest motion of a handle or of a resized end, in model sizes (bounding-box diagonals). The
-strict residuals grow with the motion (1.2e-10 of the model size per model size moved on the wall
-sample, direction rows): past about 800 sizes they exceed the 1e-7 the tests accept, and at 1e30
-float64 loses the model itself. Farther motions are refused (ConfigError, issue 28)."""
+"""Largest motion of a handle or of a resized end, in model sizes (bounding-box diagonals); farther
+motions are refused (ConfigError): the strict residuals grow with the motion (docs/findings/reshape.md)."""
 
 _BYTES_PER_TEXEL = 160.0
 """Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
@@ -358,9 +356,8 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
 
 
 def _stretches_nothing(cfg, quality) -> None:
-    """Item 6 of issue 23: a recipe whose result only moves the model rigidly (handles that select
-    everything, or nothing fixed) is refused in one line (ConfigError) instead of writing a
-    translated model with perfect metrics."""
+    """Refuse (ConfigError) a recipe whose result only moves the model rigidly (handles that select
+    everything, or nothing fixed)."""
     key = "handles" if cfg.handles else ("scale" if cfg.scale is not None else "size")
     if quality["max_stretch"] - 1 < 1e-6 and 1 - quality["min_stretch"] < 1e-6:
         raise ConfigError(

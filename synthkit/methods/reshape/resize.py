@@ -1,4 +1,4 @@
-"""Resize in one line (issue 23): ``scale: {x: 1.3}`` or ``size: {x: 12.0}``.
+"""Resize in one line: ``scale: {x: 1.3}`` or ``size: {x: 12.0}``.
 
 The user's intent is the model scaled along the given axes, as if a wall were dragged: the rest
 shape of the solve becomes ``R (n, 3)``, the model scaled about its lower corner, except that a
@@ -6,8 +6,8 @@ part (face-connected component, :func:`parts.mesh_parts`) shorter than ``rigid_s
 model along an axis keeps its size along that axis (doors, windows, frames) and is carried
 there by the point of its host surface under its centroid (:func:`parts.attach_clusters`:
 a window on a side wall stays on that wall). The largest part (the walls and roof) is never
-rigid, nor is a part along an axis where it forms the model's upper end (house1's chimney tops
-the ridge: kept rigid it would leave the model 2 % short of a 1.5x raise). Parts that touch one
+rigid, nor is a part along an axis where it forms the model's upper end (a chimney topping the
+ridge; docs/findings/reshape.md). Parts that touch one
 another move as one group (:func:`touching_groups`); the root's nodes around a rigid group (the
 rim of the hole a window fills) move with it, and a group at the lower end (a door on the
 ground) stays there. The solve (pipeline) then writes every constraint of section 3.2 against
@@ -34,8 +34,8 @@ __all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups"]
 
 
 END_BAND = 0.02
-"""A rigid group this close to the lower end of the model (share of the extent) stays at that end (the
-garage door of house4 stands 0.7 % of the height above the lowest vertex)."""
+"""A rigid group this close to the lower end of the model (share of the extent) stays at that end (a
+garage door a little above the lowest vertex)."""
 
 
 @dataclass

@@ -12,7 +12,7 @@ every part carried by a surface. From Python: :func:`synthkit.reshape` (:mod:`.a
 Modules: ``config`` (schema), ``options`` (keys to arguments), ``pipeline`` (stages, errors),
 ``outputs`` (result and files), ``memory`` (meshes given in memory); stages ``graph``,
 ``constraints``, ``handles``, ``parts``, ``resize``, ``portals``, ``solver``, ``baseline``,
-``retexture`` and ``texture/``; drawing in ``previews`` and ``texture_previews``.
+``retexture`` and ``texture/``; drawing in ``previews``.
 """
 
 SET_EXAMPLE = "solver.steps=20"

@@ -20,13 +20,13 @@ from synthkit.api import Result
 from synthkit.io.assets import Asset, load_asset, save_asset
 from synthkit.io.images import save_image
 from synthkit.io.textured import Retexture, TexturedMesh, companion_files, save_textured
-from synthkit.methods.reshape import texture_previews as TP
+from synthkit.methods.reshape import previews as P
 from synthkit.methods.reshape.memory import MemoryMesh, reshaped_asset
-from synthkit.methods.reshape.previews import edge_colours, reshape_image
 from synthkit.methods.reshape.retexture import safe_name
 from synthkit.preview import Appearance, before_after_png, montage_png
 
-__all__ = ["ReshapeResult", "PreviewData"]
+__all__ = ["ReshapeResult", "PreviewData", "reshaped", "write_piece", "write_previews", "write_texture_previews",
+           "write_textured_summary"]
 
 
 @dataclass
@@ -155,7 +155,7 @@ def write_previews(ctx, cfg, data: PreviewData, level: str = "summary") -> None:
         seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
         rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
         ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
-        img = reshape_image(Vn, data.F, seg, edge_colours(ratio), Xn[data.handles], view=cfg.view,
+        img = P.reshape_image(Vn, data.F, seg, P.edge_colours(ratio), Xn[data.handles], view=cfg.view,
                             size=cfg.preview_size)
         if ctx.wants_preview("all"):
             save_image(ctx.path(key, name), img)
@@ -183,17 +183,17 @@ def write_texture_previews(ctx, cfg, surfaces: dict) -> None:
     paper = {k: v for k, v in surfaces.items() if v[2] is not None}
     order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
     for name, (job, res, tex) in order:
-        rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
+        rows, cols, off = P.source_window(job.C, tex.img.shape[:2], job.toroidal)
         stem = f"texture/{safe_name(name)}"
         montage_png(ctx.path(f"autosim_{name}", f"{stem}_autosimilarity.png"),
-                    [tex.img[rows, cols], TP.autosimilarity_image(tex.T[:, rows, cols], tau)],
+                    [tex.img[rows, cols], P.autosimilarity_image(tex.T[:, rows, cols], tau)],
                     titles=["texture", "autosimilarity x red, y green"], height=cfg.preview_size // 2)
         montage_png(ctx.path(f"grid_{name}", f"{stem}_grid.png"),
-                    [TP.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
-                     TP.grid_image(res.texture, res.Y, res.grid.edges)],
+                    [P.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
+                     P.grid_image(res.texture, res.Y, res.grid.edges)],
                     titles=["grid before", "grid after"], height=cfg.preview_size)
         montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
-                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
+                    [tex.img[rows, cols], P.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
                     titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
         montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
                     titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)

@@ -52,7 +52,7 @@ from synthkit.methods.reshape.system import (
     strict_residuals,
 )
 
-__all__ = ["compute", "run"]
+__all__ = ["compute", "run", "Scene", "MEMORY_PIECE"]
 
 log = logging.getLogger("synthkit")
 

@@ -1,8 +1,12 @@
-"""Previews of a reshape (Fig. 2): the mesh with its graph edges coloured by length change.
+"""Previews of a reshape, as ``(H, W, 3)`` images.
 
-Elongated edges are blue, compressed edges red, unchanged ones dark grey; handle nodes are green
-dots. Images are ``(size, size, 3) float32`` in [0, 1], framed like
-:func:`synthkit.preview.rasterize_mesh` frames the same vertices.
+- :func:`reshape_image` (Fig. 2): the mesh with its graph edges coloured by length change
+  (:func:`edge_colours`: elongated blue, compressed red, unchanged dark grey) and handle nodes as
+  green dots, ``(size, size, 3) float32`` in [0, 1], framed like :func:`synthkit.preview.rasterize_mesh`.
+- Figs. 7-8 of the texture reshape: :func:`autosimilarity_image` (``T_x`` red, ``T_y`` green, each
+  scaled so that ``4 tau`` is full intensity), :func:`grid_image` (grid edges over a texture) and
+  :func:`segmentation_image` (rigid texels light, stochastic dark, each detail tile outlined in its
+  own colour); :func:`source_window` is the part of a texture a surface uses.
 """
 
 from __future__ import annotations
@@ -12,7 +16,8 @@ import numpy as np
 
 from synthkit.preview import rasterize_mesh, view_rotation
 
-__all__ = ["edge_colours", "reshape_image", "ELONGATED", "COMPRESSED", "HANDLE"]
+__all__ = ["edge_colours", "reshape_image", "autosimilarity_image", "grid_image", "segmentation_image",
+           "source_window", "ELONGATED", "COMPRESSED", "HANDLE"]
 
 ELONGATED = (0.1, 0.3, 0.95)
 COMPRESSED = (0.9, 0.1, 0.1)
@@ -51,4 +56,43 @@ def reshape_image(V, F, edge_points, colours, handle_points, *, view: str, size:
         cv2.line(img, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), tuple(float(x) for x in c), 2, cv2.LINE_AA)
     for p in px(handle_points):
         cv2.circle(img, (int(p[0]), int(p[1])), max(3, size // 128), HANDLE, -1, cv2.LINE_AA)
+    return img
+
+def source_window(C, shape, toroidal: bool) -> tuple[slice, slice, np.ndarray]:
+    """Rows, columns and offset ``(2,)`` of the texels a surface with corners ``C (c, 2)`` uses
+    (the whole texture for a toroidal one)."""
+    H, W = shape
+    if toroidal:
+        return slice(0, H), slice(0, W), np.zeros(2)
+    lo = np.clip(np.floor(C.min(axis=0)), 0, [W - 1, H - 1]).astype(int)
+    hi = np.clip(np.ceil(C.max(axis=0)), lo + 1, [W, H]).astype(int)
+    return slice(lo[1], hi[1]), slice(lo[0], hi[0]), lo.astype(float)
+
+
+def autosimilarity_image(T, tau: float) -> np.ndarray:
+    """``(H, W, 3)``: ``T (2, H, W)`` x in red, y in green."""
+    img = np.zeros(T.shape[1:] + (3,), np.float32)
+    img[..., 0] = np.clip(T[0] / (4 * tau), 0, 1)
+    img[..., 1] = np.clip(T[1] / (4 * tau), 0, 1)
+    return img
+
+
+def grid_image(img, X, edges, *, offset=(0.0, 0.0), min_side: int = 384) -> np.ndarray:
+    """``img (H, W, 3)`` upscaled to at least ``min_side`` with the edges ``(E, 2)`` of nodes ``X
+    (n, 2)`` (texels, minus ``offset``) drawn in yellow."""
+    k = max(1, int(np.ceil(min_side / max(min(img.shape[:2]), 1))))
+    out = cv2.resize(np.asarray(img, np.float32), None, fx=k, fy=k, interpolation=cv2.INTER_NEAREST)
+    P = np.round((np.asarray(X) - np.asarray(offset)) * k).astype(np.int32)
+    for a, b in edges:
+        cv2.line(out, tuple(int(v) for v in P[a]), tuple(int(v) for v in P[b]), (1.0, 0.85, 0.0), 1, cv2.LINE_AA)
+    return out
+
+
+def segmentation_image(rigid, tiles) -> np.ndarray:
+    """``(H, W, 3)``: rigid texels light grey, stochastic dark, tiles ``(k + 1, 4)`` outlined."""
+    img = np.where(rigid[..., None], 0.85, 0.15).astype(np.float32).repeat(3, axis=2)
+    rng = np.random.default_rng(7)  # fixed colours for the outlines only
+    for y0, x0, y1, x1 in tiles[1:]:
+        colour = tuple(float(c) for c in rng.uniform(0.3, 1.0, 3))
+        cv2.rectangle(img, (int(x0), int(y0)), (int(x1) - 1, int(y1) - 1), colour, 2)
     return img

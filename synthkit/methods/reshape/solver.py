@@ -197,6 +197,3 @@ class FactorCache:
 
     def __len__(self) -> int:
         return len(self._solvers)
-
-    def solvers(self) -> list[ReshapeSolver]:
-        return list(self._solvers.values())

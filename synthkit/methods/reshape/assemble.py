@@ -3,7 +3,8 @@
 A piece is a :class:`~synthkit.io.textured.TexturedMesh` at its file's coordinates;
 :func:`place_pieces` gives each a world offset so that the portals its ``chain`` joins meet
 (section 5), :func:`assemble` concatenates them (``V (#V, 3)``, ``F (#F, 3)``, materials, piece
-ranges) and :func:`snap_joined` makes the joined portal vertices coincide.
+ranges) and :func:`snap_joined` makes the joined portal vertices coincide; :func:`frozen_nodes`
+are those a limited propagation keeps in place.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 
-__all__ = ["piece_portals", "place_pieces", "portal_gaps", "snap_joined", "assemble"]
+__all__ = ["piece_portals", "place_pieces", "portal_gaps", "snap_joined", "assemble", "frozen_nodes"]
 
 
 def piece_portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
@@ -105,3 +106,25 @@ def assemble(names, meshes, offsets):
         base += len(m.V)
         mbase += len(m.materials)
     return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
+
+
+def frozen_nodes(ranges: list[PieceRange], node_of_vertex: np.ndarray, chain: list, handles: np.ndarray,
+                 limit: int | None) -> np.ndarray:
+    """Nodes of the pieces farther than ``limit`` joins of ``chain`` from every piece holding one of
+    the ``handles`` (empty without a limit or with one piece): they keep their place while dragging
+    (section 5). ``node_of_vertex (#V,)`` maps the scene's render vertices to graph nodes."""
+    if limit is None or len(ranges) == 1:
+        return np.zeros(0, np.int64)
+    piece_nodes = {r.name: node_of_vertex[r.start:r.stop] for r in ranges}
+    dist = {n: 0 for n, nodes in piece_nodes.items() if np.isin(nodes, handles).any()}
+    frontier = list(dist)
+    while frontier:
+        nxt = []
+        for j in chain:
+            for a, b in ((j.a, j.b), (j.b, j.a)):
+                if a in frontier and b not in dist:
+                    dist[b] = dist[a] + 1
+                    nxt.append(b)
+        frontier = nxt
+    far = [nodes for n, nodes in piece_nodes.items() if dist.get(n, limit + 1) > limit]
+    return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)

@@ -35,7 +35,7 @@ from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
 from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import retexture as RT
-from synthkit.methods.reshape.assemble import assemble, place_pieces, portal_gaps, snap_joined
+from synthkit.methods.reshape.assemble import assemble, frozen_nodes, place_pieces, portal_gaps, snap_joined
 from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
@@ -43,7 +43,7 @@ from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
 from synthkit.methods.reshape.options import drag_options, system_options, texture_options
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import mesh_parts, part_distances
-from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
+from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize, resize_metrics
 from synthkit.methods.reshape.solver import DragResult, FactorCache, drag
 from synthkit.methods.reshape.system import (
     baseline_positions,
@@ -146,27 +146,6 @@ def _known(graph, handles, fixed) -> np.ndarray:
     used = np.zeros(graph.n_nodes, bool)
     used[graph.Fn.reshape(-1)] = True
     return np.concatenate([handles, fixed, np.flatnonzero(~used)])
-
-
-def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
-    """Nodes of the pieces farther than ``solver.propagation`` joins from every piece holding a
-    handle (empty without a limit): they keep their place while dragging (section 5)."""
-    limit = cfg.solver.propagation
-    if limit is None or len(sc.names) == 1:
-        return np.zeros(0, np.int64)
-    piece_nodes = [graph.node_of_vertex[r.start:r.stop] for r in sc.ranges]
-    dist = {n: 0 for n, nodes in zip(sc.names, piece_nodes, strict=True) if np.isin(nodes, handles).any()}
-    frontier = list(dist)
-    while frontier:
-        nxt = []
-        for j in cfg.chain:
-            for a, b in ((j.a, j.b), (j.b, j.a)):
-                if a in frontier and b not in dist:
-                    dist[b] = dist[a] + 1
-                    nxt.append(b)
-        frontier = nxt
-    far = [nodes for n, nodes in zip(sc.names, piece_nodes, strict=True) if dist.get(n, limit + 1) > limit]
-    return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
 
 
 def _check_quality(ctx, name: str, mesh, P) -> None:
@@ -371,7 +350,7 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
     result, the positions the known nodes reached, the solver, the cache and the frozen nodes."""
     T = rest.copy()
     T[handles] = targets
-    frozen = _frozen_nodes(cfg, sc, graph, handles)
+    frozen = frozen_nodes(sc.ranges, graph.node_of_vertex, cfg.chain, handles, cfg.solver.propagation)
     options = drag_options(cfg)
     steps = options.steps
     with ctx.stage("factor"):
@@ -391,17 +370,6 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
         _refuse(cfg, result, graph, sc.ranges, steps)
     reached = rest[known] + (result.steps_done / steps) * (T[known] - rest[known])
     return result, reached, full, cache, frozen
-
-
-def _resize_metrics(resize, graph, X) -> dict:
-    """Factors applied, extent ratios reached (after / before, per axis) and rigid parts of a resize."""
-    used = np.unique(graph.Fn)
-    before = graph.X0[used].max(axis=0) - graph.X0[used].min(axis=0)
-    after = X[used].max(axis=0) - X[used].min(axis=0)
-    return {"resize": {"factors": resize.factors.tolist(), "asked_extent": [None if np.isnan(a) else float(a)
-                                                                          for a in resize.asked],
-                       "extent_ratio": (after / np.maximum(before, 1e-300)).tolist(),
-                       "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}
 
 
 def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
@@ -430,7 +398,7 @@ def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
     quality = quality_figures(graph, system, result.X, known, reached, sc.size, rest)
     _stretches_nothing(cfg, quality)
     if resize is not None:
-        counts.update(_resize_metrics(resize, graph, result.X))
+        counts.update(resize_metrics(resize, graph.X0, graph.Fn, result.X))
     ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
     if result.status == "partial":
         ctx.status = "partial"

@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components
 
 from synthkit.methods.reshape.parts import attach_clusters, closest_points, mesh_parts
 
-__all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups"]
+__all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups", "resize_metrics"]
 
 
 END_BAND = 0.02
@@ -154,3 +154,15 @@ def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float, t
     ends = (X0[:, scaled] <= (lo + tol)[scaled]) | (X0[:, scaled] >= (hi - tol)[scaled])
     known = np.flatnonzero(used & ends.any(axis=1))
     return Resize(f, asked, R, known, part, rigid)
+
+
+def resize_metrics(resize: Resize, X0: np.ndarray, Fn: np.ndarray, X: np.ndarray) -> dict:
+    """Factors applied, extent ratios reached (``X (n, 3)`` against ``X0 (n, 3)``, per axis, over
+    the nodes triangles ``Fn`` use) and rigid parts of a resize."""
+    used = np.unique(Fn)
+    before = X0[used].max(axis=0) - X0[used].min(axis=0)
+    after = X[used].max(axis=0) - X[used].min(axis=0)
+    return {"resize": {"factors": resize.factors.tolist(), "asked_extent": [None if np.isnan(a) else float(a)
+                                                                          for a in resize.asked],
+                       "extent_ratio": (after / np.maximum(before, 1e-300)).tolist(),
+                       "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}

@@ -1,7 +1,10 @@
 """The one map from ``synthkit reshape``'s config keys to the stages' arguments.
 
-Stage modules take these dataclasses (or plain arrays), never the config: :func:`texture_options`
-for the texture stage (:mod:`retexture`), :func:`drag_options` for the solve (:mod:`solver`).
+Stage modules take these dataclasses (or plain arrays), never the config. :func:`options_of` builds
+them all: :class:`GraphOptions` (:mod:`graph`, :mod:`assemble`), :class:`SystemOptions`
+(:mod:`system`), :class:`DragOptions` (:mod:`solver`), :class:`PartsOptions` (:mod:`parts`,
+:mod:`resize`) and :class:`TextureOptions` (:mod:`retexture`). The selections (``handles``,
+``fixed``, ``links``, ``scale``, ``size``, ``chain``) are passed as the config gives them.
 """
 
 from __future__ import annotations
@@ -10,7 +13,8 @@ from dataclasses import dataclass
 
 from synthkit.methods.reshape.texture.surface import TextureParams
 
-__all__ = ["TextureOptions", "texture_options", "DragOptions", "drag_options", "SystemOptions", "system_options"]
+__all__ = ["Options", "options_of", "GraphOptions", "PartsOptions", "TextureOptions", "texture_options",
+           "DragOptions", "drag_options", "SystemOptions", "system_options"]
 
 PARAM_KEYS = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
               "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
@@ -47,20 +51,25 @@ def texture_options(cfg) -> TextureOptions:
 @dataclass(frozen=True)
 class DragOptions:
     """How the handles are dragged (``solver``): ``steps``, eq. 4's ``short_ratio`` and
-    ``raise_factor``, the ``flip_ratio`` that refuses a motion, the factorization ``backend``."""
+    ``raise_factor``, the ``flip_ratio`` that refuses a motion, the factorization ``backend``, the
+    ``propagation`` limit (joins; None: none) and whether a refused motion keeps its last valid
+    step (``allow_partial``)."""
 
     steps: int
     short_ratio: float
     raise_factor: float
     flip_ratio: float
     backend: str
+    propagation: int | None = None
+    allow_partial: bool = False
 
 
 def drag_options(cfg) -> DragOptions:
     """The :class:`DragOptions` of a config: one step for a resize (its rest shape is the target)."""
     sv = cfg.solver
     steps = 1 if cfg.handles == [] else sv.steps
-    return DragOptions(steps, sv.short_ratio, sv.raise_factor, sv.flip_ratio, sv.backend)
+    return DragOptions(steps, sv.short_ratio, sv.raise_factor, sv.flip_ratio, sv.backend, sv.propagation,
+                       sv.allow_partial)
 
 
 @dataclass(frozen=True)
@@ -92,3 +101,41 @@ def system_options(cfg) -> SystemOptions:
     return SystemOptions(st.l_min, st.l_min_quantile, st.w_small, st.w_long, cfg.strict.weight,
                          cfg.strict.direction_form, c.enabled, c.tol, c.w_c, g.enabled, g.angle_deg, g.length_tol,
                          g.distance, g.w_g)
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """The constraint graph (``graph``): ``weld_tol`` and the portals' ``portal_tol`` (shares of the
+    model size) and ``flat_angle_deg``."""
+
+    weld_tol: float
+    flat_angle_deg: float
+    portal_tol: float
+
+
+@dataclass(frozen=True)
+class PartsOptions:
+    """How parts stay attached and resize (``parts``): ``attach_distance`` (share of the model
+    size), ``rigid_share`` and ``end_tol`` (shares of the extent)."""
+
+    attach_distance: float
+    rigid_share: float
+    end_tol: float
+
+
+@dataclass(frozen=True)
+class Options:
+    """Every stage's options of one config (:func:`options_of`)."""
+
+    graph: GraphOptions
+    system: SystemOptions
+    drag: DragOptions
+    parts: PartsOptions
+    texture: TextureOptions
+
+
+def options_of(cfg) -> Options:
+    """The :class:`Options` of a :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
+    g, p = cfg.graph, cfg.parts
+    return Options(GraphOptions(g.weld_tol, g.flat_angle_deg, g.portal_tol), system_options(cfg), drag_options(cfg),
+                   PartsOptions(p.attach_distance, p.rigid_share, p.end_tol), texture_options(cfg))

@@ -40,7 +40,7 @@ from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
-from synthkit.methods.reshape.options import drag_options, system_options, texture_options
+from synthkit.methods.reshape.options import Options, options_of
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import mesh_parts, part_distances
 from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize, resize_metrics
@@ -123,7 +123,7 @@ def _selections(cfg, graph, V, ranges, resize=None):
     return handles, targets, fixed, links
 
 
-def _resize(cfg, graph, sc) -> Resize | None:
+def _resize(cfg, opt: Options, graph, sc) -> Resize | None:
     """The resize of a ``scale`` or ``size`` config (None for explicit handles)."""
     if cfg.scale is None and cfg.size is None:
         return None
@@ -137,7 +137,7 @@ def _resize(cfg, graph, sc) -> Resize | None:
     for a, value in enumerate((cfg.scale or cfg.size).values()):
         if value is not None:
             _check_motion(f"{key}.{'xyz'[a]}", value, abs(factors[a] - 1.0) * extent[a], sc.size)
-    p = cfg.parts
+    p = opt.parts
     return plan_resize(graph.X0, graph.Fn, factors, asked, rigid_share=p.rigid_share, end_tol=p.end_tol)
 
 
@@ -199,7 +199,7 @@ def _read(inputs: Inputs, path) -> TexturedMesh:
     return textured_from_asset(asset, str(asset.source))
 
 
-def _load(cfg, inputs: Inputs, ctx) -> Scene:
+def _load(cfg, opt: Options, inputs: Inputs, ctx) -> Scene:
     specs = _pieces(cfg, inputs)
     names = [n for n, _, _ in specs]
     with ctx.stage("load"):
@@ -210,7 +210,7 @@ def _load(cfg, inputs: Inputs, ctx) -> Scene:
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
         try:
             offsets, joins, joined = place_pieces(names, meshes, [p for _, _, p in specs], cfg.chain,
-                                                  tol=cfg.graph.portal_tol * piece_size)
+                                                  tol=opt.graph.portal_tol * piece_size)
         except StageError as exc:
             raise _mapped(exc) from None
         V, F, fm, ranges = assemble(names, meshes, offsets)
@@ -219,12 +219,12 @@ def _load(cfg, inputs: Inputs, ctx) -> Scene:
     return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, meshes[0].source)
 
 
-def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
+def _graph(opt: Options, ctx, sc: Scene) -> ConstraintGraph:
     with ctx.stage("graph"):
         try:
             graph = build_graph(
-                sc.V, sc.F, sc.face_material, weld_tol=cfg.graph.weld_tol * sc.size,
-                flat_angle_deg=cfg.graph.flat_angle_deg,
+                sc.V, sc.F, sc.face_material, weld_tol=opt.graph.weld_tol * sc.size,
+                flat_angle_deg=opt.graph.flat_angle_deg,
             )
         except ValueError as exc:
             raise InputError(f"{sc.source}: {exc}") from None
@@ -261,14 +261,14 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
     return m
 
 
-def _textures(cfg, ctx, sc, graph, X) -> tuple[dict, dict]:
+def _textures(opt: Options, ctx, sc, graph, X) -> tuple[dict, dict]:
     """The texture stage (``texture: reshape``): per piece index the Retexture entries, and per
     surface ``(job, result, analysis)`` (the previews draw them); metrics ``surfaces`` and their
     worst case go into the report."""
-    ctx.metrics["texture"] = cfg.texture
-    if cfg.texture == "stretch":
+    ctx.metrics["texture"] = opt.texture.mode
+    if opt.texture.mode == "stretch":
         return {}, {}
-    options = texture_options(cfg)
+    options = opt.texture
     with ctx.stage("texture"):
         textures, notes, given = _texture_sources(sc)
         images, skipped = {}, {}
@@ -307,7 +307,7 @@ def _texture_sources(sc: Scene) -> tuple[list[dict | None], dict, dict]:
     return textures, notes, given
 
 
-def _free_parts(cfg, graph, sc, links) -> list[dict]:
+def _free_parts(opt: Options, graph, sc, links) -> list[dict]:
     """Parts (face-connected components; the one with most nodes is the root) farther than
     ``parts.attach_distance`` from every other part and not linked to one (``links (k, 2)``):
     carried by the nearest surface all the same, listed in ``metrics.free_parts`` and named in
@@ -320,7 +320,7 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
     pl = part[np.asarray(links, np.int64).reshape(-1, 2)]
     linked = np.unique(pl[pl[:, 0] != pl[:, 1]])
     free = []
-    for k in np.setdiff1d(np.flatnonzero(dist > cfg.parts.attach_distance), linked):
+    for k in np.setdiff1d(np.flatnonzero(dist > opt.parts.attach_distance), linked):
         nodes = np.flatnonzero(part == k)
         free.append({"part": int(k), "first": _vertex_name(int(nodes[0]), graph, sc.ranges),
                      "nodes": int(len(nodes)), "centre": graph.X0[nodes].mean(axis=0).round(6).tolist(),
@@ -330,7 +330,7 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
                           for f in free)
         log.warning("%s: %d parts lie farther than parts.attach_distance (%g of the model size) from any other "
                     "part and are carried by the nearest surface: %s", sc.source, len(free),
-                    cfg.parts.attach_distance, names)
+                    opt.parts.attach_distance, names)
     return free
 
 
@@ -345,13 +345,13 @@ def _stretches_nothing(cfg, quality) -> None:
         )
 
 
-def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
+def _solve(cfg, opt: Options, ctx, sc, graph, system, handles, targets, known, rest):
     """Factor and drag (one step for a resize: its rest shape is the target); returns the drag
     result, the positions the known nodes reached, the solver, the cache and the frozen nodes."""
     T = rest.copy()
     T[handles] = targets
-    frozen = frozen_nodes(sc.ranges, graph.node_of_vertex, cfg.chain, handles, cfg.solver.propagation)
-    options = drag_options(cfg)
+    frozen = frozen_nodes(sc.ranges, graph.node_of_vertex, cfg.chain, handles, opt.drag.propagation)
+    options = opt.drag
     steps = options.steps
     with ctx.stage("factor"):
         cache = FactorCache(system.A, backend=options.backend)
@@ -366,7 +366,7 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
             stress_slice=system.slices["stress"], stress_weights=system.stress_weights, options=options,
             progress=lambda s: ctx.progress(s, total=steps, desc="reshape steps"), lengths=system.lengths,
         )
-    if result.status == "partial" and not cfg.solver.allow_partial:
+    if result.status == "partial" and not options.allow_partial:
         _refuse(cfg, result, graph, sc.ranges, steps)
     reached = rest[known] + (result.steps_done / steps) * (T[known] - rest[known])
     return result, reached, full, cache, frozen
@@ -375,23 +375,24 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
 def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
     """Reshape the pieces of a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`
     read through ``inputs``; every stage, nothing written (:meth:`ReshapeResult.write` writes)."""
-    sc = _load(cfg, inputs, ctx)
-    graph = _graph(cfg, ctx, sc)
+    opt = options_of(cfg)
+    sc = _load(cfg, opt, inputs, ctx)
+    graph = _graph(opt, ctx, sc)
     with ctx.stage("constraints"):
-        resize = _resize(cfg, graph, sc)
+        resize = _resize(cfg, opt, graph, sc)
         _handle_motions(cfg, graph, sc.size)
         handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges, resize)
         ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
                            60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
                            "matrix entries", bytes_each=_BYTES_PER_NNZ)
         rest = graph.X0 if resize is None else resize.R
-        system = build_system(graph, links, options=system_options(cfg), size=sc.size,
+        system = build_system(graph, links, options=opt.system, size=sc.size,
                               known=np.concatenate([handles, fixed]),
                               rest=None if resize is None else rest,
                               factors=None if resize is None else resize.node_factors())
         known = _known(graph, handles, fixed)
-        free = _free_parts(cfg, graph, sc, links)
-    result, reached, full, cache, frozen = _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest)
+        free = _free_parts(opt, graph, sc, links)
+    result, reached, full, cache, frozen = _solve(cfg, opt, ctx, sc, graph, system, handles, targets, known, rest)
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
                   attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
@@ -405,13 +406,13 @@ def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):
-            Xb = baseline_positions(graph, known, reached, cfg.solver.backend)
+            Xb = baseline_positions(graph, known, reached, opt.drag.backend)
         base = quality_figures(graph, system, Xb, known, reached, sc.size, rest)
         ctx.metrics["baseline"] = base
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12
         )
-    retex, surfaces = _textures(cfg, ctx, sc, graph, result.X)
+    retex, surfaces = _textures(opt, ctx, sc, graph, result.X)
     pieces = _reshaped_pieces(ctx, sc, graph, result.X)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)

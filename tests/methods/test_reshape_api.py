@@ -175,3 +175,33 @@ def test_docstring_example_runs():
 
     failed, tried = doctest.testmod(api)
     assert tried >= 4 and failed == 0
+
+
+def test_textured_from_asset_render_vertices_and_back():
+    """A UV seam splits a position into two render vertices; faces without a material get ``""``;
+    reshaped_asset moves the positions and gives a retextured face its UVs and material."""
+    from synthkit.io.assets import Asset, Material
+    from synthkit.io.textured import Retexture
+    from synthkit.methods.reshape.memory import reshaped_asset, textured_from_asset
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [0.5, 0.5], [0, 1]]], float)  # vertex 2: two UVs
+    image = np.full((4, 4, 3), 128, np.uint8)
+    asset = Asset(V=V, F=F, corner_uv=uv, corner_color=None, face_material=np.array([0, -1]),
+                  materials=[Material("brick", image=image)], name="quad", source=Path("input"))
+    mesh = textured_from_asset(asset, "input")
+    assert len(mesh.V) == 5 and mesh.materials == ["brick", ""]
+    np.testing.assert_array_equal(mesh.V, V[mesh.position_index])
+    np.testing.assert_array_equal(mesh.position_index[mesh.F], F)
+    np.testing.assert_array_equal(mesh.UV[mesh.F], uv)
+    np.testing.assert_allclose(mesh.textures["brick"], 128 / 255, atol=1e-7)
+    UV = np.zeros((5, 2))
+    UV[mesh.F[1]] = [[0.1, 0.2], [0.3, 0.4], [0.5, 0.6]]
+    entry = Retexture(np.array([1]), UV, "brick_retex1", "brick_retex1.png", np.full((2, 2, 3), 0.5, np.float32))
+    out = reshaped_asset(mesh, 2 * V, [entry])
+    np.testing.assert_array_equal(out.V, 2 * V)
+    assert out.face_material.tolist() == [0, 1] and out.materials[1].name == "brick_retex1"
+    np.testing.assert_array_equal(out.corner_uv[1], [[0.1, 0.2], [0.3, 0.4], [0.5, 0.6]])
+    np.testing.assert_array_equal(out.corner_uv[0], uv[0])
+    assert out.materials[1].image.dtype == np.uint8 and (out.materials[1].image == 128).all()

@@ -69,3 +69,18 @@ def test_errors():
         LeastSquares(sp.eye(2), weights=[1.0, -1.0])
     with pytest.raises(ValueError, match="b must have shape"):
         LeastSquares(sp.eye(2)).solve(np.ones(3))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_residual_check(backend):
+    """check="residual" accepts what "solution" accepts with the same solution, refuses a singular
+    system, and reports the normal matrix's entries."""
+    A = sp.random(60, 20, density=0.2, random_state=4, format="csr") + sp.eye(60, 20)
+    b = np.arange(60.0)
+    by_residual = LeastSquares(A, backend=backend, check="residual")
+    np.testing.assert_array_equal(by_residual.solve(b), LeastSquares(A, backend=backend).solve(b))
+    assert by_residual.nnz_normal == (A.T @ A).nnz
+    with pytest.raises(ValueError, match="singular"):
+        LeastSquares(sp.csr_matrix(np.array([[1.0, 1.0], [2.0, 2.0]])), backend=backend, check="residual")
+    with pytest.raises(ValueError, match="unknown check"):
+        LeastSquares(A, check="forward")

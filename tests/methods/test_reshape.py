@@ -15,8 +15,8 @@ from synthkit.io.textured import load_textured, save_textured
 from synthkit.methods.reshape import constraints as C
 from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
 from synthkit.methods.reshape.graph import ANGLE, CONTOUR, build_graph, contour_loops
-from synthkit.methods.reshape.outputs import COMPRESSED, ELONGATED, edge_colours
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.previews import COMPRESSED, ELONGATED, edge_colours
 from synthkit.methods.reshape.solver import ReshapeSolver, floating_anchors
 from synthkit.runner import run_config
 
@@ -290,6 +290,7 @@ def test_selections_and_handle_targets():
 
 
 def test_factor_cache_and_drag_with_a_frozen_node():
+    from synthkit.methods.reshape.options import DragOptions
     from synthkit.methods.reshape.solver import FactorCache, drag
 
     X0 = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
@@ -302,8 +303,8 @@ def test_factor_cache_and_drag_with_a_frozen_node():
     assert cache.get([3, 0]) is full and cache.hits == 1 and len(cache) == 2
     T = X0.copy()
     T[3, 0] = 6.0
-    kw = dict(X0=X0, T=T, steps=3, edges=edges, stress_slice=where["s"], stress_weights=np.ones(3),
-              short_ratio=0.2, raise_factor=1.5, flip_ratio=1e-3)
+    kw = dict(X0=X0, T=T, edges=edges, stress_slice=where["s"], stress_weights=np.ones(3),
+              options=DragOptions(steps=3, short_ratio=0.2, raise_factor=1.5, flip_ratio=1e-3, backend="auto"))
     dragging = drag(lambda s: limited, b, **kw)
     np.testing.assert_allclose(dragging.X[:, 0], [0, 1, 2, 6], atol=1e-9)  # node 2 frozen: 2-3 takes it all
     released = drag(lambda s: full if s == 3 else limited, b, **kw)

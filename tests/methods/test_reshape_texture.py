@@ -412,14 +412,15 @@ def test_bad_input_uvs_outside_unit_square(tmp_path):
 
 @pytest.mark.parametrize("u, toroidal", [(1.004, False), (1.5, True)])
 def test_uv_excursion_clamped_and_whole_tiles_toroidal(tmp_path, u, toroidal):
-    from synthkit.methods.reshape.retexture import _check_uv
+    from synthkit.methods.reshape.retexture import check_uv
 
     mesh = load_textured(SAMPLES / "reshape-facade.obj")
     UV = np.array([[-0.003, 0.0], [u, 0.2], [0.5, 0.9]])
-    got, read = _check_uv(mesh, "s", "facade", Path("t.png"), UV, "auto")
+    got, read = check_uv(mesh.source, "s", "facade", Path("t.png"), UV, "auto")
     assert got == toroidal
     np.testing.assert_allclose(read, UV if toroidal else np.clip(UV, 0, 1))
-    shifted = _check_uv(mesh, "s", "facade", Path("t.png"), np.array([[1.2, 0.1], [1.5, 0.4], [1.3, 0.2]]), "auto")
+    far = np.array([[1.2, 0.1], [1.5, 0.4], [1.3, 0.2]])
+    shifted = check_uv(mesh.source, "s", "facade", Path("t.png"), far, "auto")
     np.testing.assert_allclose(shifted[1], [[0.2, 0.1], [0.5, 0.4], [0.3, 0.2]])
 
 

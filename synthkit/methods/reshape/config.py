@@ -12,24 +12,9 @@ from pydantic import Field, field_validator, model_validator
 
 from synthkit.config import InputFile, RunConfig, StrictModel
 
-__all__ = [
-    "CONFIG",
-    "ReshapeConfig",
-    "Selection",
-    "Handle",
-    "Link",
-    "PieceSpec",
-    "Join",
-    "GraphSection",
-    "StiffnessSection",
-    "StrictSection",
-    "ContactSection",
-    "GroupSection",
-    "SolverSection",
-    "TextureSection",
-    "AxisValues",
-    "PartsSection",
-]
+__all__ = ["CONFIG", "ReshapeConfig", "Box", "HalfSpace", "Selection", "Handle", "Link", "PieceSpec", "Join",
+           "GraphSection", "StiffnessSection", "StrictSection", "ContactSection", "GroupSection", "SolverSection",
+           "TextureSection", "AxisValues", "PartsSection"]
 
 Vec3 = list[float]
 

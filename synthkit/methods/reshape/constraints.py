@@ -10,7 +10,7 @@ eq. 1, contact coplanarity eq. 5, user links) take ``strict_weight`` [Van Loan 1
 their paper weights: edge stress eq. 2 with the stiffness of eq. 3 (:func:`stiffness`; edges
 shorter than ``l_min`` rigid, ``w = 1``), contact position eq. 6 (``w_c``), edge groups eq. 7
 (``w_g``). The paper's weights weight squared residuals, so
-:func:`synthkit.methods.reshape.pipeline.build_system` passes their square roots. Positivity
+:func:`synthkit.methods.reshape.system.build_system` passes their square roots. Positivity
 (eq. 4) is checked by the solver after each step (section 3.4), not written as rows.
 """
 
@@ -254,7 +254,7 @@ def link_rows(X0, links, *, strict_weight: float) -> Rows:
 
 
 def attach_rows(X0, Fn, attachment, *, strict_weight: float) -> Rows:
-    """Parts carried by a host surface (issue 23, beyond the paper): for each attached cluster of
+    """Parts carried by a host surface (beyond the paper): for each attached cluster of
     nodes N with host triangle T and barycentric coordinates lam (a :class:`parts.Attachment`),
     three strict rows ``mean_{i in N} x_i - sum_k lam_k x_Tk = (the same on X0)``: the cluster's
     centroid keeps its offset to the host point beneath it, so a window goes where its wall takes

@@ -23,7 +23,8 @@ from scipy.sparse.csgraph import connected_components
 
 from synthkit.core.mesh import face_normals, weld
 
-__all__ = ["ConstraintGraph", "build_graph", "CONTOUR", "ANGLE", "FLAT_KEPT"]
+__all__ = ["ConstraintGraph", "build_graph", "classify_edges", "contour_loops", "surfaces", "CONTOUR", "ANGLE",
+           "FLAT_KEPT"]
 
 CONTOUR, ANGLE, FLAT_KEPT = 0, 1, 2
 """Graph edge kinds."""

@@ -1,54 +1,199 @@
-"""Previews of a reshape (Fig. 2): the mesh with its graph edges coloured by length change.
+"""What ``synthkit reshape`` gives back (:class:`ReshapeResult`) and the files it writes.
 
-Elongated edges are blue, compressed edges red, unchanged ones dark grey; handle nodes are green
-dots. Images are ``(size, size, 3) float32`` in [0, 1], framed like
-:func:`synthkit.preview.rasterize_mesh` frames the same vertices.
+Files: each piece in its input's format (an OBJ with its MTL and textures copied beside it, or a
+GLB; a piece given in memory as an OBJ with a new MTL), with UVs and materials unchanged except
+the reshaped surfaces' (``<piece>.retex.mtl`` and their PNGs); ``before.png``, ``after.png``
+(elongated edges blue, compressed red, handles green), ``baseline.png``, ``comparison.png``, the
+textured ``before_after.png`` of a single piece and the texture previews of Figs. 7-8 under
+``texture/``.
 """
 
 from __future__ import annotations
 
-import cv2
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar
+
 import numpy as np
+import trimesh
 
-from synthkit.preview import rasterize_mesh, view_rotation
+from synthkit.api import Result
+from synthkit.io.assets import Asset, load_asset, save_asset
+from synthkit.io.images import save_image
+from synthkit.io.textured import Retexture, TexturedMesh, companion_files, save_textured
+from synthkit.methods.reshape import previews as P
+from synthkit.methods.reshape.memory import MemoryMesh, reshaped_asset
+from synthkit.methods.reshape.retexture import safe_name
+from synthkit.preview import Appearance, before_after_png, montage_png
 
-__all__ = ["edge_colours", "reshape_image", "ELONGATED", "COMPRESSED", "HANDLE"]
-
-ELONGATED = (0.1, 0.3, 0.95)
-COMPRESSED = (0.9, 0.1, 0.1)
-HANDLE = (0.1, 0.75, 0.2)
-_UNCHANGED = (0.25, 0.25, 0.25)
-
-
-def edge_colours(ratio, *, tol: float = 1e-3) -> np.ndarray:
-    """RGB ``(E, 3)`` for length ratios ``ratio (E,)`` (new / rest): blue above ``1 + tol``, red below ``1 - tol``."""
-    ratio = np.asarray(ratio, np.float64)
-    out = np.tile(np.asarray(_UNCHANGED), (len(ratio), 1))
-    out[ratio > 1 + tol] = ELONGATED
-    out[ratio < 1 - tol] = COMPRESSED
-    return out
+__all__ = ["ReshapeResult", "PreviewData", "reshaped", "write_piece", "write_previews", "write_texture_previews",
+           "write_textured_summary"]
 
 
-def reshape_image(V, F, edge_points, colours, handle_points, *, view: str, size: int) -> np.ndarray:
-    """Render ``V (#V, 3)``, ``F (#F, 3)`` and draw segments ``edge_points (E, 2, 3)`` in ``colours
-    (E, 3)`` and dots at ``handle_points (k, 3)``."""
-    img = np.ascontiguousarray(rasterize_mesh(V, F, view=view, size=size))
-    R = view_rotation(view)
-    P = np.asarray(V, np.float64) @ R.T
-    lo, hi = P[:, :2].min(axis=0), P[:, :2].max(axis=0)
-    extent = max(float((hi - lo).max()), 1e-12)
-    margin = 0.06 * size
-    scale = (size - 2 * margin) / extent
-    offset = margin + 0.5 * ((size - 2 * margin) - (hi - lo) * scale)
+@dataclass
+class PreviewData:
+    """What the previews are drawn from: the scene's render triangles ``F (#F, 3)``, the constraint
+    graph (``X0 (n, 3)``, ``edges (E, 2)``, ``node_of_vertex (#V,)``), the node positions after the
+    reshape ``X (n, 3)`` and of the baseline ``Xb (n, 3)`` (or None), the ``handles (k,)`` and the
+    texture reshape's per-surface ``(job, result, analysis)``."""
 
-    def px(points):
-        xy = (np.asarray(points, np.float64).reshape(-1, 3) @ R.T)[:, :2]
-        xy = (xy - lo) * scale + offset
-        return np.round(np.stack([xy[:, 0], size - 1 - xy[:, 1]], axis=1)).astype(np.int64)
+    F: np.ndarray
+    graph: Any
+    X: np.ndarray
+    Xb: np.ndarray | None
+    handles: np.ndarray
+    surfaces: dict = field(default_factory=dict)
 
-    seg = px(edge_points).reshape(-1, 2, 2)
-    for (a, b), c in zip(seg, colours, strict=True):
-        cv2.line(img, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), tuple(float(x) for x in c), 2, cv2.LINE_AA)
-    for p in px(handle_points):
-        cv2.circle(img, (int(p[0]), int(p[1])), max(3, size // 128), HANDLE, -1, cv2.LINE_AA)
-    return img
+
+@dataclass(kw_only=True)
+class ReshapeResult(Result):
+    """The outcome of :func:`synthkit.reshape` (``synthkit reshape``).
+
+    Attributes
+    ----------
+    meshes : piece name -> the reshaped ``trimesh.Trimesh`` (the input's positions ``(#P, 3)``
+        moved, faces ``(#F, 3)`` over them; geometry only)
+    textured : piece name -> the reshaped :class:`~synthkit.io.textured.TexturedMesh` (render
+        vertices ``V (#V, 3)`` and file ``positions (#P, 3)`` moved; UVs and materials as read)
+    retexture : piece name -> the reshaped surfaces' :class:`~synthkit.io.textured.Retexture`
+        entries (faces, new UVs ``(#V, 2)``, material, baked ``image (H, W, 3) float32``); empty
+        lists with ``texture: stretch``
+    X : ``(n, 3)`` node positions of the constraint graph after the reshape
+    """
+
+    method: ClassVar[str] = "reshape"
+    meshes: dict[str, trimesh.Trimesh]
+    textured: dict[str, TexturedMesh]
+    retexture: dict[str, list[Retexture]]
+    X: np.ndarray
+    previews: PreviewData = field(repr=False)
+
+    @property
+    def mesh(self) -> trimesh.Trimesh:
+        """The reshaped mesh of the first (for ``input``, the only) piece."""
+        return next(iter(self.meshes.values()))
+
+    @property
+    def images(self) -> dict[str, np.ndarray]:
+        """Image file name -> baked texture ``(H, W, 3) float32`` of every reshaped surface."""
+        return {e.image_name: e.image for entries in self.retexture.values() for e in entries}
+
+    def asset(self, name: str | None = None) -> Asset | None:
+        """The reshaped piece ``name`` (default the first) as an :class:`~synthkit.io.assets.Asset`
+        with its new materials, for a piece given in memory; None for a piece read from a file
+        (its written file is the asset)."""
+        name = next(iter(self.textured)) if name is None else name
+        mesh = self.textured[name]
+        if not isinstance(mesh, MemoryMesh):
+            return None
+        return reshaped_asset(mesh, mesh.positions, self.retexture[name])
+
+    def write(self, ctx) -> None:
+        """Write the meshes, their textures and the previews (module docstring)."""
+        cfg = self.config
+        if cfg.texture != "stretch":
+            with ctx.stage("texture_previews"):
+                write_texture_previews(ctx, cfg, self.previews.surfaces)
+        with ctx.stage("outputs"):
+            for name, mesh in self.textured.items():
+                write_piece(ctx, name, mesh, self.retexture[name])
+            textured = write_textured_summary(ctx, cfg, self.textured)
+            write_previews(ctx, cfg, self.previews, level="all" if textured else "summary")
+
+
+def reshaped(mesh: TexturedMesh, positions: np.ndarray) -> TexturedMesh:
+    """``mesh`` with its file positions replaced by ``positions (#P, 3)``."""
+    return replace(mesh, V=positions[mesh.position_index], positions=positions)
+
+
+def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture]) -> None:
+    """One piece in its input's format, with its companion files and, with ``entries``, its
+    reshaped surfaces' MTL and textures (a piece given in memory: an OBJ, :func:`reshaped_asset`)."""
+    if isinstance(mesh, MemoryMesh):
+        asset = reshaped_asset(mesh, mesh.positions, entries)
+        target = ctx.path(f"mesh_{name}", f"{name}.obj")
+        for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
+                                face_material=asset.face_material, corner_color=asset.corner_color)[1:]:
+            ctx.path(f"file_{extra}", extra)
+        return
+    target = ctx.path(f"mesh_{name}", f"{name}{mesh.source.suffix.lower()}")
+    for extra in companion_files(mesh, entries):
+        if f"file_{extra}" not in ctx.outputs:
+            ctx.path(f"file_{extra}", extra)
+    if entries:
+        ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
+        for e in entries:
+            ctx.path(f"texture_{e.material}", e.image_name)
+    save_textured(mesh, mesh.positions, target, retexture=entries)
+
+
+def write_textured_summary(ctx, cfg, meshes: dict[str, TexturedMesh]) -> bool:
+    """``before_after.png`` (the summary): the input above the written result, textured as a DCC
+    shows them (read back from the files), from three views framed alike. For a single textured
+    input; chains of pieces keep ``comparison.png`` as their summary."""
+    if len(meshes) != 1 or not ctx.wants_preview("summary"):
+        return False
+    (name, mesh), = meshes.items()
+    before = mesh.asset if isinstance(mesh, MemoryMesh) else load_asset(mesh.source)
+    if not before.textured and before.corner_color is None:
+        return False
+    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{name}"])
+    before_after_png(ctx.path("before_after", "before_after.png"),
+                     *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
+                     size=cfg.preview_size)
+    return True
+
+
+def write_previews(ctx, cfg, data: PreviewData, level: str = "summary") -> None:
+    """before.png, after.png, baseline.png and comparison.png (the summary preview unless ``level``
+    is "all": a textured before_after.png is the summary then)."""
+    if not ctx.wants_preview(level):
+        return
+    graph = data.graph
+
+    def image(Xn, key, name):
+        Vn = Xn[graph.node_of_vertex]
+        seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
+        rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
+        ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
+        img = P.reshape_image(Vn, data.F, seg, P.edge_colours(ratio), Xn[data.handles], view=cfg.view,
+                            size=cfg.preview_size)
+        if ctx.wants_preview("all"):
+            save_image(ctx.path(key, name), img)
+        return img
+
+    imgs = [image(graph.X0, "before", "before.png"), image(data.X, "after", "after.png")]
+    titles = ["before", "after (reshape)"]
+    if data.Xb is not None:
+        imgs.append(image(data.Xb, "baseline_preview", "baseline.png"))
+        titles.append("Laplacian baseline")
+    montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
+
+
+def write_texture_previews(ctx, cfg, surfaces: dict) -> None:
+    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` surfaces the naive stretch would
+    distort most (largest ``baseline_rigid_scale_error`` times baked texels)."""
+    if not ctx.wants_preview("all"):
+        return
+    tau = cfg.texture_reshape.tau
+
+    def distortion(item):
+        res = item[1][1]
+        return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
+
+    paper = {k: v for k, v in surfaces.items() if v[2] is not None}
+    order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
+    for name, (job, res, tex) in order:
+        rows, cols, off = P.source_window(job.C, tex.img.shape[:2], job.toroidal)
+        stem = f"texture/{safe_name(name)}"
+        montage_png(ctx.path(f"autosim_{name}", f"{stem}_autosimilarity.png"),
+                    [tex.img[rows, cols], P.autosimilarity_image(tex.T[:, rows, cols], tau)],
+                    titles=["texture", "autosimilarity x red, y green"], height=cfg.preview_size // 2)
+        montage_png(ctx.path(f"grid_{name}", f"{stem}_grid.png"),
+                    [P.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
+                     P.grid_image(res.texture, res.Y, res.grid.edges)],
+                    titles=["grid before", "grid after"], height=cfg.preview_size)
+        montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
+                    [tex.img[rows, cols], P.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
+                    titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
+        montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
+                    titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)

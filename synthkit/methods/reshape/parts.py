@@ -1,4 +1,4 @@
-"""Parts of a reshaped model and how they stay attached (issue 23 items 1-3).
+"""Parts of a reshaped model and how they stay attached (beyond the paper).
 
 A *part* is a face-connected component of the welded mesh (a wall block, a window, a drainpipe):
 ``part (n,)`` labels the graph nodes, -1 on nodes no triangle uses. Every part other than the

@@ -1,16 +1,18 @@
-"""``synthkit reshape``: load pieces, build the constraint graph and system, drag the handles, write.
+"""``synthkit reshape``: read the pieces, build the constraint graph and system, drag the handles,
+reshape the textures; the only module that knows config keys and exit codes.
 
+:func:`compute` runs every stage over inputs read through an :class:`~synthkit.io.inputs.Inputs`
+(files, or meshes given in memory) and returns a
+:class:`~synthkit.methods.reshape.outputs.ReshapeResult`; :func:`run` (the command line) writes it.
 Stages (``report.json`` ``timings``): ``load``, ``assemble`` (portals, chain placement), ``graph``
 (3.1), ``constraints`` (3.2, handles, links), ``factor`` and ``solve`` (3.3-3.4), ``baseline``
-(Laplacian edge-vector deformation with the same handles) and ``outputs``.
+(Laplacian edge-vector deformation with the same handles), ``texture`` (section 4), then
+``texture_previews`` and ``outputs`` when written. Metrics: the paper's Table 4 columns (``vars``,
+``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``, ``factor_ms``, ``solve_ms``) and the
+quality figures (docs/reshape.md).
 
-Outputs: each piece reshaped in its input's format (OBJ with its MTL and textures copied beside
-it, or GLB) with UVs and materials unchanged; ``before.png``, ``after.png`` (elongated edges blue,
-compressed red, handles green), ``baseline.png`` and ``comparison.png``; metrics in the paper's
-Table 4 columns (``vars``, ``nnz_A``, ``nnz_AtA``, ``nodes``, ``edges``, ``equations``,
-``factor_ms``, ``solve_ms``) and the quality figures (see the README).
-
-The method has no random choice: the seed does not change the result.
+The geometry has no random choice; the texture stage draws tile seeds and quilting patches from
+the run's ``rng`` (same seed, same textures).
 
 A motion that would flip an edge is refused: by default an InputError (exit 3) naming the edge
 and the step, nothing written; with ``solver.allow_partial`` the last valid step is written and
@@ -21,29 +23,36 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
+import trimesh
 
+from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.assets import load_asset
-from synthkit.io.images import save_image
-from synthkit.io.textured import TexturedMesh, companion_files, load_textured, save_textured
-from synthkit.methods.reshape import constraints as C
+from synthkit.io.images import load_image
+from synthkit.io.inputs import Inputs
+from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import retexture as RT
-from synthkit.methods.reshape import texture_previews as TP
-from synthkit.methods.reshape.baseline import angle_errors_deg, laplacian_rows, mesh_edges
+from synthkit.methods.reshape.assemble import assemble, frozen_nodes, place_pieces, portal_gaps, snap_joined
+from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
-from synthkit.methods.reshape.outputs import edge_colours, reshape_image
-from synthkit.methods.reshape.parts import attach_clusters, mesh_parts, part_distances
-from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
-from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize
-from synthkit.methods.reshape.solver import DragResult, FactorCache, ReshapeSolver, drag, floating_anchors
-from synthkit.preview import Appearance, before_after_png, montage_png
+from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
+from synthkit.methods.reshape.options import Options, options_of
+from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
+from synthkit.methods.reshape.parts import mesh_parts, part_distances
+from synthkit.methods.reshape.resize import Resize, axis_factors, plan_resize, resize_metrics
+from synthkit.methods.reshape.solver import DragResult, FactorCache, drag
+from synthkit.methods.reshape.system import (
+    baseline_positions,
+    build_system,
+    quality_figures,
+    strict_residuals,
+)
 
-__all__ = ["run", "System", "build_system"]
+__all__ = ["compute", "run", "Scene", "MEMORY_PIECE"]
 
 log = logging.getLogger("synthkit")
 
@@ -51,179 +60,23 @@ _BYTES_PER_NNZ = 400.0
 """Memory per nonzero of A, counting A^T A, its Cholesky factor and work arrays (measured order)."""
 
 MAX_MOTION = 100.0
-"""Largest motion of a handle or of a resized end, in model sizes (bounding-box diagonals). The
-strict residuals grow with the motion (1.2e-10 of the model size per model size moved on the wall
-sample, direction rows): past about 800 sizes they exceed the 1e-7 the tests accept, and at 1e30
-float64 loses the model itself. Farther motions are refused (ConfigError, issue 28)."""
+"""Largest motion of a handle or of a resized end, in model sizes (bounding-box diagonals); farther
+motions are refused (ConfigError): the strict residuals grow with the motion (docs/findings/reshape.md)."""
 
 _BYTES_PER_TEXEL = 160.0
 """Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
 
 
-@dataclass
-class System:
-    """The weighted rows of one reshape: ``A (m, 3 n)``, ``b (m,)``, each block's row slice, the
-    stress weights ``(E,)``, the rigid-edge mask ``(E,)``, contacts ``(k, 2)``, groups, l_min,
-    the stress targets ``lengths (E,)`` and the parts carried by a host (``attachment``)."""
-
-    A: object
-    b: np.ndarray
-    slices: dict
-    stress_weights: np.ndarray
-    rigid: np.ndarray
-    contacts: np.ndarray
-    groups: list
-    l_min: float
-    lengths: np.ndarray
-    attachment: object
+MEMORY_PIECE = "mesh"
+"""The piece name (and output file stem) of an ``input`` mesh given in memory."""
 
 
-def _pieces(cfg) -> list[tuple[str, object, dict]]:
+def _pieces(cfg, inputs: Inputs | None = None) -> list[tuple[str, object, dict]]:
+    """``(name, input, portals)`` per piece; an ``input`` given in memory is named ``mesh``."""
     if cfg.input is not None:
-        return [(cfg.input.stem, cfg.input, {})]
+        memory = inputs is not None and inputs.is_memory(cfg.input)
+        return [(MEMORY_PIECE if memory else cfg.input.stem, cfg.input, {})]
     return [(p.name, p.input, p.portals) for p in cfg.pieces]
-
-
-def _portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
-    """Portal name -> render vertices of one piece (detected end planes and boundary loops, given
-    indices)."""
-    found = {**detect_portals(mesh.V, tol=tol), **boundary_portals(mesh.V, mesh.F, tol=tol)}
-    for name, idx in extra.items():
-        idx = np.asarray(idx, np.int64)
-        bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
-        if len(bad):
-            raise ConfigError(
-                f"{key}.portals.{name}: vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)"
-            )
-        found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
-    return found
-
-
-def _place(cfg, meshes: list[TexturedMesh], tol: float) -> tuple[list[np.ndarray], list[dict], list[tuple]]:
-    """World offset ``(3,)`` of each piece, the joins made (for the report) and, per join, the
-    joined render vertices ``(piece a, indices, piece b, indices)``."""
-    names = [n for n, _, _ in _pieces(cfg)]
-    if not cfg.chain and len(names) == 1:
-        return [np.zeros(3)], [], []
-    offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
-    portals = {
-        n: _portals(m, extra, tol=tol, key=f"pieces[{i}]")
-        for i, ((n, _, extra), m) in enumerate(zip(_pieces(cfg), meshes, strict=True))
-    }
-    joins, joined = [], []
-    for i, j in enumerate(cfg.chain):
-        key = f"chain[{i}]"
-        for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
-            if piece not in portals:
-                raise ConfigError(f"{key}.{side}: no piece named {piece!r} (pieces: {', '.join(names)})")
-            if portal not in portals[piece]:
-                raise ConfigError(
-                    f"{key}.{side}_portal: piece {piece} has no portal {portal!r} "
-                    f"(portals: {', '.join(portals[piece])})"
-                )
-        if j.a not in offsets:
-            raise ConfigError(f"{key}.a: piece {j.a!r} is not placed yet (join pieces in chain order)")
-        if j.b in offsets:
-            raise ConfigError(f"{key}.b: piece {j.b!r} is placed already")
-        ma, mb = meshes[names.index(j.a)], meshes[names.index(j.b)]
-        Pa = portal_positions(ma.V, portals[j.a][j.a_portal], tol=tol) + offsets[j.a]
-        Pb = portal_positions(mb.V, portals[j.b][j.b_portal], tol=tol)
-        try:
-            t, gap = align_portals(Pa, Pb, tol=100 * tol)
-        except ValueError as exc:
-            raise ConfigError(f"{key}: {j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
-        offsets[j.b] = t
-        joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "placed_gap": gap})
-        joined.append((names.index(j.a), portals[j.a][j.a_portal], names.index(j.b), portals[j.b][j.b_portal]))
-    missing = [n for n in names if n not in offsets]
-    if missing:
-        raise ConfigError(f"chain: pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
-    return [offsets[n] for n in names], joins, joined
-
-
-def _portal_gaps(joined, ranges, Vout) -> list[float]:
-    """Largest distance from a joined portal vertex of piece a to the nearest of piece b, per join,
-    in the reshaped world positions ``Vout (#V, 3)``."""
-    gaps = []
-    for ia, va, ib, vb in joined:
-        Pa, Pb = Vout[ranges[ia].start + va], Vout[ranges[ib].start + vb]
-        gaps.append(float(np.linalg.norm(Pa[:, None] - Pb[None], axis=2).min(axis=1).max()))
-    return gaps
-
-
-def _snap_joined(V, ranges, joined) -> None:
-    """Move each joined portal vertex of piece b onto its nearest partner of piece a (in place), so
-    that the graph welds every joined pair into one node even when the placed portals differ by
-    more than the weld tolerance (they may differ up to the portal match tolerance)."""
-    for ia, va, ib, vb in joined:
-        Pa = V[ranges[ia].start + va]
-        _, j = cKDTree(Pa).query(V[ranges[ib].start + vb])
-        V[ranges[ib].start + vb] = Pa[j]
-
-
-def _assemble(names, meshes, offsets):
-    """Concatenated ``V (#V, 3)`` (world), ``F (#F, 3)``, ``face_material (#F,)`` and piece ranges."""
-    Vs, Fs, fms, ranges, base, mbase = [], [], [], [], 0, 0
-    for name, m, off in zip(names, meshes, offsets, strict=True):
-        Vs.append(m.V + off)
-        Fs.append(m.F + base)
-        fms.append(m.face_material + mbase)
-        ranges.append(PieceRange(name, base, base + len(m.V), m.position_index, len(m.positions)))
-        base += len(m.V)
-        mbase += len(m.materials)
-    return np.vstack(Vs), np.vstack(Fs), np.concatenate(fms), ranges
-
-
-def build_system(cfg, graph: ConstraintGraph, links: np.ndarray, *, size: float, known=(), rest=None,
-                 factors=None) -> System:
-    """All weighted rows of section 3.2 for ``graph`` (lengths relative to ``size`` resolved).
-
-    The paper's weights weight squared residuals (weighted least squares, ``A^T W A`` as in
-    :class:`synthkit.core.lsq.LeastSquares`), so each row is scaled by the square root of its weight:
-    stiffness eq. 3 (rigid edges 1), ``w_c``, ``w_g`` and ``strict.weight``. ``rest (n, 3)`` (a
-    resize's rest shape, :mod:`resize`; default the model) is what the rows keep, except the rest
-    lengths of rigid edges, measured on the model like ``l_min``, contacts and groups, and hole-plane
-    normals, mapped by the per-node scale ``factors (n, 3)`` of the rest shape (plane rows keep the
-    rest shape's offset along the normal: a hole's rim may move with its window). Clusters that hold
-    none of the ``known`` nodes and no contact are carried by the nearest surface
-    (:func:`parts.attach_clusters`, strict rows).
-    """
-    X0, edges = graph.X0, graph.edges
-    R = X0 if rest is None else np.asarray(rest, np.float64)
-    _, length = C.edge_frames(X0, edges)
-    st = cfg.stiffness
-    l_min = st.l_min if st.l_min is not None else float(np.quantile(length, st.l_min_quantile))
-    w = np.sqrt(C.stiffness(length, l_min=l_min, w_small=st.w_small, w_long=st.w_long))
-    targets = np.where(length < l_min, length, C.edge_frames(R, edges)[1])
-    W = float(np.sqrt(cfg.strict.weight))
-    w_c = float(np.sqrt(cfg.contacts.w_c))
-    blocks = {
-        "direction": C.direction_rows(R, edges, weight=W, form=cfg.strict.direction_form),
-        "stress": C.stress_rows(R, edges, w, targets),
-    }
-    contacts = np.zeros((0, 2), np.int64)
-    if cfg.contacts.enabled:
-        contacts = C.find_contacts(X0, graph.Fn, graph.component, tol=cfg.contacts.tol * size)
-        blocks["coplanarity"], blocks["contact_position"] = C.contact_rows(
-            R, graph.Fn, contacts, strict_weight=W, w_c=w_c
-        )
-    normals = graph.bridge_normals / (1.0 if factors is None else np.asarray(factors)[graph.bridges[:, 0]])
-    normals = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
-    blocks["hole_plane"], blocks["hole_position"] = C.bridge_rows(R, graph.bridges, normals, strict_weight=W, w_c=w_c)
-    groups = []
-    if cfg.groups.enabled:
-        g = cfg.groups
-        groups = C.edge_groups(X0, edges, angle_deg=g.angle_deg, length_tol=g.length_tol, distance=g.distance)
-        blocks["groups"] = C.group_rows(R, edges, groups, w_g=float(np.sqrt(g.w_g)))
-    blocks["links"] = C.link_rows(R, links, strict_weight=W)
-    pairs = np.vstack([edges, links, graph.bridges, np.column_stack([contacts[:, 0], graph.Fn[contacts[:, 1], 0]])])
-    attachment = attach_clusters(X0, graph.Fn, pairs, np.asarray(known, np.int64))
-    blocks["attach"] = C.attach_rows(R, graph.Fn, attachment, strict_weight=W)
-    A, b, slices = C.stack_rows(blocks, graph.n_nodes)
-    if rest is not None:
-        for name in ("coplanarity", "hole_plane"):
-            b[slices[name]] = A[slices[name]] @ R.ravel()
-    return System(A, b, slices, w, length < l_min, contacts, groups, l_min, targets, attachment)
 
 
 def _vertex_name(node: int, graph: ConstraintGraph, ranges: list[PieceRange]) -> str:
@@ -270,7 +123,7 @@ def _selections(cfg, graph, V, ranges, resize=None):
     return handles, targets, fixed, links
 
 
-def _resize(cfg, graph, sc) -> Resize | None:
+def _resize(cfg, opt: Options, graph, sc) -> Resize | None:
     """The resize of a ``scale`` or ``size`` config (None for explicit handles)."""
     if cfg.scale is None and cfg.size is None:
         return None
@@ -284,7 +137,7 @@ def _resize(cfg, graph, sc) -> Resize | None:
     for a, value in enumerate((cfg.scale or cfg.size).values()):
         if value is not None:
             _check_motion(f"{key}.{'xyz'[a]}", value, abs(factors[a] - 1.0) * extent[a], sc.size)
-    p = cfg.parts
+    p = opt.parts
     return plan_resize(graph.X0, graph.Fn, factors, asked, rigid_share=p.rigid_share, end_tol=p.end_tol)
 
 
@@ -293,138 +146,6 @@ def _known(graph, handles, fixed) -> np.ndarray:
     used = np.zeros(graph.n_nodes, bool)
     used[graph.Fn.reshape(-1)] = True
     return np.concatenate([handles, fixed, np.flatnonzero(~used)])
-
-
-def _frozen_nodes(cfg, sc: Scene, graph, handles) -> np.ndarray:
-    """Nodes of the pieces farther than ``solver.propagation`` joins from every piece holding a
-    handle (empty without a limit): they keep their place while dragging (section 5)."""
-    limit = cfg.solver.propagation
-    if limit is None or len(sc.names) == 1:
-        return np.zeros(0, np.int64)
-    piece_nodes = [graph.node_of_vertex[r.start:r.stop] for r in sc.ranges]
-    dist = {n: 0 for n, nodes in zip(sc.names, piece_nodes, strict=True) if np.isin(nodes, handles).any()}
-    frontier = list(dist)
-    while frontier:
-        nxt = []
-        for j in cfg.chain:
-            for a, b in ((j.a, j.b), (j.b, j.a)):
-                if a in frontier and b not in dist:
-                    dist[b] = dist[a] + 1
-                    nxt.append(b)
-        frontier = nxt
-    far = [nodes for n, nodes in zip(sc.names, piece_nodes, strict=True) if dist.get(n, limit + 1) > limit]
-    return np.setdiff1d(np.concatenate(far) if far else np.zeros(0, np.int64), handles)
-
-
-def _quality(graph, system, X, known, targets_all, size, rest=None) -> dict:
-    """Angle (against ``rest (n, 3)``, default the model), rigid-length, handle, contact and stretch
-    (against the model) figures of node positions ``X (n, 3)``."""
-    X0, edges = graph.X0, graph.edges
-    ang = angle_errors_deg(X0 if rest is None else rest, X, edges)
-    _, rest_len = C.edge_frames(X0, edges)
-    new = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
-    rigid = system.rigid
-    contact = 0.0
-    if len(system.contacts):
-        i, t = system.contacts[:, 0], system.contacts[:, 1]
-        T = graph.Fn[t]
-        n = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
-        n /= np.linalg.norm(n, axis=1)[:, None]
-        contact = float(np.abs(np.einsum("ij,ij->i", X[i] - X[T[:, 0]], n)).max() / size)
-    return {
-        "max_angle_error_deg": float(ang.max()) if len(ang) else 0.0,
-        "mean_angle_error_deg": float(ang.mean()) if len(ang) else 0.0,
-        "rigid_length_error": float(np.abs(new[rigid] / rest_len[rigid] - 1).max()) if rigid.any() else 0.0,
-        "handle_residual": float(np.linalg.norm(X[known] - targets_all, axis=1).max() / size),
-        "contact_residual": contact,
-        "max_stretch": float((new / rest_len).max()),
-        "min_stretch": float((new / rest_len).min()),
-    }
-
-
-def _strict_residuals(system: System, X: np.ndarray, weight: float, size: float) -> dict:
-    """Largest residual of each strict block, unweighted and relative to the model size."""
-    r = system.A @ X.ravel() - system.b
-    out = {}
-    for name in ("direction", "coplanarity", "hole_plane", "links", "attach"):
-        sl = system.slices.get(name)
-        if sl is not None and sl.stop > sl.start:
-            out[name] = float(np.abs(r[sl]).max() / np.sqrt(weight) / size)
-    return out
-
-
-def _baseline(graph, known, X_known, backend) -> np.ndarray:
-    """Laplacian baseline positions ``(n, 3)``; floating mesh components get their own anchor."""
-    edges = mesh_edges(graph.Fn)
-    used = np.zeros(graph.n_nodes, bool)
-    used[graph.Fn.reshape(-1)] = True
-    extra = floating_anchors(graph.n_nodes, edges, known, used)
-    A, b = laplacian_rows(graph.X0, edges)
-    Xk = np.vstack([X_known, graph.X0[extra]])
-    return ReshapeSolver(A, np.concatenate([known, extra]), backend=backend).solve(b, Xk)
-
-
-def _write_previews(ctx, cfg, F, graph, X, Xb, handles, level: str = "summary"):
-    """before.png, after.png, baseline.png and comparison.png (the summary preview unless ``level``
-    is "all": a textured before_after.png is the summary then)."""
-    if not ctx.wants_preview(level):
-        return
-
-    def image(Xn, key, name):
-        Vn = Xn[graph.node_of_vertex]
-        seg = np.stack([Xn[graph.edges[:, 0]], Xn[graph.edges[:, 1]]], axis=1)
-        rest = np.linalg.norm(graph.X0[graph.edges[:, 1]] - graph.X0[graph.edges[:, 0]], axis=1)
-        ratio = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / rest
-        img = reshape_image(Vn, F, seg, edge_colours(ratio), Xn[handles], view=cfg.view, size=cfg.preview_size)
-        if ctx.wants_preview("all"):
-            save_image(ctx.path(key, name), img)
-        return img
-
-    imgs = [image(graph.X0, "before", "before.png"), image(X, "after", "after.png")]
-    titles = ["before", "after (reshape)"]
-    if Xb is not None:
-        imgs.append(image(Xb, "baseline_preview", "baseline.png"))
-        titles.append("Laplacian baseline")
-    montage_png(ctx.path("comparison", "comparison.png"), imgs, titles=titles, height=cfg.preview_size)
-
-
-def _textured_summary(ctx, cfg, sc) -> bool:
-    """``before_after.png`` (the summary): the input above the written result, textured as a DCC
-    shows them (read back from the files), from three views framed alike. For a single textured
-    input; chains of pieces keep ``comparison.png`` as their summary."""
-    if len(sc.meshes) != 1 or not ctx.wants_preview("summary"):
-        return False
-    before = load_asset(sc.meshes[0].source)
-    if not before.textured and before.corner_color is None:
-        return False
-    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{sc.names[0]}"])
-    before_after_png(ctx.path("before_after", "before_after.png"),
-                     *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
-                     size=cfg.preview_size)
-    return True
-
-
-def _write_meshes(ctx, names, meshes, offsets, ranges, graph, X, retex=None):
-    """Each piece in its input's format, with its companion files and, with ``retex`` (piece index
-    -> :class:`~synthkit.io.textured.Retexture` entries), its reshaped surfaces' MTL and textures."""
-    written = set()
-    retex = retex or {}
-    for i, (name, m, off, r) in enumerate(zip(names, meshes, offsets, ranges, strict=True)):
-        P = m.positions.copy()
-        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
-        suffix = m.source.suffix.lower()
-        target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
-        entries = retex.get(i, [])
-        for extra in companion_files(m, entries):
-            if extra not in written:
-                ctx.path(f"file_{extra}", extra)
-                written.add(extra)
-        if entries:
-            ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
-            for e in entries:
-                ctx.path(f"texture_{e.material}", e.image_name)
-        save_textured(m, P, target, retexture=entries)
-        _check_quality(ctx, name, m, P)
 
 
 def _check_quality(ctx, name: str, mesh, P) -> None:
@@ -465,28 +186,45 @@ class Scene:
     source: object
 
 
-def _load(cfg, ctx) -> Scene:
-    specs = _pieces(cfg)
+def _mapped(exc: StageError) -> ConfigError | InputError:
+    """A stage's error as the command line reports it: ConfigError naming its key, else InputError."""
+    return ConfigError(f"{exc.key}: {exc}") if exc.key else InputError(str(exc))
+
+
+def _read(inputs: Inputs, path) -> TexturedMesh:
+    """The textured mesh at ``path``, or given in memory for it (:mod:`memory`)."""
+    if not inputs.is_memory(path):
+        return load_textured(path)
+    asset = inputs.asset(path)
+    return textured_from_asset(asset, str(asset.source))
+
+
+def _load(cfg, opt: Options, inputs: Inputs, ctx) -> Scene:
+    specs = _pieces(cfg, inputs)
     names = [n for n, _, _ in specs]
     with ctx.stage("load"):
-        meshes = [load_textured(path) for _, path, _ in specs]
+        meshes = [_read(inputs, path) for _, path, _ in specs]
     with ctx.stage("assemble"):
         lo = np.min([m.V.min(axis=0) for m in meshes], axis=0)
         hi = np.max([m.V.max(axis=0) for m in meshes], axis=0)
         piece_size = float(np.linalg.norm(hi - lo)) or 1.0
-        offsets, joins, joined = _place(cfg, meshes, cfg.graph.portal_tol * piece_size)
-        V, F, fm, ranges = _assemble(names, meshes, offsets)
-        _snap_joined(V, ranges, joined)
+        try:
+            offsets, joins, joined = place_pieces(names, meshes, [p for _, _, p in specs], cfg.chain,
+                                                  tol=opt.graph.portal_tol * piece_size)
+        except StageError as exc:
+            raise _mapped(exc) from None
+        V, F, fm, ranges = assemble(names, meshes, offsets)
+        snap_joined(V, ranges, joined)
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
-    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, specs[0][1])
+    return Scene(names, meshes, offsets, joins, joined, V, F, fm, ranges, size, meshes[0].source)
 
 
-def _graph(cfg, ctx, sc: Scene) -> ConstraintGraph:
+def _graph(opt: Options, ctx, sc: Scene) -> ConstraintGraph:
     with ctx.stage("graph"):
         try:
             graph = build_graph(
-                sc.V, sc.F, sc.face_material, weld_tol=cfg.graph.weld_tol * sc.size,
-                flat_angle_deg=cfg.graph.flat_angle_deg,
+                sc.V, sc.F, sc.face_material, weld_tol=opt.graph.weld_tol * sc.size,
+                flat_angle_deg=opt.graph.flat_angle_deg,
             )
         except ValueError as exc:
             raise InputError(f"{sc.source}: {exc}") from None
@@ -505,18 +243,17 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
         status=result.status, steps_done=result.steps_done, max_angle_error_deg=quality["max_angle_error_deg"],
         factor_ms=solver.factor_ms, vars=solver.vars, nnz_A=solver.nnz_A, nnz_AtA=solver.nnz_AtA,
         nodes=graph.counts["nodes"], edges=int(len(graph.edges)), equations=int(system.A.shape[0]),
-        normal_ms=solver.normal_ms,
         solve_ms=float(np.median(solver.solve_ms)) if solver.solve_ms else None,
         backend=solver.backend, steps=cfg.solver.steps,
         length_raises=result.length_raises, edge_groups=len(system.groups),
         grouped_edges=int(sum(len(g) for g in system.groups)), contacts=int(len(system.contacts)),
         l_min=system.l_min, rigid_edges=int(system.rigid.sum()), graph=graph.counts, joins=sc.joins,
         strict_weight=cfg.strict.weight,
-        strict_residuals=_strict_residuals(system, result.X, cfg.strict.weight, sc.size),
+        strict_residuals=strict_residuals(system, result.X, cfg.strict.weight, sc.size),
         **extra,
     )
     m.update(quality)
-    for join, gap in zip(sc.joins, _portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
+    for join, gap in zip(sc.joins, portal_gaps(sc.joined, sc.ranges, result.X[graph.node_of_vertex]), strict=True):
         join["gap"] = gap / sc.size
     if result.status == "partial":
         m["refused_edge"] = [_vertex_name(n, graph, sc.ranges) for n in result.edge]
@@ -524,57 +261,53 @@ def _metrics(cfg, sc, graph, system, solver, result, quality, extra) -> dict:
     return m
 
 
-def _textures(cfg, ctx, sc, graph, X) -> dict:
-    """The texture stage (``texture: reshape``): per piece index the Retexture entries; metrics
-    ``surfaces`` and their worst case go into the report; previews of the largest surfaces."""
-    ctx.metrics["texture"] = cfg.texture
-    if cfg.texture == "stretch":
-        return {}
+def _textures(opt: Options, ctx, sc, graph, X) -> tuple[dict, dict]:
+    """The texture stage (``texture: reshape``): per piece index the Retexture entries, and per
+    surface ``(job, result, analysis)`` (the previews draw them); metrics ``surfaces`` and their
+    worst case go into the report."""
+    ctx.metrics["texture"] = opt.texture.mode
+    if opt.texture.mode == "stretch":
+        return {}, {}
+    options = opt.texture
     with ctx.stage("texture"):
+        textures, notes, given = _texture_sources(sc)
         images, skipped = {}, {}
-        jobs, notes, untouched = RT.surface_jobs(cfg, sc, graph, X[graph.node_of_vertex], images, skipped)
-        texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
-        ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
-                           bytes_each=_BYTES_PER_TEXEL)
-        results = RT.reshape_jobs(cfg, jobs, images, ctx.rng)
-        entries, boxes = RT.atlas_entries(sc, results, images)
+        try:
+            jobs, untouched = RT.surface_jobs(
+                sc.meshes, textures, sc.ranges, graph.face_surface, sc.V, X[graph.node_of_vertex], options=options,
+                read=lambda path: given[path] if path in given else load_image(path), images=images, skipped=skipped,
+            )
+            texels = float(sum(img.shape[0] * img.shape[1] for img in images.values()))
+            ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
+                               bytes_each=_BYTES_PER_TEXEL)
+            results = RT.reshape_jobs(jobs, images, ctx.rng, options=options)
+        except StageError as exc:
+            raise _mapped(exc) from None
+        entries, boxes = RT.atlas_entries(sc.meshes, results, images)
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
         ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
-    with ctx.stage("texture_previews"):
-        _texture_previews(ctx, cfg, results)
-    return entries
+    return entries, results
 
 
-def _texture_previews(ctx, cfg, results) -> None:
-    """Figs. 7-8 per surface, for the ``texture_reshape.previews`` surfaces the naive stretch would
-    distort most (largest ``baseline_rigid_scale_error`` times baked texels)."""
-    if not ctx.wants_preview("all"):
-        return
-    tau = cfg.texture_reshape.tau
-    def distortion(item):
-        res = item[1][1]
-        return -(res.metrics["baseline_rigid_scale_error"] or 0.0) * res.texture.size
-
-    paper = {k: v for k, v in results.items() if v[2] is not None}
-    order = sorted(paper.items(), key=distortion)[: cfg.texture_reshape.previews]
-    for name, (job, res, tex) in order:
-        rows, cols, off = TP.source_window(job.C, tex.img.shape[:2], job.toroidal)
-        stem = f"texture/{RT._safe(name)}"
-        montage_png(ctx.path(f"autosim_{name}", f"{stem}_autosimilarity.png"),
-                    [tex.img[rows, cols], TP.autosimilarity_image(tex.T[:, rows, cols], tau)],
-                    titles=["texture", "autosimilarity x red, y green"], height=cfg.preview_size // 2)
-        montage_png(ctx.path(f"grid_{name}", f"{stem}_grid.png"),
-                    [TP.grid_image(tex.img[rows, cols], res.grid.X, res.grid.edges, offset=off),
-                     TP.grid_image(res.texture, res.Y, res.grid.edges)],
-                    titles=["grid before", "grid after"], height=cfg.preview_size)
-        montage_png(ctx.path(f"segmentation_{name}", f"{stem}_segmentation.png"),
-                    [tex.img[rows, cols], TP.segmentation_image(tex.rigid, res.tiles)[rows, cols]],
-                    titles=["texture", "rigid (light), stochastic, tiles"], height=cfg.preview_size // 2)
-        montage_png(ctx.path(f"stretch_{name}", f"{stem}_comparison.png"), [res.naive, res.texture],
-                    titles=["naive stretch", "texture reshape"], height=cfg.preview_size // 2)
+def _texture_sources(sc: Scene) -> tuple[list[dict | None], dict, dict]:
+    """Per piece material -> texture path (an OBJ's ``map_Kd`` files; for a mesh given in memory a
+    stand-in path ``<key>/<material>``), or None for a GLB (embedded textures keep the naive
+    stretch: a note per such piece); and the stand-in path -> texture of meshes given in memory."""
+    textures, notes, given = [], {}, {}
+    for mesh, r in zip(sc.meshes, sc.ranges, strict=True):
+        if isinstance(mesh, MemoryMesh):
+            found = {m: Path(str(mesh.source), m) for m in mesh.textures}
+            given.update({found[m]: img for m, img in mesh.textures.items()})
+        elif mesh.source.suffix.lower() == ".obj":
+            found = material_textures(mesh)
+        else:
+            found = None
+            notes[r.name] = "GLB: embedded textures keep the naive stretch"
+        textures.append(found)
+    return textures, notes, given
 
 
-def _free_parts(cfg, graph, sc, links) -> list[dict]:
+def _free_parts(opt: Options, graph, sc, links) -> list[dict]:
     """Parts (face-connected components; the one with most nodes is the root) farther than
     ``parts.attach_distance`` from every other part and not linked to one (``links (k, 2)``):
     carried by the nearest surface all the same, listed in ``metrics.free_parts`` and named in
@@ -587,7 +320,7 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
     pl = part[np.asarray(links, np.int64).reshape(-1, 2)]
     linked = np.unique(pl[pl[:, 0] != pl[:, 1]])
     free = []
-    for k in np.setdiff1d(np.flatnonzero(dist > cfg.parts.attach_distance), linked):
+    for k in np.setdiff1d(np.flatnonzero(dist > opt.parts.attach_distance), linked):
         nodes = np.flatnonzero(part == k)
         free.append({"part": int(k), "first": _vertex_name(int(nodes[0]), graph, sc.ranges),
                      "nodes": int(len(nodes)), "centre": graph.X0[nodes].mean(axis=0).round(6).tolist(),
@@ -597,14 +330,13 @@ def _free_parts(cfg, graph, sc, links) -> list[dict]:
                           for f in free)
         log.warning("%s: %d parts lie farther than parts.attach_distance (%g of the model size) from any other "
                     "part and are carried by the nearest surface: %s", sc.source, len(free),
-                    cfg.parts.attach_distance, names)
+                    opt.parts.attach_distance, names)
     return free
 
 
 def _stretches_nothing(cfg, quality) -> None:
-    """Item 6 of issue 23: a recipe whose result only moves the model rigidly (handles that select
-    everything, or nothing fixed) is refused in one line (ConfigError) instead of writing a
-    translated model with perfect metrics."""
+    """Refuse (ConfigError) a recipe whose result only moves the model rigidly (handles that select
+    everything, or nothing fixed)."""
     key = "handles" if cfg.handles else ("scale" if cfg.scale is not None else "size")
     if quality["max_stretch"] - 1 < 1e-6 and 1 - quality["min_stretch"] < 1e-6:
         raise ConfigError(
@@ -613,16 +345,16 @@ def _stretches_nothing(cfg, quality) -> None:
         )
 
 
-def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
+def _solve(cfg, opt: Options, ctx, sc, graph, system, handles, targets, known, rest):
     """Factor and drag (one step for a resize: its rest shape is the target); returns the drag
     result, the positions the known nodes reached, the solver, the cache and the frozen nodes."""
     T = rest.copy()
     T[handles] = targets
-    frozen = _frozen_nodes(cfg, sc, graph, handles)
-    sv = cfg.solver
-    steps = 1 if cfg.handles == [] else sv.steps
+    frozen = frozen_nodes(sc.ranges, graph.node_of_vertex, cfg.chain, handles, opt.drag.propagation)
+    options = opt.drag
+    steps = options.steps
     with ctx.stage("factor"):
-        cache = FactorCache(system.A, backend=sv.backend)
+        cache = FactorCache(system.A, backend=options.backend)
         try:
             full = cache.get(known)
             limited = cache.get(np.union1d(known, frozen)) if len(frozen) else full
@@ -630,69 +362,81 @@ def _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest):
             raise InputError(f"{sc.source}: constraint system cannot be solved: {exc}") from None
     with ctx.stage("solve"):
         result = drag(
-            lambda step: full if step == steps else limited, system.b, X0=rest, T=T, steps=steps,
-            edges=graph.edges, stress_slice=system.slices["stress"], stress_weights=system.stress_weights,
-            short_ratio=sv.short_ratio, raise_factor=sv.raise_factor, flip_ratio=sv.flip_ratio,
+            lambda step: full if step == steps else limited, system.b, X0=rest, T=T, edges=graph.edges,
+            stress_slice=system.slices["stress"], stress_weights=system.stress_weights, options=options,
             progress=lambda s: ctx.progress(s, total=steps, desc="reshape steps"), lengths=system.lengths,
         )
-    if result.status == "partial" and not sv.allow_partial:
+    if result.status == "partial" and not options.allow_partial:
         _refuse(cfg, result, graph, sc.ranges, steps)
     reached = rest[known] + (result.steps_done / steps) * (T[known] - rest[known])
     return result, reached, full, cache, frozen
 
 
-def _resize_metrics(resize, graph, X) -> dict:
-    """Factors applied, extent ratios reached (after / before, per axis) and rigid parts of a resize."""
-    used = np.unique(graph.Fn)
-    before = graph.X0[used].max(axis=0) - graph.X0[used].min(axis=0)
-    after = X[used].max(axis=0) - X[used].min(axis=0)
-    return {"resize": {"factors": resize.factors.tolist(), "asked_extent": [None if np.isnan(a) else float(a)
-                                                                          for a in resize.asked],
-                       "extent_ratio": (after / np.maximum(before, 1e-300)).tolist(),
-                       "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}
-
-
-def run(cfg, ctx) -> None:
-    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
-    sc = _load(cfg, ctx)
-    graph = _graph(cfg, ctx, sc)
+def compute(cfg, inputs: Inputs, ctx) -> ReshapeResult:
+    """Reshape the pieces of a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`
+    read through ``inputs``; every stage, nothing written (:meth:`ReshapeResult.write` writes)."""
+    opt = options_of(cfg)
+    sc = _load(cfg, opt, inputs, ctx)
+    graph = _graph(opt, ctx, sc)
     with ctx.stage("constraints"):
-        resize = _resize(cfg, graph, sc)
+        resize = _resize(cfg, opt, graph, sc)
         _handle_motions(cfg, graph, sc.size)
         handles, targets, fixed, links = _selections(cfg, graph, sc.V, sc.ranges, resize)
         ctx.budget.require("input" if cfg.input is not None else "pieces", str(sc.source),
                            60.0 * len(graph.edges) + 30.0 * graph.n_nodes,
                            "matrix entries", bytes_each=_BYTES_PER_NNZ)
         rest = graph.X0 if resize is None else resize.R
-        system = build_system(cfg, graph, links, size=sc.size, known=np.concatenate([handles, fixed]),
+        system = build_system(graph, links, options=opt.system, size=sc.size,
+                              known=np.concatenate([handles, fixed]),
                               rest=None if resize is None else rest,
                               factors=None if resize is None else resize.node_factors())
         known = _known(graph, handles, fixed)
-        free = _free_parts(cfg, graph, sc, links)
-    result, reached, full, cache, frozen = _solve(cfg, ctx, sc, graph, system, handles, targets, known, rest)
+        free = _free_parts(opt, graph, sc, links)
+    result, reached, full, cache, frozen = _solve(cfg, opt, ctx, sc, graph, system, handles, targets, known, rest)
     counts = dict(links=int(len(links)), handles=int(len(handles)), fixed=int(len(fixed)),
                   attached_parts=int(len(system.attachment.nodes)), free_parts=free, frozen_nodes=int(len(frozen)),
                   factorizations=len(cache), factor_cache_hits=cache.hits)
-    quality = _quality(graph, system, result.X, known, reached, sc.size, rest)
+    quality = quality_figures(graph, system, result.X, known, reached, sc.size, rest)
     _stretches_nothing(cfg, quality)
     if resize is not None:
-        counts.update(_resize_metrics(resize, graph, result.X))
+        counts.update(resize_metrics(resize, graph.X0, graph.Fn, result.X))
     ctx.metrics.update(_metrics(cfg, sc, graph, system, full, result, quality, counts))
     if result.status == "partial":
         ctx.status = "partial"
     Xb = None
     if cfg.baseline:
         with ctx.stage("baseline"):
-            Xb = _baseline(graph, known, reached, cfg.solver.backend)
-        base = _quality(graph, system, Xb, known, reached, sc.size, rest)
+            Xb = baseline_positions(graph, known, reached, opt.drag.backend)
+        base = quality_figures(graph, system, Xb, known, reached, sc.size, rest)
         ctx.metrics["baseline"] = base
         ctx.metrics["baseline_angle_ratio"] = base["max_angle_error_deg"] / max(
             ctx.metrics["max_angle_error_deg"], 1e-12
         )
-    retex = _textures(cfg, ctx, sc, graph, result.X)
-    with ctx.stage("outputs"):
-        _write_meshes(ctx, sc.names, sc.meshes, sc.offsets, sc.ranges, graph, result.X, retex)
-        textured = _textured_summary(ctx, cfg, sc)
-        _write_previews(ctx, cfg, sc.F, graph, result.X, Xb, handles, level="all" if textured else "summary")
+    retex, surfaces = _textures(opt, ctx, sc, graph, result.X)
+    pieces = _reshaped_pieces(ctx, sc, graph, result.X)
     log.info("reshape: %d nodes, %d equations, factor %.1f ms", graph.counts["nodes"], system.A.shape[0],
              full.factor_ms)
+    return ReshapeResult(
+        **result_fields(cfg, ctx, inputs),
+        meshes={n: trimesh.Trimesh(m.positions, m.position_index[m.F], process=False) for n, m in pieces.items()},
+        textured=pieces, retexture={n: retex.get(i, []) for i, n in enumerate(sc.names)}, X=result.X,
+        previews=PreviewData(sc.F, graph, result.X, Xb, handles, surfaces),
+    )
+
+
+def _reshaped_pieces(ctx, sc: Scene, graph, X) -> dict[str, TexturedMesh]:
+    """Piece name -> its textured mesh at the reshaped positions; each checked against its input
+    (:func:`_check_quality`)."""
+    out = {}
+    for name, m, off, r in zip(sc.names, sc.meshes, sc.offsets, sc.ranges, strict=True):
+        P = m.positions.copy()
+        P[m.position_index] = X[graph.node_of_vertex[r.start:r.stop]] - off
+        out[name] = reshaped(m, P)
+        _check_quality(ctx, name, m, P)
+    return out
+
+
+def run(cfg, ctx) -> None:
+    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`:
+    :func:`compute` with the config's files, then write the outputs."""
+    compute(cfg, Inputs(), ctx).write(ctx)

@@ -1,4 +1,4 @@
-"""Resize in one line (issue 23): ``scale: {x: 1.3}`` or ``size: {x: 12.0}``.
+"""Resize in one line: ``scale: {x: 1.3}`` or ``size: {x: 12.0}``.
 
 The user's intent is the model scaled along the given axes, as if a wall were dragged: the rest
 shape of the solve becomes ``R (n, 3)``, the model scaled about its lower corner, except that a
@@ -6,8 +6,8 @@ part (face-connected component, :func:`parts.mesh_parts`) shorter than ``rigid_s
 model along an axis keeps its size along that axis (doors, windows, frames) and is carried
 there by the point of its host surface under its centroid (:func:`parts.attach_clusters`:
 a window on a side wall stays on that wall). The largest part (the walls and roof) is never
-rigid, nor is a part along an axis where it forms the model's upper end (house1's chimney tops
-the ridge: kept rigid it would leave the model 2 % short of a 1.5x raise). Parts that touch one
+rigid, nor is a part along an axis where it forms the model's upper end (a chimney topping the
+ridge; docs/findings/reshape.md). Parts that touch one
 another move as one group (:func:`touching_groups`); the root's nodes around a rigid group (the
 rim of the hole a window fills) move with it, and a group at the lower end (a door on the
 ground) stays there. The solve (pipeline) then writes every constraint of section 3.2 against
@@ -30,12 +30,12 @@ from scipy.sparse.csgraph import connected_components
 
 from synthkit.methods.reshape.parts import attach_clusters, closest_points, mesh_parts
 
-__all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups"]
+__all__ = ["Resize", "axis_factors", "plan_resize", "touching_groups", "resize_metrics"]
 
 
 END_BAND = 0.02
-"""A rigid group this close to the lower end of the model (share of the extent) stays at that end (the
-garage door of house4 stands 0.7 % of the height above the lowest vertex)."""
+"""A rigid group this close to the lower end of the model (share of the extent) stays at that end (a
+garage door a little above the lowest vertex)."""
 
 
 @dataclass
@@ -154,3 +154,15 @@ def plan_resize(X0, Fn, factors, asked, *, rigid_share: float, end_tol: float, t
     ends = (X0[:, scaled] <= (lo + tol)[scaled]) | (X0[:, scaled] >= (hi - tol)[scaled])
     known = np.flatnonzero(used & ends.any(axis=1))
     return Resize(f, asked, R, known, part, rigid)
+
+
+def resize_metrics(resize: Resize, X0: np.ndarray, Fn: np.ndarray, X: np.ndarray) -> dict:
+    """Factors applied, extent ratios reached (``X (n, 3)`` against ``X0 (n, 3)``, per axis, over
+    the nodes triangles ``Fn`` use) and rigid parts of a resize."""
+    used = np.unique(Fn)
+    before = X0[used].max(axis=0) - X0[used].min(axis=0)
+    after = X[used].max(axis=0) - X[used].min(axis=0)
+    return {"resize": {"factors": resize.factors.tolist(), "asked_extent": [None if np.isnan(a) else float(a)
+                                                                          for a in resize.asked],
+                       "extent_ratio": (after / np.maximum(before, 1e-300)).tolist(),
+                       "parts": int(resize.part.max()) + 1, "rigid_parts": resize.rigid.any(axis=1).sum().item()}}

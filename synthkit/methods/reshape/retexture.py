@@ -1,18 +1,20 @@
-"""The texture stage of ``synthkit reshape`` (``texture: reshape``; section 4 of Cabral et al.).
+"""The texture stage of ``synthkit reshape`` (``texture: reshape`` or ``continue``; section 4 of
+Cabral et al.), over the scene's arrays and :class:`~synthkit.methods.reshape.options.TextureOptions`.
 
-For each piece, each textured surface (a surface whose material's MTL names a ``map_Kd`` image)
-whose world edge lengths changed is reshaped by :func:`texture.surface.reshape_surface`; a surface
-whose edges kept their lengths (every ratio within ``UNCHANGED_TOL`` of 1, or no texture-space
-edge that would move by ``texture_reshape.unchanged_texels``, half a texel by default: the least
-squares geometry solve changes every edge a little) keeps its UVs and material, so its texture
-comes back unchanged. Each texture is analysed once
+For each piece, each textured surface (a surface whose material has a texture: the ``map_Kd`` its
+MTL names, or the image of a mesh given in memory) whose world edge lengths changed is reshaped by
+:func:`texture.surface.reshape_surface`; a surface whose edges kept their lengths (every ratio
+within ``UNCHANGED_TOL`` of 1, or no texture-space edge that would move by ``unchanged_texels``,
+half a texel by default: the least squares geometry solve changes every edge a little) keeps its
+UVs and material, so its texture comes back unchanged. Each texture is analysed once
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
-Errors name the file, the surface and the key: a textured surface without UVs, UVs spanning a
-whole tile on a texture that is not toroidal, a missing or unreadable texture (InputError); a grid spacing
-below one texel (ConfigError on ``texture_reshape.spacing``). GLB inputs keep the naive stretch
-(their textures are embedded; the writer only retextures OBJ files) and say so in the report.
+Errors are :class:`StageError` (a ValueError) naming the file and the surface, and carrying the
+config ``key`` a value of which is at fault: a grid spacing below one texel
+(``texture_reshape.spacing``), a bake over ``texture_reshape.max_side``; None when the input is: a
+textured surface without UVs, UVs spanning a whole tile on a texture that is not toroidal, a
+failed reshape. Pieces whose textures are not given (a GLB's are embedded) keep the naive stretch.
 """
 
 from __future__ import annotations
@@ -20,20 +22,23 @@ from __future__ import annotations
 import hashlib
 import logging
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from synthkit.errors import ConfigError, InputError
-from synthkit.io.images import load_image
-from synthkit.io.textured import Retexture, material_textures
+from synthkit.io.textured import Retexture, TexturedMesh
+from synthkit.methods.reshape.errors import StageError
+from synthkit.methods.reshape.handles import PieceRange
+from synthkit.methods.reshape.options import TextureOptions
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled, patch_mask
-from synthkit.methods.reshape.texture.surface import TextureParams, analyse_texture, reshape_surface
+from synthkit.methods.reshape.texture.surface import analyse_texture, reshape_surface
 
-__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics", "params_of",
-           "UNCHANGED_TOL", "WORST"]
+__all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics",
+           "check_uv", "safe_name", "UNCHANGED_TOL", "WORST"]
 
 log = logging.getLogger("synthkit")
 
@@ -74,15 +79,6 @@ class SurfaceJob:
     P1: np.ndarray
 
 
-def params_of(cfg) -> TextureParams:
-    """The :class:`TextureParams` of a config's ``texture_reshape`` section."""
-    t = cfg.texture_reshape
-    names = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
-             "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
-             "sigma_r", "ramp", "max_side")
-    return TextureParams(**{n: getattr(t, n) for n in names}, backend=cfg.solver.backend)
-
-
 def _contour(F: np.ndarray) -> np.ndarray:
     """Edges ``(S, 2)`` used by exactly one triangle of ``F (k, 3)``, oriented as in their triangle."""
     he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
@@ -91,26 +87,26 @@ def _contour(F: np.ndarray) -> np.ndarray:
     return he[counts[inv.reshape(-1)] == 1]
 
 
-def _check_uv(mesh, name, material, path, UV, toroidal_cfg) -> tuple[bool, np.ndarray]:
-    """Whether the surface is toroidal, and its UVs ``(c, 2)`` as read. With ``toroidal: auto`` a
-    surface is toroidal only when its UVs leave [0, 1] and span more than a whole tile (plus
-    :data:`WHOLE_TILE_SLACK`) along an axis; otherwise they
-    are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small excursion
-    past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A listed material is
-    toroidal whatever its UVs. InputError for missing UVs, or for UVs spanning a whole tile when
-    ``toroidal`` lists other materials only."""
+def check_uv(source, name, material, path, UV, toroidal) -> tuple[bool, np.ndarray]:
+    """Whether the surface ``name`` of the mesh read from ``source`` is toroidal, and its UVs
+    ``(c, 2)`` as read. With ``toroidal`` "auto" a surface is toroidal only when its UVs leave
+    [0, 1] and span more than a whole tile (plus :data:`WHOLE_TILE_SLACK`) along an axis; otherwise
+    they are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small
+    excursion past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A ``material``
+    listed in ``toroidal`` is toroidal whatever its UVs. StageError for missing UVs, or for UVs
+    spanning a whole tile when ``toroidal`` lists other materials only."""
     if np.isnan(UV).any():
-        raise InputError(f"{mesh.source}: surface {name} (material {material}) has no UVs, but its texture "
-                         f"{path.name} needs them")
+        raise StageError(f"{source}: surface {name} (material {material}) has no UVs, but its texture "
+                           f"{path.name} needs them")
     outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
     whole = outside and bool((np.ptp(UV, axis=0) > 1 + WHOLE_TILE_SLACK).any())
-    toroidal = whole if toroidal_cfg == "auto" else material in toroidal_cfg
+    toroidal = whole if toroidal == "auto" else material in toroidal
     if toroidal:
         return True, UV
     if whole:
         lo, hi = UV.min(axis=0), UV.max(axis=0)
-        raise InputError(
-            f"{mesh.source}: surface {name} (material {material}) has UVs spanning a whole tile "
+        raise StageError(
+            f"{source}: surface {name} (material {material}) has UVs spanning a whole tile "
             f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal "
             "(texture_reshape.toroidal)"
         )
@@ -140,31 +136,43 @@ def _degenerate(C, F) -> str | None:
     return None
 
 
-def _texture(cfg, path, images) -> tuple[int, int]:
-    """``(W, H)`` of the texture at ``path`` (read once into ``images``); ConfigError when the grid
-    spacing is below one of its texels."""
+def _texture(path, images, read, spacing: float) -> tuple[int, int]:
+    """``(W, H)`` of the texture at ``path`` (``read(path)`` once into ``images``); StageError on
+    ``texture_reshape.spacing`` when the grid spacing is below one of its texels."""
     if path not in images:
-        images[path] = load_image(path)
+        images[path] = read(path)
     H, W = images[path].shape[:2]
-    spacing = cfg.texture_reshape.spacing
     if spacing * min(H, W) < 1:
-        raise ConfigError(f"texture_reshape.spacing: {spacing:g} of {path.name} ({W} x {H}) is "
-                          f"{spacing * min(H, W):.3g} texels, below one texel")
+        raise StageError(f"{spacing:g} of {path.name} ({W} x {H}) is {spacing * min(H, W):.3g} texels, "
+                           "below one texel", "texture_reshape.spacing")
     return W, H
 
 
-def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skipped) -> tuple[list[SurfaceJob], int]:
-    """The changed textured surfaces of piece ``p`` (render vertices ``r.start..r.stop``, faces from
-    ``fstart``) and the number of its textured surfaces left untouched (no texture-space edge would
-    move by ``unchanged_texels``); surfaces whose UVs cannot carry a grid go into ``skipped``
-    (name -> reason) and keep the naive stretch."""
+@dataclass
+class _Piece:
+    """What :func:`_piece_jobs` reads of one piece: its index, mesh, render vertices in the scene
+    (``r``), first face in the scene and material -> texture path."""
+
+    index: int
+    mesh: TexturedMesh
+    r: PieceRange
+    fstart: int
+    textures: dict
+
+
+def _piece_jobs(piece: _Piece, face_surface, V0, V1, options: TextureOptions, read, images,
+                skipped) -> tuple[list[SurfaceJob], int]:
+    """The changed textured surfaces of one piece and the number of its textured surfaces left
+    untouched (no texture-space edge would move by ``unchanged_texels``); surfaces whose UVs cannot
+    carry a grid go into ``skipped`` (name -> reason) and keep the naive stretch."""
     jobs, untouched = [], 0
+    mesh, r = piece.mesh, piece.r
     Fp = mesh.F
-    surf = graph.face_surface[fstart:fstart + len(Fp)]
+    surf = face_surface[piece.fstart:piece.fstart + len(Fp)]
     for k, s in enumerate(np.unique(surf)):
         faces = np.flatnonzero(surf == s)
         material = mesh.materials[int(mesh.face_material[faces[0]])]
-        path = textures.get(material)
+        path = piece.textures.get(material)
         if path is None:
             continue
         verts = np.unique(Fp[faces])
@@ -176,10 +184,10 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             untouched += 1
             continue
         name = f"{r.name}.{material}.{k}"
-        toroidal, UV = _check_uv(mesh, name, material, path, mesh.UV[verts], cfg.texture_reshape.toroidal)
-        W, H = _texture(cfg, path, images)
+        toroidal, UV = check_uv(mesh.source, name, material, path, mesh.UV[verts], options.toroidal)
+        W, H = _texture(path, images, read, options.params.spacing)
         C = np.column_stack([UV[:, 0] * W, (1.0 - UV[:, 1]) * H])
-        if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < cfg.texture_reshape.unchanged_texels:
+        if (change * np.linalg.norm(C[e[:, 0]] - C[e[:, 1]], axis=1)).max() < options.unchanged_texels:
             untouched += 1
             continue
         reason = _degenerate(C, Fl)
@@ -189,47 +197,50 @@ def _piece_jobs(cfg, p, mesh, r, fstart, graph, V0, V1, textures, images, skippe
             continue
         seg = _contour(Fl)
         seg = seg[np.linalg.norm(C[seg[:, 1]] - C[seg[:, 0]], axis=1) > 1e-9]  # duplicated corners
-        jobs.append(SurfaceJob(name, p, faces, verts, material, path, C, Fl, seg,
+        jobs.append(SurfaceJob(name, piece.index, faces, verts, material, path, C, Fl, seg,
                                lambda i, j, a=a, b=b: _ratio(a, b, i, j), toroidal, a, b))
     return jobs, untouched
 
 
-def surface_jobs(cfg, sc, graph, V1, images: dict, skipped: dict) -> tuple[list[SurfaceJob], dict, int]:
-    """Every changed textured surface of the scene ``sc`` with reshaped render vertices ``V1
-    (#V, 3)``, per piece name a note for pieces whose texture cannot be reshaped (GLB), and the
-    number of untouched textured surfaces. ``images`` (path -> texture) is filled as read,
-    ``skipped`` (surface -> reason) with the surfaces that keep the naive stretch."""
-    jobs, notes, fstart, untouched = [], {}, 0, 0
-    for p, (mesh, r) in enumerate(zip(sc.meshes, sc.ranges, strict=True)):
-        if mesh.source.suffix.lower() != ".obj":
-            notes[r.name] = "GLB: embedded textures keep the naive stretch"
-        else:
-            found, kept = _piece_jobs(cfg, p, mesh, r, fstart, graph, sc.V, V1, material_textures(mesh), images,
-                                       skipped)
-            jobs += found
+def surface_jobs(meshes: list[TexturedMesh], textures: list[dict | None], ranges: list[PieceRange],
+                 face_surface: np.ndarray, V0: np.ndarray, V1: np.ndarray, *, options: TextureOptions,
+                 read: Callable[[Path], np.ndarray], images: dict, skipped: dict) -> tuple[list[SurfaceJob], int]:
+    """Every changed textured surface of the scene's pieces ``meshes`` (render vertices ``ranges``
+    of the scene's ``V0 (#V, 3)`` before and ``V1 (#V, 3)`` after, faces in order, surface of each
+    face ``face_surface (#F,)``), with per piece material -> texture path (None: textures that
+    stay as they are), and the number of untouched textured surfaces. ``images`` (path -> texture,
+    ``read(path)`` on first use) is filled as read, ``skipped`` (surface -> reason) with the
+    surfaces that keep the naive stretch."""
+    jobs, fstart, untouched = [], 0, 0
+    for p, (mesh, found, r) in enumerate(zip(meshes, textures, ranges, strict=True)):
+        if found is not None:
+            piece = _Piece(p, mesh, r, fstart, found)
+            more, kept = _piece_jobs(piece, face_surface, V0, V1, options, read, images, skipped)
+            jobs += more
             untouched += kept
         fstart += len(mesh.F)
-    return jobs, notes, untouched
+    return jobs, untouched
 
 
-def _safe(name: str) -> str:
+def safe_name(name: str) -> str:
+    """``name`` with every run of characters other than letters, digits, ``_.-`` replaced by ``_``."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def reshape_jobs(cfg, jobs, images, rng):
+def reshape_jobs(jobs, images, rng, *, options: TextureOptions) -> dict:
     """Run every job: per surface name ``(job, result, analysis)``. With ``texture: continue`` a
     non-toroidal surface whose map is affine is extended (:func:`texture.extend.extend_surface`,
     analysis None), the others take the paper's reshape. A surface mapping the same
     texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
-    patch), shares its result. A stage ValueError becomes an InputError naming the surface."""
-    params, analyses, results, done = params_of(cfg), {}, {}, {}
+    patch), shares its result. A stage ValueError becomes a StageError naming the surface."""
+    params, analyses, results, done = options.params, {}, {}, {}
     for job in jobs:
         same = _job_key(job)
         if same in done:
             results[job.name] = (job, *results[done[same]][1:])
             continue
         done[same] = job.name
-        if cfg.texture == "continue":
+        if options.mode == "continue":
             img = images[job.texture]
             ext = (extend_tiled(job.C, job.F, job.P0, job.P1, img.shape) if job.toroidal
                    else extend_surface(img, job.C, job.F, job.P0, job.P1, rng))
@@ -244,8 +255,8 @@ def reshape_jobs(cfg, jobs, images, rng):
                                   params=params, rng=rng)
         except ValueError as exc:
             if "max_side" in str(exc):
-                raise ConfigError(f"texture_reshape.max_side: surface {job.name}: {exc}") from None
-            raise InputError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
+                raise StageError(f"surface {job.name}: {exc}", "texture_reshape.max_side") from None
+            raise StageError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
         results[job.name] = (job, res, analyses[key])
     return results
 
@@ -263,7 +274,7 @@ def _own_entry(job, res) -> Retexture:
     UVs repeat the baked tile)."""
     UV = np.zeros((int(job.vertices.max()) + 1, 2))
     UV[job.vertices] = res.UV
-    material = _safe(f"{job.material}_retex{job.name.rsplit('.', 1)[1]}")
+    material = safe_name(f"{job.material}_retex{job.name.rsplit('.', 1)[1]}")
     return Retexture(job.faces, UV, material, f"{material}.png", res.texture)
 
 
@@ -309,7 +320,7 @@ equal patches are packed once."""
     source = np.where(_source_in_use(mesh, rest, source.shape)[..., None], source, 0).astype(source.dtype)
     atlas, spot0, spots = pack_atlas(source, [r.texture for r in res_of.values()])
     slot = {key: spots[i] for i, key in enumerate(res_of)}
-    UV, boxes, file = np.zeros((len(mesh.V), 2)), {}, f"{_safe(material)}_atlas.png"
+    UV, boxes, file = np.zeros((len(mesh.V), 2)), {}, f"{safe_name(material)}_atlas.png"
     for name, job, res in packed:
         spot = slot[_content(res.texture)]
         UV[job.vertices] = to_atlas(res.UV, spot, atlas.shape)
@@ -319,8 +330,8 @@ equal patches are packed once."""
     return Retexture(np.concatenate(faces + [rest]), UV, file[:-4], file, atlas), own, boxes
 
 
-def atlas_entries(sc, results, images) -> tuple[dict, dict]:
-    """The Retexture entries per piece index: per (piece, input material) one atlas (the source, its
+def atlas_entries(meshes: list[TexturedMesh], results, images) -> tuple[dict, dict]:
+    """The Retexture entries per piece index of ``meshes``: per (piece, input material) one atlas (the source, its
     texels no untouched face maps black, and every non-toroidal reshaped surface's patch,
     :func:`texture.atlas.pack_atlas`) holding
     the material's reshaped and untouched faces; toroidal surfaces continued by their UVs share one
@@ -337,14 +348,14 @@ def atlas_entries(sc, results, images) -> tuple[dict, dict]:
         else:
             groups.setdefault((job.piece, job.material), []).append((name, job, res))
     for (p, material), items in groups.items():
-        entry, own, placed = _material_atlas(sc.meshes[p], material, items, images[items[0][1].texture])
+        entry, own, placed = _material_atlas(meshes[p], material, items, images[items[0][1].texture])
         entries.setdefault(p, []).extend(own + [entry])
         boxes.update(placed)
     for (p, material), items in tiled.items():
-        UV = np.zeros((len(sc.meshes[p].V), 2))
+        UV = np.zeros((len(meshes[p].V), 2))
         for job, res in items:
             UV[job.vertices] = res.UV
-        file = f"{_safe(material)}_tiled.png"
+        file = f"{safe_name(material)}_tiled.png"
         entries.setdefault(p, []).append(Retexture(np.concatenate([job.faces for job, _ in items]), UV, file[:-4],
                                                    file, images[items[0][0].texture]))
     return entries, boxes

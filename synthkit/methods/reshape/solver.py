@@ -2,15 +2,11 @@
 
 ``A (m, 3 n)`` and ``b (m,)`` hold every weighted constraint row over the node positions
 ``x (3 n,)``. Handle and fixed nodes are *known*: their columns move to the right-hand side,
-``A_u x_u = b - A_k x_k``, so the normal matrix ``N = A_u^T A_u`` depends only on which nodes are
-known. :class:`ReshapeSolver` factors it once (sparse Cholesky, cholespy; or SuperLU tuned as in
-:mod:`synthkit.core.lsq`) and each step costs one pair of triangular solves.
-
-The paper's weights span nine orders of magnitude (strict rows 1e4 against contact positions
-1e-5), so ``N`` can have a condition number near 1e12 on real models while being regular. The
-factorization is therefore checked by its backward error (``||N x - r|| <= 1e-9 ||r||`` on a
-test right-hand side), which a stable Cholesky meets on such matrices; the forward check of
-:class:`synthkit.core.lsq.LeastSquares` (1e-6 on ``x``) would refuse them.
+``A_u x_u = b - A_k x_k``, so the normal matrix ``A_u^T A_u`` depends only on which nodes are
+known. :class:`ReshapeSolver` factors it once with :class:`synthkit.core.lsq.LeastSquares`
+(sparse Cholesky or tuned SuperLU) and each step costs one pair of triangular solves. The paper's
+weights span nine orders of magnitude, so the factorization is checked by its backward error
+(``check="residual"``): a real model's normal matrix may have a condition number near 1e12.
 
 :class:`FactorCache` keeps one factorization per set of known nodes, so a chain dragged with a
 limited propagation length and then released (section 5) factors twice and reuses both.
@@ -30,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import splu
 
-from synthkit.core.lsq import have_cholespy
+from synthkit.core.lsq import LeastSquares, have_cholespy
+from synthkit.methods.reshape.options import DragOptions
 
 __all__ = ["ReshapeSolver", "FactorCache", "DragResult", "drag", "known_columns", "floating_anchors"]
 
@@ -65,8 +61,8 @@ class ReshapeSolver:
     known : (k,) int64 nodes whose positions are given
     backend : "auto" (cholespy when installed, else splu), "cholespy" or "splu"
 
-    Attributes: ``vars`` (unknowns), ``nnz_A`` (of ``A_u``), ``nnz_AtA``, ``normal_ms`` (forming
-    ``A_u^T A_u``), ``factor_ms`` (the sparse factorization alone, Table 4's "factor"),
+    Attributes: ``vars`` (unknowns), ``nnz_A`` (of ``A_u``), ``nnz_AtA`` (of ``A_u^T A_u``),
+    ``factor_ms`` (forming and factoring ``A_u^T A_u``, :class:`~synthkit.core.lsq.LeastSquares`),
     ``solve_ms`` (one entry per solve), ``backend``.
     Raises ValueError when the normal matrix is singular (an unconstrained node or component).
     """
@@ -82,66 +78,23 @@ class ReshapeSolver:
         self.free_cols = np.flatnonzero(free)
         A_u = A[:, self.free_cols].tocsr()
         self.A_k = A[:, self.known_cols].tocsr()
-        self._At = A_u.T.tocsr()
         self.vars = int(len(self.free_cols))
         self.nnz_A = int(A_u.nnz)
         self.n_nodes = A.shape[1] // 3
         self.backend = ("cholespy" if have_cholespy() else "splu") if backend == "auto" else backend
         start = time.perf_counter()
-        N = (self._At @ A_u).tocsr()
-        N.sum_duplicates()
-        self.nnz_AtA = int(N.nnz)
-        self.normal_ms = 1e3 * (time.perf_counter() - start)
-        start = time.perf_counter()
-        self._factor(N)
+        self._lsq = LeastSquares(A_u, backend=self.backend, check="residual") if self.vars else None
         self.factor_ms = 1e3 * (time.perf_counter() - start)
-        self._check(N)
+        self.nnz_AtA = self._lsq.nnz_normal if self._lsq is not None else 0
         self.solve_ms: list[float] = []
-
-    def _factor(self, N) -> None:
-        if N.shape[0] == 0:
-            return
-        if self.backend == "cholespy":
-            import cholespy
-
-            try:
-                self._chol = cholespy.CholeskySolverD(
-                    N.shape[0], N.indptr.astype(np.int32), N.indices.astype(np.int32),
-                    np.ascontiguousarray(N.data), cholespy.MatrixType.CSR,
-                )
-            except (ValueError, RuntimeError) as exc:
-                raise ValueError(f"normal matrix is singular: {exc}") from None
-        else:
-            try:
-                self._lu = splu(N.tocsc(), permc_spec="COLAMD", diag_pivot_thresh=0.0,
-                                options={"SymmetricMode": True})
-            except RuntimeError as exc:
-                raise ValueError(f"normal matrix is singular: {exc}") from None
-
-    def _solve_normal(self, rhs: np.ndarray) -> np.ndarray:
-        if len(rhs) == 0:
-            return rhs
-        if self.backend == "cholespy":
-            x = np.zeros_like(rhs)
-            self._chol.solve(np.ascontiguousarray(rhs), x)
-            return x
-        return self._lu.solve(rhs)
-
-    def _check(self, N) -> None:
-        """Backward-error check of the factorization on a test right-hand side."""
-        r = N @ np.linspace(1.0, 2.0, N.shape[0])
-        if not len(r):
-            return
-        x = self._solve_normal(r)
-        if not np.all(np.isfinite(x)) or np.linalg.norm(N @ x - r) > 1e-9 * np.linalg.norm(r):
-            raise ValueError("normal matrix is numerically singular (a node or component is unconstrained)")
 
     def solve(self, b, X_known) -> np.ndarray:
         """Node positions ``X (n, 3)`` for right-hand side ``b (m,)`` and known positions ``X_known (k, 3)``."""
         start = time.perf_counter()
         rhs = np.asarray(b, np.float64) - self.A_k @ np.asarray(X_known, np.float64).ravel()
         x = np.empty(3 * self.n_nodes)
-        x[self.free_cols] = self._solve_normal(np.asarray(self._At @ rhs))
+        if self._lsq is not None:
+            x[self.free_cols] = self._lsq.solve(rhs)
         x[self.known_cols] = np.asarray(X_known, np.float64).ravel()
         self.solve_ms.append(1e3 * (time.perf_counter() - start))
         return x.reshape(-1, 3)
@@ -172,17 +125,15 @@ def drag(
     *,
     X0,
     T,
-    steps: int,
     edges,
     stress_slice: slice,
     stress_weights,
-    short_ratio: float,
-    raise_factor: float,
-    flip_ratio: float,
+    options: DragOptions,
     progress=None,
     lengths=None,
 ) -> DragResult:
-    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``steps`` increments.
+    """Move the known nodes from ``X0`` toward ``T (n, 3)`` in ``options.steps`` increments
+    (``options``: eq. 4's ``short_ratio`` and ``raise_factor``, the ``flip_ratio`` that refuses).
 
     ``solver_at(s)`` gives the :class:`ReshapeSolver` of step ``s`` (1..steps; the same solver for
     every step, or a limited-propagation one while dragging and a full one at release); at step
@@ -200,19 +151,20 @@ def drag(
     u /= np.maximum(rest, 1e-300)[:, None]
     lengths = rest.copy() if lengths is None else np.array(lengths, np.float64)
     X_prev, raises = X0, 0
+    steps = options.steps
     step_numbers = range(1, steps + 1)
     for s in progress(step_numbers) if progress is not None else step_numbers:
         solver = solver_at(s)
         Xk = X0[solver.known] + (s / steps) * (T[solver.known] - X0[solver.known])
         X = solver.solve(b, Xk)
-        short = _projected(X, edges, u) < short_ratio * rest
+        short = _projected(X, edges, u) < options.short_ratio * rest
         if short.any():
-            lengths[short] *= raise_factor
+            lengths[short] *= options.raise_factor
             raises += int(short.sum())
             b[stress_slice] = stress_weights * lengths
             X = solver.solve(b, Xk)
         proj = _projected(X, edges, u)
-        flipped = np.flatnonzero(proj <= flip_ratio * rest)
+        flipped = np.flatnonzero(proj <= options.flip_ratio * rest)
         if len(flipped):
             worst = flipped[np.argmin(proj[flipped] / rest[flipped])]
             edge = (int(edges[worst, 0]), int(edges[worst, 1]))
@@ -245,6 +197,3 @@ class FactorCache:
 
     def __len__(self) -> int:
         return len(self._solvers)
-
-    def solvers(self) -> list[ReshapeSolver]:
-        return list(self._solvers.values())

@@ -1,4 +1,4 @@
-"""One atlas per input material (issue 22 item 3, issue 23 item 5).
+"""One atlas per input material.
 
 The texture stage bakes one patch per reshaped surface, at the source's texel density. Instead of
 writing each patch as its own material and PNG, :func:`pack_atlas` packs the source texture (the

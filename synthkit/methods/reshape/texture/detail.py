@@ -26,10 +26,8 @@
 Beyond the paper (its section 6 names the limitation): :func:`split_regions` cuts the stochastic
 texels into several labels by k-means on local statistics (mean and log standard deviation of
 the equalized luminance over 15 x 15 texels, labels median-filtered over 7 x 7), so two
-materials that touch get a tile each. On house4's garage door (raised 20 %) it stops the flat
-panels from borrowing the textured bottom strip's tile (detail energy 7.3x with one region), but
-the panels' own regions are narrower than ``min_tile``, so they get no tile at all (0.35 against
-the naive 0.46): it stays an option (``regions: split``), off by default.
+materials that touch get a tile each; an option (``regions: split``), off by default (measured
+on a real house: docs/findings/reshape.md).
 """
 
 from __future__ import annotations

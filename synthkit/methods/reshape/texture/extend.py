@@ -1,4 +1,4 @@
-"""Materials continue instead of stretching (issue 23 item 4, beyond the paper's section 4).
+"""Materials continue instead of stretching (beyond the paper's section 4; docs/findings/reshape.md).
 
 A surface of a house (a brick wall, a roof slope) maps its atlas patch with one affine map from
 world to texels. When the wall widens, :func:`extend_surface` keeps that map, anchored at the
@@ -27,15 +27,14 @@ __all__ = ["Extended", "affine_map", "patch_mask", "periods", "lattice", "extend
 
 EDGE = 8
 """Texels along a patch's border that continued texels are read from only when its interior has no
-texel at a whole period: the border often holds a strip that is not the material (the ridge
-flashing of house4's roof, 8 texels, repeated every course made a band of flatter rows)."""
+texel at a whole period: the border often holds a strip that is not the material."""
 
 SHIFTS = 12
 """Whole periods tried each way when continuing a texel."""
 
 PERIODIC = 0.05
-"""Lattice strength (:func:`lattice`) under which content counts as stochastic and is quilted: the
-plaster walls of house1 measure 0.008-0.033, its brick and roof tiles 0.36-0.99."""
+"""Lattice strength (:func:`lattice`) under which content counts as stochastic and is quilted
+(plaster against brick and roof tiles: docs/findings/reshape.md)."""
 
 QUILT_PATCH = 32
 """Side (texels) of the quilting patches of stochastic content (overlap a quarter of it)."""

@@ -131,13 +131,8 @@ def edge_stiffness(T, X, edges, *, s_min: float, s_align: float, samples: int = 
     """Eq. 13 per grid edge and direction: ``(D, E)`` stiffness ``s_min + T_dir (1 + s_align (1 -
     |e . dir|))`` for maps ``T (D, H, W)`` (directions as :data:`autosim.DIRECTIONS` order: x, y),
     nodes ``X (n, 2)`` texels, ``edges (E, 2)``; ``T_dir`` is the largest of ``samples`` bilinear
-    reads along the edge (``samples=1``: the midpoint), clipped at ``t_max`` when given.
-
-    Why a clip: eq. 13 grows with ``T`` without bound, so within a surface that is rigid all over
-    (the roof tiles and bricks of the real atlases, whose courses repeat beyond Delta) the stretch
-    it must take goes into its least structured texels: on house1's roof (house_a_bake.png) the
-    rigid texels were scaled by 65 % against 58 % for the uniform naive stretch. Above ``t_max`` a
-    texel is simply rigid; rigid texels then share the stretch evenly among themselves."""
+    reads along the edge (``samples=1``: the midpoint), clipped at ``t_max`` when given: above it a
+    texel is simply rigid, and rigid texels share the stretch evenly (why: docs/findings/reshape.md)."""
     a, b = X[edges[:, 0]], X[edges[:, 1]]
     t = np.array([0.5]) if samples == 1 else np.linspace(0, 1, samples)
     P = a[None] + t[:, None, None] * (b - a)[None]  # (s, E, 2)

@@ -225,12 +225,9 @@ def _naive(tex, C, Cn, F, size, toroidal):
 
 def _surface_tiles(tex: TextureAnalysis, grid: DeformationGrid, params: TextureParams, rng):
     """Tile map ``(H, W) int32`` and table ``(k + 1, 4)`` of the stochastic regions *inside this
-    surface's texture-space polygon*.
-
-    Why per surface: in an atlas, stochastic texels of neighbouring patches touch, so one connected
-    region of the whole atlas would hand a garage door the tile grown in the concrete patch beside
-    it (house4 raised: detail energy 7x the garage's own). The polygon is rasterized from the
-    grid's triangles, and the regions are cut by its outline."""
+    surface's texture-space polygon* (in an atlas, neighbouring patches' stochastic texels touch:
+    docs/findings/reshape.md). The polygon is rasterized from the grid's triangles, and the regions
+    are cut by its outline."""
     H, W = tex.rigid.shape
     lo = np.clip(np.floor(grid.X.min(axis=0)), 0, [W - 1, H - 1]).astype(int)
     hi = np.clip(np.ceil(grid.X.max(axis=0)), lo + 1, [W, H]).astype(int)

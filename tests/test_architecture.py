@@ -1,8 +1,7 @@
 """The package's shape, checked on its source (issue 27): the library never imports the command
 line; files are replaced atomically in one place only; no import cycle (lazy imports included);
 no function over 80 lines of code outside numba kernels; only pipelines, configs and the framework
-raise ConfigError/InputError; no private name is imported from another module. The ``KNOWN_*``
-sets list what is left to fix; a test fails on a new case and on a fixed one still listed."""
+raise ConfigError/InputError; no private name is imported from another module."""
 
 import ast
 from pathlib import Path
@@ -105,14 +104,12 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-KNOWN_CYCLES: list[list[str]] = []
-"""Import cycles left to break (issue 27); the test fails on any other, and on one that is gone."""
 
 
 def test_no_import_cycles():
     known = _module_names()
     graph = {name: _synthkit_imports(name, path, known) for name, path in known.items()}
-    assert _cycles(graph) == KNOWN_CYCLES
+    assert _cycles(graph) == []
 
 
 def test_the_cycle_finder_finds_a_cycle():
@@ -124,8 +121,6 @@ MAX_FUNCTION_LINES = 80
 """Most lines of code (no docstring, blank or comment lines) a function may have; numba kernels,
 which cannot call helpers cheaply, are exempt."""
 
-KNOWN_LONG_FUNCTIONS: set[str] = set()
-"""Functions over the limit left to split (issue 27)."""
 
 
 def _code_lines(node: ast.FunctionDef, lines: list[str]) -> int:
@@ -151,13 +146,11 @@ def test_functions_are_short():
             if (isinstance(node, ast.FunctionDef) and not _is_kernel(node)
                     and _code_lines(node, lines) > MAX_FUNCTION_LINES):
                 long.add(f"{path.relative_to(PACKAGE).as_posix()}:{node.name}")
-    assert long == KNOWN_LONG_FUNCTIONS
+    assert sorted(long) == []
 
 
 USER_ERRORS = ("ConfigError", "InputError")
 
-KNOWN_STAGE_RAISES = {"methods/reshape/retexture.py"}
-"""Stage modules that still raise config or input errors themselves (issue 27)."""
 
 
 def test_only_pipelines_and_configs_raise_user_errors():
@@ -172,11 +165,9 @@ def test_only_pipelines_and_configs_raise_user_errors():
                 raised = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
                 if ast.unparse(raised) in USER_ERRORS:
                     raising.add(path.relative_to(PACKAGE).as_posix())
-    assert raising == KNOWN_STAGE_RAISES
+    assert sorted(raising) == []
 
 
-KNOWN_PRIVATE_IMPORTS: set[str] = set()
-"""Private names still imported from another module (issue 27)."""
 
 
 def test_no_private_name_is_imported_from_another_module():
@@ -187,4 +178,17 @@ def test_no_private_name_is_imported_from_another_module():
                 imported |= {f"{path.relative_to(PACKAGE).as_posix()}: {node.module}.{alias.name}"
                              for alias in node.names
                              if alias.name.startswith("_") and not alias.name.startswith("__")}
-    assert imported == KNOWN_PRIVATE_IMPORTS
+    assert sorted(imported) == []
+
+
+ROOMS = ("config.py", "options.py", "pipeline.py", "outputs.py", "api.py")
+"""The modules every method package has (synthkit/methods/__init__.py says what each holds)."""
+
+
+@pytest.mark.parametrize("package", ["retarget", "surfacing", "reshape", "petri", "symtex"])
+def test_every_method_has_the_same_rooms(package):
+    folder = PACKAGE / "methods" / package
+    assert [room for room in ROOMS if not (folder / room).is_file()] == []
+    defined = {node.name for node in ast.parse((folder / "pipeline.py").read_text()).body
+               if isinstance(node, ast.FunctionDef)}
+    assert {"compute", "run"} <= defined

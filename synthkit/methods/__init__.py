@@ -9,9 +9,15 @@ provides:
   adding a ``--set`` override when given;
 - ``config.py`` with the schema class bound to the module name ``CONFIG`` (a
   :class:`synthkit.config.RunConfig` subclass whose ``method`` is ``Literal['<name>']``);
-- ``pipeline.py`` with ``run(cfg, ctx: synthkit.runner.RunContext) -> None``, which reads inputs
-  through :mod:`synthkit.io`, times its stages with ``ctx.stage``, writes outputs through
-  ``ctx.path`` and fills ``ctx.metrics``.
+- ``pipeline.py`` with ``compute(cfg, inputs, ctx) -> Result`` (reads every input through the
+  :class:`synthkit.io.inputs.Inputs`, runs the stages, times them with ``ctx.stage``, fills
+  ``ctx.metrics`` and maps stage ``ValueError``s to ``ConfigError``/``InputError`` naming the key;
+  writes nothing) and ``run(cfg, ctx: synthkit.runner.RunContext) -> None`` (the command line:
+  ``compute(cfg, Inputs(), ctx).write(ctx)``);
+- ``outputs.py`` with the method's :class:`synthkit.api.Result` subclass: its outputs in memory and
+  ``write(ctx)``, which writes the files and previews through ``ctx.path``;
+- ``options.py``: the one map from config keys to the stages' arguments;
+- ``api.py`` with the public function (``synthkit.<name>``, see :data:`synthkit.API_FUNCTIONS`).
 
 A method is available when its package is present; modules are imported lazily so that
 ``synthkit --help`` stays fast.

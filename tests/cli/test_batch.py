@@ -402,13 +402,6 @@ def test_cluster_started_by_hand(runner, tmp_path):
                 proc.wait()
 
 
-def _worker_state() -> dict:
-    import threading
-
-    return {"pymeshlab": "pymeshlab" in sys.modules, "threads": {k: os.environ.get(k) for k in batch.THREAD_ENV},
-            "malloc_trim": os.environ.get("MALLOC_TRIM_THRESHOLD_"), "main": threading.current_thread().name}
-
-
 @needs_dask
 @pytest.mark.slow
 def test_local_workers_thread_limits_and_main_thread_imports():
@@ -416,11 +409,21 @@ def test_local_workers_thread_limits_and_main_thread_imports():
     pymeshlab in their main thread (imported first in a task thread, it aborts the worker at exit)."""
     from distributed import Client
 
+    def worker_state() -> dict:  # local, so that it is pickled by value: workers cannot import tests/
+        import os
+        import sys
+        import threading
+
+        from synthkit import batch
+
+        return {"pymeshlab": "pymeshlab" in sys.modules, "threads": {k: os.environ.get(k) for k in batch.THREAD_ENV},
+                "malloc_trim": os.environ.get("MALLOC_TRIM_THRESHOLD_"), "main": threading.current_thread().name}
+
     cluster = batch.local_cluster(1)
     try:
         with Client(cluster, set_as_default=False) as client:
             batch.prepare_workers(client)
-            (state,) = client.run(_worker_state).values()
+            (state,) = client.run(worker_state).values()
     finally:
         cluster.close()
     assert state == {"pymeshlab": True, "threads": dict.fromkeys(batch.THREAD_ENV, "1"), "malloc_trim": None,

@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from synthkit.cli.main import cli
 from synthkit.io.images import save_image
@@ -60,6 +61,7 @@ def test_retarget_typo_exit_2_with_suggestion(runner, tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_retarget_analyze_only_flag(runner, tmp_path):
     cfg = CONFIGS / "retarget" / "bookshelf.yaml"
     out = tmp_path / "o"

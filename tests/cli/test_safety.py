@@ -566,6 +566,7 @@ def test_config_file_too_large_refused_before_parsing(runner, tmp_path):
                                       "as strokes or labels belongs in the files a config names)")
 
 
+@pytest.mark.slow
 def test_config_with_too_many_values_has_its_own_reason(runner, tmp_path, echo_config):
     cfg = tmp_path / "many.yaml"
     values = ",".join(["1"] * (YAML_NODE_BUDGET + 1))

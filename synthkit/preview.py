@@ -21,12 +21,48 @@ import numpy as np
 
 from synthkit.io.images import save_image
 
-_VIEWS = {
-    "front": (0.0, 0.0),
-    "top": (0.0, 90.0),
-    "side": (90.0, 0.0),
-    "iso": (35.0, 25.0),
-}
+VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "right": (90.0, 0.0), "side": (90.0, 0.0),
+         "left": (-90.0, 0.0), "top": (0.0, 90.0), "bottom": (0.0, -90.0), "iso": (35.0, 25.0)}
+"""View name -> (azimuth about +Y, elevation) in degrees, of every render: previews and the views
+strokes are painted on (``side`` is ``right``)."""
+
+FRAME_MARGIN = 0.06
+"""Share of the image size left free on each side of a framed view."""
+
+
+@dataclass
+class Camera:
+    """Orthographic camera: world -> camera ``rotation (3, 3)``, then pixel
+    ``x = (p_x - lo_x) * scale + offset_x``, ``y = size - 1 - ((p_y - lo_y) * scale + offset_y)``."""
+
+    view: str
+    size: int
+    rotation: np.ndarray
+    lo: np.ndarray
+    scale: float
+    offset: np.ndarray
+
+    def to_pixels(self, P) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel coordinates ``(k, 2)`` (x, y) and depth ``(k,)`` (larger is nearer) of ``P (k, 3)``."""
+        Q = np.asarray(P, np.float64) @ self.rotation.T
+        xy = (Q[:, :2] - self.lo) * self.scale + self.offset
+        return np.stack([xy[:, 0], self.size - 1 - xy[:, 1]], axis=1), Q[:, 2]
+
+    def to_json(self) -> dict:
+        return {"view": self.view, "size": self.size, "rotation": self.rotation.tolist(), "lo": self.lo.tolist(),
+                "scale": self.scale, "offset": self.offset.tolist(),
+                "convention": "x = (R p - lo)_x * scale + offset_x; y = size - 1 - ((R p - lo)_y * scale + offset_y)"}
+
+
+def camera(points, view: str, size: int) -> Camera:
+    """The camera of ``view`` framing ``points (k, 3)`` (their bounding box, :data:`FRAME_MARGIN`
+    free on each side, centred) in a ``size`` x ``size`` image."""
+    R = view_rotation(view)
+    xy = (np.asarray(points, np.float64).reshape(-1, 3) @ R.T)[:, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    margin = FRAME_MARGIN * size
+    scale = (size - 2 * margin) / max(float((hi - lo).max()), 1e-12)
+    return Camera(view, int(size), R, lo, float(scale), margin + 0.5 * ((size - 2 * margin) - (hi - lo) * scale))
 _BASE_COLOR = np.array([0.72, 0.76, 0.84])
 
 SET1 = np.array(
@@ -93,9 +129,9 @@ class Appearance:
 
 def view_rotation(view: str) -> np.ndarray:
     """(3, 3) rotation taking world coordinates to camera coordinates (x right, y up, z to viewer)."""
-    if view not in _VIEWS:
-        raise ValueError(f"unknown view {view!r} (one of {', '.join(_VIEWS)})")
-    azim, elev = np.radians(_VIEWS[view])
+    if view not in VIEWS:
+        raise ValueError(f"unknown view {view!r} (one of {', '.join(VIEWS)})")
+    azim, elev = np.radians(VIEWS[view])
     elev = -elev
     ca, sa, ce, se = np.cos(azim), np.sin(azim), np.cos(elev), np.sin(elev)
     rot_y = np.array([[ca, 0.0, -sa], [0.0, 1.0, 0.0], [sa, 0.0, ca]])
@@ -126,34 +162,24 @@ def rasterize_mesh(
     img = np.ones((size, size, 3), dtype=np.float32)
     if len(F) == 0:
         return img
-    R = view_rotation(view)
-    P = V @ R.T
-    framed = P if frame is None else np.asarray(frame, np.float64).reshape(-1, 3) @ R.T
+    framed = V if frame is None else np.asarray(frame, np.float64).reshape(-1, 3)
     if lines is not None and len(lines):
-        framed = np.vstack([framed, np.asarray(lines).reshape(-1, 3) @ R.T])
-    lo, hi = framed[:, :2].min(axis=0), framed[:, :2].max(axis=0)
-    extent = max(float((hi - lo).max()), 1e-12)
-    margin = 0.06 * size
-    scale = (size - 2 * margin) / extent
-    offset = margin + 0.5 * ((size - 2 * margin) - (hi - lo) * scale)
-
-    def to_pixels(points: np.ndarray) -> np.ndarray:
-        xy = (points[:, :2] - lo) * scale + offset
-        return np.stack([xy[:, 0], size - 1 - xy[:, 1]], axis=1)
-
-    pix = to_pixels(P)
+        framed = np.vstack([framed, np.asarray(lines, np.float64).reshape(-1, 3)])
+    cam = camera(framed, view, size)
+    R = cam.rotation
+    P = V @ R.T
+    pix = cam.to_pixels(V)[0]
     depth = np.full(size * size, -np.inf)
     face_at = np.full(size * size, -1, dtype=np.int64)
     _rasterize(pix[F], P[F, 2], size, depth, face_at)
     covered = face_at >= 0
-    img.reshape(-1, 3)[covered] = _shaded_colors(P, F, None if appearance is not None else face_colors,
+    img.reshape(-1, 3)[covered] = shaded_colors(P, F, None if appearance is not None else face_colors,
                                                  face_at[covered])
     if appearance is not None:
         pixels = np.flatnonzero(covered)
         img.reshape(-1, 3)[pixels] *= _surface_colors(appearance, pix[F], pixels, face_at[pixels], size, face_colors)
     if lines is not None and len(lines):
-        segs = np.asarray(lines, dtype=np.float64).reshape(-1, 3) @ R.T
-        seg_pix = to_pixels(segs).reshape(-1, 2, 2)
+        seg_pix = cam.to_pixels(np.asarray(lines, dtype=np.float64).reshape(-1, 3))[0].reshape(-1, 2, 2)
         canvas = np.ascontiguousarray(img)
         ends = np.round(seg_pix).astype(np.int32).reshape(-1, 2, 1, 2)
         cv2.polylines(canvas, list(ends), False, (0.85, 0.1, 0.1), 2, cv2.LINE_AA)
@@ -171,7 +197,7 @@ _LIGHT = np.array([0.35, 0.55, 0.76])
 _NO_FACE = np.iinfo(np.int64).max
 
 
-def _shaded_colors(P: np.ndarray, F: np.ndarray, face_colors, faces: np.ndarray) -> np.ndarray:
+def shaded_colors(P: np.ndarray, F: np.ndarray, face_colors, faces: np.ndarray) -> np.ndarray:
     """Two-sided Lambert colours ``(k, 3)`` of the faces ``faces (k,)`` of ``P (#V, 3)`` (camera
     coordinates), ``F (#F, 3)``; only the faces that cover a pixel are shaded."""
     used = np.zeros(len(F), bool)

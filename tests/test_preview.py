@@ -14,13 +14,14 @@ def _square(z, color_index=0):
 
 
 def test_view_rotations_are_orthonormal():
-    for view in ("front", "top", "side", "iso"):
+    for view in ("front", "back", "left", "right", "side", "top", "bottom", "iso"):
         R = view_rotation(view)
         np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
     np.testing.assert_allclose(view_rotation("front"), np.eye(3))
     np.testing.assert_allclose(view_rotation("top") @ [0, 1, 0], [0, 0, 1], atol=1e-12)
-    with pytest.raises(ValueError, match="unknown view 'back'"):
-        view_rotation("back")
+    np.testing.assert_allclose(view_rotation("side"), view_rotation("right"))
+    with pytest.raises(ValueError, match="unknown view 'rear'"):
+        view_rotation("rear")
 
 
 def test_front_square_fills_the_frame_centre():

@@ -52,7 +52,7 @@ from synthkit.methods.surfacing.transfer.synth import Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
 
 __all__ = ["compute", "texel_size", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS",
-           "BYTES_PER_FACE", "FEATHER"]
+           "BYTES_PER_FACE"]
 
 log = logging.getLogger("synthkit")
 
@@ -459,14 +459,12 @@ def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res
     ext.material[faces] = k + 1
 
 
-FEATHER = 0.2
-"""Textures are feathered across patch seams over this share of the patch radius (:mod:`.bake`)."""
-
-
-def _texture_blend(prep: Prepared, r: Synthesized, blend: str, nearest: bool, *, band: float | None = None):
-    """The :class:`.bake.Blend` of pair texture of ``r`` on ``prep.target``: the full-resolution source
-    texture through the patches, feathered over ``FEATHER`` patch radii (or ``band``) and corrected to
-    the ``blend`` vertex values (none: neither)."""
+def _texture_blend(prep: Prepared, r: Synthesized, ex, *, blend: str | None = None):
+    """The :class:`.bake.Blend` of the texture of ``r`` on ``prep.target``: the full-resolution source
+    texture through the patches, feathered over ``ex.feather`` patch radii and corrected to the
+    vertex values of ``blend`` (default ``ex.blend``; none: neither)."""
+    blend = ex.blend if blend is None else blend
+    nearest = ex.sampling == "nearest"
     t = prep.target
     sharp = Signal("texture", uv=prep.source.signal.uv, texture=prep.texture)
     read = lambda f, b: sharp.sample(f, b, nearest=nearest)  # noqa: E731
@@ -474,15 +472,14 @@ def _texture_blend(prep: Prepared, r: Synthesized, blend: str, nearest: bool, *,
         return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, 0.0, read)
     corner = corner_values(r, prep.source, len(t.F))
     vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
-    return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, FEATHER * prep.radius if band is None else band,
-                     read, smooth=prep.source.signal.sample, blended=vals)
+    return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, ex.feather * prep.radius, read,
+                     smooth=prep.source.signal.sample, blended=vals)
 
 
-def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layout: Layout, blend: str,
-                  nearest: bool, scale: float) -> None:
+def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layout: Layout, ex) -> None:
     """Pair ``k``'s blended texture (:func:`_texture_blend`) baked into an atlas over the work mesh's
     faces (refined faces read through the synthesis face they came from)."""
-    tex = _texture_blend(prep, res, blend, nearest)
+    tex = _texture_blend(prep, res, ex)
     local = np.full(int(layout.origin.max()) + 1, -1, np.int64)
     local[prep.target.face_ids] = np.arange(len(prep.target.face_ids))
     mine = layout.result(k, res)
@@ -491,7 +488,7 @@ def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layo
         s = local[layout.origin[faces]]
         return tex.colour(s, barycentric_2d(res.corner_uv[s], np.einsum("nk,nkc->nc", bary, layout.uv[faces])))
 
-    atlas = bake(mine.corner_uv, mine.patch_of, colour, texel_size(prep.source) * scale)
+    atlas = bake(mine.corner_uv, mine.patch_of, colour, texel_size(prep.source) * prep.scale)
     faces = np.flatnonzero(mine.patch_of >= 0)
     ext.uv[faces] = atlas.uv[faces]
     ext.atlases[k] = atlas.image
@@ -530,12 +527,12 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
                 new[border] = 0.5 * (new[border] + original[ids[border]])
             ext.colors[ids] = new
             if pair.signal == "texture" and ex.blend != "none":
-                _bake_texture(ext, k, prep, res, layout, ex.blend, ex.sampling == "nearest", pair.scale)
+                _bake_texture(ext, k, prep, res, layout, ex)
     return ext
 
 
-def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, blend: str, nearest: bool) -> dict:
-    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``blend``) and,
+def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, ex) -> dict:
+    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``ex.blend``) and,
     with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
     colour, texture and attribute signals; texture pairs add the same of their texture
     (:func:`_texture_seam_figures`)."""
@@ -547,10 +544,10 @@ def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, bl
         if r is None:
             continue
         corner = corner_values(r, prep.source, len(t.F))
-        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
+        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=ex.blend, V=t.V)
         out[key] = _finite(seam_visibility(t.V, t.F, r.patch_of, vals))
         if prep.source.signal.kind == "texture":
-            out |= _texture_seam_figures(key, prep, r, blend, nearest)
+            out |= _texture_seam_figures(key, prep, r, ex)
     return out
 
 
@@ -558,16 +555,16 @@ def _finite(x: float) -> float | None:
     return None if not np.isfinite(x) else float(x)
 
 
-def _texture_seam_figures(key: str, prep: Prepared, r: Synthesized, blend: str, nearest: bool) -> dict:
+def _texture_seam_figures(key: str, prep: Prepared, r: Synthesized, ex) -> dict:
     """``<key>_texture`` (and ``..._unblended``): :func:`.bake.texture_seam_visibility` of the texture
     the output shows (:func:`_texture_blend` with ``blend``) and of the source texture read through
     each face's own patch alone, at a step of two source texels."""
     t, step = prep.target, 2.0 * texel_size(prep.source) * prep.scale
     texture = key.replace("seam_visibility", "texture_seam_visibility")
     figure = {}
-    for name, how in ((texture, blend), (f"{texture}_unblended", "none")):
-        if name == texture or blend != "none":
-            tex = _texture_blend(prep, r, how, nearest)
+    for name, how in ((texture, ex.blend), (f"{texture}_unblended", "none")):
+        if name == texture or ex.blend != "none":
+            tex = _texture_blend(prep, r, ex, blend=how)
             figure[name] = _finite(texture_seam_visibility(t.V, t.F, r.patch_of, tex.colour, step))
     return figure
 
@@ -595,8 +592,8 @@ def _pair_metrics(prep: Prepared, res: Synthesized, base: Synthesized | None) ->
 
 
 def _metrics(cfg, ctx, preps, results) -> None:
-    blend, nearest = cfg.transfer.extraction.blend, cfg.transfer.extraction.sampling == "nearest"
-    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, blend, nearest)}
+    ex = cfg.transfer.extraction
+    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, ex)}
              for p, (r, b) in zip(preps, results, strict=True)]
     n = sum(m["target_faces"] for m in pairs)
     m = {

@@ -8,8 +8,13 @@ so a patch border is a jump between two unrelated places of the source. With ``b
 added to the full-resolution source texture read through the patch (the leveling of Lempitsky and
 Ivanov, "Seamless mosaicing of image-based texture maps", 2007, with the Poisson fit of
 :func:`.extract.poisson_values` as the leveling function): the low frequencies are the blended
-ones, the detail the source's. A correction cannot be expressed through UVs into the source, so
-the texture is baked (:func:`bake`): each patch's faces, laid out by their domain coordinates (the
+ones, the detail the source's. The leveling cannot join two unrelated places of a texture (a stone
+edge meeting mortar), so near a seam the texture is also feathered (:func:`feathered`): every patch
+whose accepted faces reach a point contributes its own levelled texture, weighted by vertex weights
+that are 1 on the patch's own faces, fall linearly to 0 over a band and are 0 wherever the patch
+maps nothing, so the result is continuous across a seam wherever the two patches overlap
+(docs/findings/surface-by-numbers.md). A correction cannot be expressed through UVs into the
+source, so the texture is baked (:func:`bake`): each patch's faces, laid out by their domain coordinates (the
 patch's own parameterization, without overlaps), are one chart of an atlas at a given texel size,
 packed in shelves with a gutter of ``GUTTER`` texels filled from the nearest texel.
 

@@ -19,7 +19,7 @@ Goals of issue 29 for ``default``: mean at most 0.09 (disc) and 0.035 (body), be
 model, and on each model within 0.01 of the better of ``previous-default`` and ``paper-face``.
 
 Run: ``.venv/bin/python benchmarks/segmentation.py [--sources first|all] [--only quality|speed]
-[--configs NAME,...]``.
+[--configs NAME,...] [--models ID,...] [--protocols disc,body]``.
 """
 
 from __future__ import annotations
@@ -170,6 +170,8 @@ def load_model(mid: str):
 def run_quality(args, names) -> dict:
     """Rand Index error (and the other measures) per model, protocol and config."""
     models = sorted(p.stem for p in PSB.glob("*.off"))
+    if args.models:
+        models = [m for m in models if m in args.models.split(",")]
     rows: dict[tuple[str, str], list[dict]] = {}
     human = []
     for mid in models:
@@ -314,6 +316,7 @@ def main() -> int:
     parser.add_argument("--sources", choices=("first", "all"), default="first")
     parser.add_argument("--only", choices=("quality", "speed"))
     parser.add_argument("--configs", default=",".join(CONFIGS))
+    parser.add_argument("--models", default="", help="PSB model ids to score, e.g. 42,182 (default: all 8)")
     parser.add_argument("--protocols", default="disc,body")
     parser.add_argument("--sizes", default="100k,1M")
     args = parser.parse_args()

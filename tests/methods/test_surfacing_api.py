@@ -252,7 +252,7 @@ def test_textured_trimesh_target_keeps_its_texture_and_saves_the_cli_bytes(tmp_p
     np.testing.assert_allclose(result.textures[0], tex, atol=1 / 255)
     assert [m.name for m in result.asset.materials] == ["original", "transfer_0"]
     result.save(tmp_path / "api", previews="summary")
-    for name in ("transferred.obj", "transferred.mtl", "original.png", "source_0.png", "transferred.ply",
+    for name in ("transferred.obj", "transferred.mtl", "original.png", "transfer_0.png", "transferred.ply",
                  "patches.ply", "transfer.png"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
 

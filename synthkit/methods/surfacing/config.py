@@ -268,7 +268,12 @@ class ExtractionSection(StrictModel):
         "poisson", description="poisson = vertex values whose gradients match each patch's own, seams' jumps spread "
         "over about 10 edge lengths (Poisson blending); kernel = area-weighted average of the corners at each vertex "
         "(across patch seams); none = one corner's value. poisson and kernel average the region's border with the "
-        "target's own colours."
+        "target's own colours. Textures through UVs: poisson and kernel level the texture to these vertex values, "
+        "feather it across seams and bake it into an atlas (transfer_<k>.png); none keeps UVs into the source image."
+    )
+    feather: float = Field(
+        0.2, ge=0, le=1, description="Textures (blend poisson or kernel): each patch's texture fades out over this "
+        "share of the patch radius beyond its own faces, where it maps, so seams cross-fade; 0 = the leveling alone."
     )
     subdivide: int = Field(0, ge=0, le=4, description="Midpoint (1-to-4) subdivision steps of the whole target "
                            "before synthesis, so vertex values can hold finer detail (4.5's refinement, uniform).")

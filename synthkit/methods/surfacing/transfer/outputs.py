@@ -3,11 +3,13 @@
 Outputs: ``transferred.ply`` (the target mesh with vertex colours, displaced positions and, for
 ``signal: attribute``, the transferred property), ``transferred<suffix>`` in the input's format
 for displacement when the input is not PLY, ``transferred.obj`` + ``.mtl`` for texture signals
-(the target's material, with ``original.png`` when it has a texture, and one material per texture
-pair whose faces have UVs into ``source_<k>.png``), ``patches.ply`` (int32 ``label`` = patch id per face,
--1 outside every target region; ids count on over the pairs), and the previews ``transfer.png``
-(before and after from three views: the summary), ``patches.png``, ``seams.png`` (seam cost per
-edge on its faces) and ``params.png`` (the first patches' source and target domains, Fig. 4).
+(the target's material, with ``original.png`` when it has a texture, and one material per
+texture pair whose faces have UVs into ``source_<k>.png``, the source image, with ``blend: none``,
+or else into ``transfer_<k>.png``, the blended texture baked into an atlas), ``patches.ply``
+(int32 ``label`` = patch id per face, -1 outside every target region; ids count on over the
+pairs), and the previews ``transfer.png`` (before and after from three views: the summary),
+``patches.png``, ``seams.png`` (seam cost per edge on its faces) and ``params.png`` (the first
+patches' source and target domains, Fig. 4).
 """
 
 from __future__ import annotations
@@ -68,7 +70,9 @@ class TransferResult(Result):
     corner_uv : (#F, 3, 2) float64 texture coordinates per face corner, or None (no texture anywhere)
     face_material : (#F,) int64 0 = the target's own material, k + 1 = pair k's source texture; or None
     textures : the (H, W, 3) float images of those materials (None: no texture): ``textures[0]`` the
-        target's own, ``textures[k + 1]`` pair k's source image (``original.png``, ``source_<k>.png``)
+        target's own, ``textures[k + 1]`` pair k's source image (``original.png``, ``source_<k>.png``), or
+        its baked atlas when pair k is in ``baked`` (``transfer_<k>.png``)
+    baked : the texture pairs whose blended texture was baked into an atlas (``blend`` not ``none``)
     seam_field : (#F,) float64 seam cost per face (half of each incident seam; NaN outside the regions)
     patch_domains : the source and target domains ``(n, 3, 2)`` of the first patches (Fig. 4)
     before_positions, before_colors : the target before the transfer (colours None: it had none)
@@ -84,6 +88,7 @@ class TransferResult(Result):
     corner_uv: np.ndarray | None = None
     face_material: np.ndarray | None = None
     textures: list[np.ndarray | None] = field(default_factory=list)
+    baked: list[int] = field(default_factory=list)
     seam_field: np.ndarray
     patch_domains: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     before_positions: np.ndarray
@@ -111,15 +116,17 @@ class TransferResult(Result):
 
     def _export_obj(self, ctx) -> None:
         """``transferred.obj`` + ``.mtl``: the target's own material (its texture as ``original.png``
-        when it has one) and one material per texture pair with its source texture (``source_<k>.png``)."""
+        when it has one) and one material per texture pair with its source texture (``source_<k>.png``)
+        or, blended, its baked atlas (``transfer_<k>.png``)."""
         materials = [("original", None)]
         if self.textures[0] is not None:
             save_image(ctx.path("texture_original", "original.png"), self.textures[0])
             materials[0] = ("original", "original.png")
         for k, tex in enumerate(self.textures[1:]):
-            name = f"source_{k}.png"
+            kind = "transfer" if k in self.baked else "source"
+            name = f"{kind}_{k}.png"
             if tex is not None:
-                save_image(ctx.path(f"texture_source_{k}", name), tex)
+                save_image(ctx.path(f"texture_{kind}_{k}", name), tex)
             materials.append((f"transfer_{k}", name if tex is not None else None))
         ctx.path("transferred_mtl", "transferred.mtl")
         write_textured_obj(ctx.path("transferred_obj", "transferred.obj"), self.positions, self.faces, self.corner_uv,

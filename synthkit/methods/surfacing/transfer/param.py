@@ -121,6 +121,25 @@ class Locator:
         self.tree = cKDTree(self.T.mean(axis=1))
         self.k = int(min(8, len(self.T)))
 
+    def contains(self, Q: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
+        """``(n,) bool``: whether each point of ``Q (n, 2)`` lies in a triangle, exactly
+        ``locate(Q)[2]``, testing the triangle with the nearest centroid first and the other
+        candidates only for the points it does not hold."""
+        Q = np.asarray(Q, np.float64).reshape(-1, 2)
+        _, first = self.tree.query(Q, k=1)
+        T = self.T[first]
+        a, b, c = T[:, 0], T[:, 1], T[:, 2]
+        v0, v1, v2 = b - a, c - a, Q - a
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        den = np.where(np.abs(den) < 1e-300, 1e-300, den)
+        w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        out = np.minimum(np.minimum(1 - w1 - w2, w1), w2) >= -eps
+        rest = np.flatnonzero(~out)
+        if len(rest):
+            out[rest] = self.locate(Q[rest], eps=eps)[2]
+        return out
+
     def locate(self, Q: np.ndarray, *, eps: float = 1e-9):
         """``(tri (n,), bary (n, 3), inside (n,) bool)`` for ``Q (n, 2)``; outside points get the
         candidate they are least outside of, with clamped coordinates."""
@@ -241,12 +260,21 @@ def unfold(surface: Surface, face: int, *, radius: float) -> np.ndarray:
 
 
 def _piece(pairs: np.ndarray, ok: np.ndarray, seed: int) -> np.ndarray:
-    """Mask of the faces with ``ok`` connected to ``seed`` through ``ok`` faces."""
+    """Mask of the faces with ``ok`` connected to ``seed`` through ``ok`` faces (the components of
+    the ``ok`` faces alone, not of the whole surface)."""
     n = len(ok)
-    keep = ok[pairs[:, 0]] & ok[pairs[:, 1]]
-    A = sp.coo_matrix((np.ones(int(keep.sum())), (pairs[keep, 0], pairs[keep, 1])), shape=(n, n))
+    if not ok[seed]:
+        return np.zeros(n, bool)
+    nodes = np.flatnonzero(ok)
+    local = np.full(n, -1, np.int64)
+    local[nodes] = np.arange(len(nodes))
+    keep = pairs[ok[pairs[:, 0]] & ok[pairs[:, 1]]]
+    m = len(nodes)
+    A = sp.coo_matrix((np.ones(len(keep)), (local[keep[:, 0]], local[keep[:, 1]])), shape=(m, m))
     _, comp = connected_components(A, directed=False)
-    return ok & (comp == comp[seed]) if ok[seed] else np.zeros(n, bool)
+    out = np.zeros(n, bool)
+    out[nodes[comp == comp[local[seed]]]] = True
+    return out
 
 
 def _drop_overlaps(T: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -325,8 +353,9 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     if not len(faces):
         return None
     T = Ut[target.F[faces]]
-    probe = np.concatenate([T, T.mean(axis=1, keepdims=True)], axis=1).reshape(-1, 2)
-    inside = locator.locate(probe)[2].reshape(-1, 4).all(axis=1)
+    corners, corner_of = np.unique(target.F[faces], return_inverse=True)  # each shared corner located once
+    found = locator.contains(np.concatenate([Ut[corners], T.mean(axis=1)]))
+    inside = found[:len(corners)][corner_of.reshape(-1, 3)].all(axis=1) & found[len(corners):]
     ok = np.zeros(len(target.F), bool)
     ok[faces[inside]] = True
     ok = _piece(target.pairs, ok, seed)

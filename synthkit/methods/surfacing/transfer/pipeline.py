@@ -16,7 +16,7 @@ are input errors (exit 3).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,6 +31,12 @@ from synthkit.io.signals import image_grid, read_face_labels, texture_of, vertex
 from synthkit.methods.surfacing import prepare
 from synthkit.methods.surfacing.options import synthesis_options
 from synthkit.methods.surfacing.transfer import refine
+from synthkit.methods.surfacing.transfer.bake import (
+    bake,
+    barycentric_2d,
+    feathered,
+    texture_seam_visibility,
+)
 from synthkit.methods.surfacing.transfer.extract import (
     corner_sources,
     corner_values,
@@ -45,7 +51,8 @@ from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
 from synthkit.methods.surfacing.transfer.synth import Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
 
-__all__ = ["compute", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS", "BYTES_PER_FACE"]
+__all__ = ["compute", "texel_size", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS",
+           "BYTES_PER_FACE"]
 
 log = logging.getLogger("synthkit")
 
@@ -57,7 +64,8 @@ MIN_PATCH_EDGES = 3.0
 
 @dataclass
 class Prepared:
-    """One pair ready to synthesize: surfaces, compared channels, patch radius, config key."""
+    """One pair ready to synthesize: surfaces, compared channels, patch radius, config key, the
+    source's unfiltered texture and the scale (target units per source unit)."""
 
     target: Surface
     source: Surface
@@ -65,6 +73,7 @@ class Prepared:
     radius: float
     key: str
     texture: np.ndarray | None = None
+    scale: float = 1.0
 
 
 def _segmentation(cfg, ctx, mesh, inputs: Inputs) -> np.ndarray:
@@ -175,17 +184,23 @@ def _mean_edge(surface: Surface) -> float:
     return float(np.linalg.norm(surface.V[surface.edges[:, 0]] - surface.V[surface.edges[:, 1]], axis=1).mean())
 
 
-def prefiltered(source: Surface, spacing: float) -> Signal:
-    """The source's texture blurred to the target's sampling: a Gaussian of ``spacing / 2``
-    (source units) in texels, so vertex samples read the texture's local mean, not aliased texels.
-    The texel size is ``sqrt(surface area / texture area covered)``."""
+def texel_size(source: Surface) -> float:
+    """The size of a texel of the source's texture on its surface (source units):
+    ``sqrt(surface area / texture area covered, in texels)``."""
     sig = source.signal
     H, W = sig.texture.shape[:2]
     uv = sig.uv * [W, H]
     e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
     uv_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    texel = np.sqrt(source.area / max(uv_area, 1e-300))
-    sigma = 0.5 * spacing / texel
+    return float(np.sqrt(source.area / max(uv_area, 1e-300)))
+
+
+def prefiltered(source: Surface, spacing: float) -> Signal:
+    """The source's texture blurred to the target's sampling: a Gaussian of ``spacing / 2``
+    (source units) in texels (:func:`texel_size`), so vertex samples read the texture's local mean,
+    not aliased texels."""
+    sig = source.signal
+    sigma = 0.5 * spacing / texel_size(source)
     if sigma < 0.5:
         return sig
     import cv2
@@ -310,7 +325,8 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh, inputs: Inputs) -> list[Prepared]:
             if cfg.transfer.synthesis.orientation == "up":
                 target.orient(cfg.transfer.synthesis.up)
                 source.orient(pair.source.up)
-            out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key, sharp))
+            out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key, sharp,
+                                pair.scale))
     return out
 
 
@@ -351,7 +367,9 @@ def _border_vertices(F_full: np.ndarray, region_faces: np.ndarray, n_vertices: i
 @dataclass
 class Extracted:
     """The target mesh's new ``positions (#V, 3)``, ``colors (#V, 3)`` in [0, 1], ``attributes`` and
-    the patch id per face ``patch_ids (#F,)`` (-1 outside the target regions)."""
+    the patch id per face ``patch_ids (#F,)`` (-1 outside the target regions); for texture pairs the
+    corner ``uv (#F, 3, 2)``, the ``material (#F,)`` and, when blended, the baked atlas image of
+    pair k in ``atlases[k]``."""
 
     positions: np.ndarray
     colors: np.ndarray
@@ -359,6 +377,7 @@ class Extracted:
     patch_ids: np.ndarray
     uv: np.ndarray | None = None
     material: np.ndarray | None = None
+    atlases: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -440,6 +459,41 @@ def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res
     ext.material[faces] = k + 1
 
 
+def _texture_blend(prep: Prepared, r: Synthesized, ex, *, blend: str | None = None):
+    """The :class:`.bake.Blend` of the texture of ``r`` on ``prep.target``: the full-resolution source
+    texture through the patches, feathered over ``ex.feather`` patch radii and corrected to the
+    vertex values of ``blend`` (default ``ex.blend``; none: neither)."""
+    blend = ex.blend if blend is None else blend
+    nearest = ex.sampling == "nearest"
+    t = prep.target
+    sharp = Signal("texture", uv=prep.source.signal.uv, texture=prep.texture)
+    read = lambda f, b: sharp.sample(f, b, nearest=nearest)  # noqa: E731
+    if blend == "none":
+        return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, 0.0, read)
+    corner = corner_values(r, prep.source, len(t.F))
+    vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
+    return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, ex.feather * prep.radius, read,
+                     smooth=prep.source.signal.sample, blended=vals)
+
+
+def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layout: Layout, ex) -> None:
+    """Pair ``k``'s blended texture (:func:`_texture_blend`) baked into an atlas over the work mesh's
+    faces (refined faces read through the synthesis face they came from)."""
+    tex = _texture_blend(prep, res, ex)
+    local = np.full(int(layout.origin.max()) + 1, -1, np.int64)
+    local[prep.target.face_ids] = np.arange(len(prep.target.face_ids))
+    mine = layout.result(k, res)
+
+    def colour(faces, bary):
+        s = local[layout.origin[faces]]
+        return tex.colour(s, barycentric_2d(res.corner_uv[s], np.einsum("nk,nkc->nc", bary, layout.uv[faces])))
+
+    atlas = bake(mine.corner_uv, mine.patch_of, colour, texel_size(prep.source) * prep.scale)
+    faces = np.flatnonzero(mine.patch_of >= 0)
+    ext.uv[faces] = atlas.uv[faces]
+    ext.atlases[k] = atlas.image
+
+
 def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
     mesh = work.mesh
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
@@ -472,13 +526,16 @@ def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
                 border = _border_vertices(F, np.flatnonzero(layout.pair == k), nV)[ids]
                 new[border] = 0.5 * (new[border] + original[ids[border]])
             ext.colors[ids] = new
+            if pair.signal == "texture" and ex.blend != "none":
+                _bake_texture(ext, k, prep, res, layout, ex)
     return ext
 
 
-def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, blend: str) -> dict:
-    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``blend``) and,
+def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, ex) -> dict:
+    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``ex.blend``) and,
     with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
-    colour, texture and attribute signals."""
+    colour, texture and attribute signals; texture pairs add the same of their texture
+    (:func:`_texture_seam_figures`)."""
     if prep.source.signal.kind == "displacement":
         return {}
     t = prep.target
@@ -487,10 +544,29 @@ def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, bl
         if r is None:
             continue
         corner = corner_values(r, prep.source, len(t.F))
-        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
-        figure = seam_visibility(t.V, t.F, r.patch_of, vals)
-        out[key] = None if not np.isfinite(figure) else figure
+        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=ex.blend, V=t.V)
+        out[key] = _finite(seam_visibility(t.V, t.F, r.patch_of, vals))
+        if prep.source.signal.kind == "texture":
+            out |= _texture_seam_figures(key, prep, r, ex)
     return out
+
+
+def _finite(x: float) -> float | None:
+    return None if not np.isfinite(x) else float(x)
+
+
+def _texture_seam_figures(key: str, prep: Prepared, r: Synthesized, ex) -> dict:
+    """``<key>_texture`` (and ``..._unblended``): :func:`.bake.texture_seam_visibility` of the texture
+    the output shows (:func:`_texture_blend` with ``blend``) and of the source texture read through
+    each face's own patch alone, at a step of two source texels."""
+    t, step = prep.target, 2.0 * texel_size(prep.source) * prep.scale
+    texture = key.replace("seam_visibility", "texture_seam_visibility")
+    figure = {}
+    for name, how in ((texture, ex.blend), (f"{texture}_unblended", "none")):
+        if name == texture or ex.blend != "none":
+            tex = _texture_blend(prep, r, ex, blend=how)
+            figure[name] = _finite(texture_seam_visibility(t.V, t.F, r.patch_of, tex.colour, step))
+    return figure
 
 
 def _pair_metrics(prep: Prepared, res: Synthesized, base: Synthesized | None) -> dict:
@@ -516,9 +592,9 @@ def _pair_metrics(prep: Prepared, res: Synthesized, base: Synthesized | None) ->
 
 
 def _metrics(cfg, ctx, preps, results) -> None:
-    blend = cfg.transfer.extraction.blend
-    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, blend)} for p, (r, b) in zip(preps, results,
-                                                                                             strict=True)]
+    ex = cfg.transfer.extraction
+    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, ex)}
+             for p, (r, b) in zip(preps, results, strict=True)]
     n = sum(m["target_faces"] for m in pairs)
     m = {
         "pairs": pairs, "patches": sum(p["patches"] for p in pairs),
@@ -594,12 +670,12 @@ def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
         ext = _extract(cfg, work, layout, preps, results)
     _metrics(cfg, ctx, preps, results)
     _check_quality(cfg, ctx, mesh, work, ext)
-    textures = [work.texture] + [prep.texture if pair.signal == "texture" else None
-                                 for prep, pair in zip(preps, cfg.transfer.pairs, strict=True)]
+    textures = [work.texture] + [ext.atlases.get(k, prep.texture) if pair.signal == "texture" else None
+                                 for k, (prep, pair) in enumerate(zip(preps, cfg.transfer.pairs, strict=True))]
     return TransferResult(
         **result_fields(cfg, ctx, inputs), positions=ext.positions, faces=np.asarray(work.mesh.faces),
         colors=ext.colors, attributes=ext.attributes, patch_ids=ext.patch_ids, corner_uv=ext.uv,
-        face_material=ext.material, textures=textures,
+        face_material=ext.material, textures=textures, baked=sorted(ext.atlases),
         input_suffix="" if inputs.is_memory(cfg.input) else cfg.input.suffix.lower(),
         before_positions=np.asarray(work.mesh.vertices), before_colors=work.colors,
         seam_field=_seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin],

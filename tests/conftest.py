@@ -1,5 +1,9 @@
 """Shared fixtures: a tiny test-only method ('echo') and small input files."""
 
+import importlib
+import os
+import pkgutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -53,3 +57,52 @@ def repository_left_clean():
     if before is not None and after is not None:
         new = sorted(after - before)
         assert not new, f"tests left files in the repository: {new[:10]}"
+
+
+WRITERS = ("write_bytes_atomic", "write_text_atomic")
+"""synthkit's file writers (synthkit.io.atomic), under the names modules import them as."""
+
+
+def _import_every_module() -> None:
+    """Import all of synthkit, so that a module imported later cannot bind a patched writer."""
+    import synthkit
+
+    for info in pkgutil.walk_packages(synthkit.__path__, "synthkit."):
+        try:
+            importlib.import_module(info.name)
+        except ImportError:  # an optional extra (dask) that is not installed
+            pass
+
+
+def _refuse_writes(monkeypatch: pytest.MonkeyPatch, folder: Path) -> None:
+    """Work in ``folder`` with every synthkit writer, ``os.replace`` and ``np.save`` raising."""
+    _import_every_module()
+    monkeypatch.chdir(folder)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError(f"an in-memory run wrote a file ({args[0] if args else ''})")
+
+    for name, module in list(sys.modules.items()):
+        if name == "synthkit" or name.startswith("synthkit."):
+            for writer in WRITERS:
+                if hasattr(module, writer):
+                    monkeypatch.setattr(module, writer, refuse)
+    monkeypatch.setattr(os, "replace", refuse)
+    monkeypatch.setattr(np, "save", refuse)
+
+
+@pytest.fixture(scope="session")
+def refuse_writes():
+    """``refuse_writes(monkeypatch, folder)``: for fixtures of a wider scope than ``nothing_written``."""
+    return _refuse_writes
+
+
+@pytest.fixture
+def nothing_written(tmp_path, monkeypatch):
+    """An empty current folder in which nothing may be written, every synthkit writer raising for
+    the test's duration; yields the folder and checks it is still empty."""
+    folder = tmp_path / "cwd"
+    folder.mkdir()
+    _refuse_writes(monkeypatch, folder)
+    yield folder
+    assert os.listdir(folder) == []

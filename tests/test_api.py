@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import trimesh
 
-import synthkit.runner  # noqa: F401 (imported before a test patches the writers it binds)
 from synthkit.api import prepare, run_in_memory
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.assets import Asset, Material, asset_from_trimesh
@@ -149,28 +148,13 @@ def test_face_labels_in_memory():
 # ---------------------------------------------------------------- running and saving
 
 
-def _no_writes(monkeypatch, tmp_path):
-    """Run in an empty folder and make every synthkit writer raise."""
-    monkeypatch.chdir(tmp_path)
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("an in-memory run wrote a file")
-
-    monkeypatch.setattr("synthkit.io.atomic.write_bytes_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.atomic.write_text_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.images.write_bytes_atomic", refuse)
-    monkeypatch.setattr(os, "replace", refuse)
-
-
-def test_run_in_memory_writes_nothing(echo_method, tmp_path, monkeypatch):
-    _no_writes(monkeypatch, tmp_path)
+def test_run_in_memory_writes_nothing(echo_method, nothing_written):
     img = np.array([[0, 255]], np.uint8)
     cfg, inputs = prepare("echo", "synthkit.echo()", {"image": img}, {"mode": "invert"})
     result = run_in_memory("echo", "synthkit.echo()", _echo_compute(), cfg, inputs)
     np.testing.assert_array_equal(result.image, [[1.0, 0.0]])
     assert result.metrics == {"mean": 0.5} and result.status == "ok"
     assert set(result.timings) == {"load", "process", "total"}
-    assert os.listdir(tmp_path) == []
 
 
 def test_errors_of_a_run_in_memory_name_the_call(echo_method):

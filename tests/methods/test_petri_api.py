@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import doctest
 import json
-import os
 
 import numpy as np
 import pytest
@@ -43,26 +42,9 @@ def building():
     return sample.building()
 
 
-def _no_writes(monkeypatch, tmp_path):
-    """Run in an empty folder with every synthkit writer refusing."""
-    monkeypatch.chdir(tmp_path)
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("an in-memory run wrote a file")
-
-    monkeypatch.setattr("synthkit.io.atomic.write_bytes_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.atomic.write_text_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.images.write_bytes_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.assets.write_bytes_atomic", refuse)
-    monkeypatch.setattr("synthkit.io.meshes.write_bytes_atomic", refuse, raising=False)
-    monkeypatch.setattr(os, "replace", refuse)
-
-
-def test_petri_synth_in_memory_writes_nothing(building, tmp_path, monkeypatch):
-    _no_writes(monkeypatch, tmp_path)
+def test_petri_synth_in_memory_writes_nothing(building, nothing_written):
     V, F = building
     result = synthkit.petri_synth((V, F), **KEYS)
-    assert os.listdir(tmp_path) == []
     # 12 units along X, then a segment of length sqrt(89) = 9.43: 6 + 5 = 11 cells of 2
     assert result.label_grid.shape == (11, 2, 3)
     assert result.metrics["cells"] == 66 and result.metrics["construction_shape"] == [11, 2, 3]

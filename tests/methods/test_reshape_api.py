@@ -3,7 +3,6 @@ save() equal to ``synthkit run``, determinism."""
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -22,26 +21,7 @@ FACADE = dict(texture="reshape", handles=[{"half_space": {"axis": "x", "above": 
 """configs/reshape/facade-texture.yaml's keys."""
 
 
-@pytest.fixture
-def no_writes(tmp_path, monkeypatch):
-    """Run in an empty folder with every atomic writer raising; yields the folder."""
-    monkeypatch.chdir(tmp_path)
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("an in-memory run wrote a file")
-
-    names = ("synthkit.io.atomic", "synthkit.io.textured", "synthkit.io.assets", "synthkit.io.images",
-             "synthkit.runner")
-    modules = [importlib.import_module(name) for name in names]
-    for module in modules:  # all imported before any is patched, so that none binds the patched writer
-        for writer in ("write_bytes_atomic", "write_text_atomic"):
-            if hasattr(module, writer):
-                monkeypatch.setattr(module, writer, refuse)
-    yield tmp_path
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_box_resize_exact_and_writes_nothing(no_writes):
+def test_box_resize_exact_and_writes_nothing(nothing_written):
     box = trimesh.creation.box(extents=(4.0, 3.0, 0.2))
     result = synthkit.reshape(box, scale={"x": 1.5}, texture="stretch")
     assert result.status == "ok"
@@ -62,7 +42,7 @@ def test_box_resize_exact_and_writes_nothing(no_writes):
     np.testing.assert_array_equal(asset.V, moved)
 
 
-def test_vertex_face_arrays_and_index_selection(no_writes):
+def test_vertex_face_arrays_and_index_selection(nothing_written):
     box = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
     V, F = np.asarray(box.vertices), np.asarray(box.faces)
     top = np.flatnonzero(V[:, 2] > 0).tolist()
@@ -75,7 +55,7 @@ def test_vertex_face_arrays_and_index_selection(no_writes):
     assert result.metrics["handles"] == 4 and result.metrics["fixed"] == 4 and result.metrics["steps_done"] == 4
 
 
-def test_asset_in_memory_equals_the_file(no_writes):
+def test_asset_in_memory_equals_the_file(nothing_written):
     """The facade as an Asset in memory gives the file's reshape: positions and baked atlas."""
     path = SAMPLES / "reshape-facade.obj"
     asset = load_asset(path)
@@ -95,7 +75,7 @@ def test_asset_in_memory_equals_the_file(no_writes):
     assert from_file.asset() is None
 
 
-def test_textured_trimesh_keeps_its_texture(no_writes):
+def test_textured_trimesh_keeps_its_texture(nothing_written):
     """A trimesh with a texture image is reshaped with its texture (trimesh orders faces its own way)."""
     mesh = trimesh.load(SAMPLES / "reshape-facade.obj", process=False, force="mesh")
     result = synthkit.reshape(mesh, **FACADE)
@@ -105,7 +85,7 @@ def test_textured_trimesh_keeps_its_texture(no_writes):
     assert image.dtype == np.float32 and image.shape[2] == 3
 
 
-def test_pieces_in_memory_equal_the_files(no_writes):
+def test_pieces_in_memory_equal_the_files(nothing_written):
     chain = [{"a": "road-a", "a_portal": "x+", "b": "road-b", "b_portal": "x-"}]
     keys = dict(chain=chain, handles=[{"piece": "road-b", "half_space": {"axis": "x", "above": 3.49},
                                        "displacement": [1.0, 0, 0]}],
@@ -121,7 +101,7 @@ def test_pieces_in_memory_equal_the_files(no_writes):
     assert memory.metrics["joins"][0]["gap"] == from_file.metrics["joins"][0]["gap"] < 1e-9
 
 
-def test_key_errors_give_the_command_lines_message(no_writes):
+def test_key_errors_give_the_command_lines_message(nothing_written):
     box = trimesh.creation.box()
     with pytest.raises(ConfigError, match=r"synthkit\.reshape\(\).*give exactly one of handles, scale, size"):
         synthkit.reshape(box)

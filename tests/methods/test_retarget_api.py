@@ -5,7 +5,6 @@ from __future__ import annotations
 import doctest
 import json
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -24,21 +23,6 @@ COARSE = {"dense_radius": 0.04, "feature_radius": 0.1}
 is still found exactly."""
 
 
-def _refuse(*args, **kwargs):
-    raise AssertionError("the in-memory run wrote a file")
-
-
-def _no_writes(mp: pytest.MonkeyPatch, folder) -> None:
-    """chdir into the empty ``folder`` and make every synthkit writer (and ``np.save``) raise."""
-    mp.chdir(folder)
-    for name, module in list(sys.modules.items()):
-        if name.startswith("synthkit"):
-            for writer in ("write_bytes_atomic", "write_text_atomic"):
-                if hasattr(module, writer):
-                    mp.setattr(module, writer, _refuse)
-    mp.setattr(np, "save", _refuse)
-
-
 @pytest.fixture(scope="module")
 def shelf():
     V, F, _ = build_bookshelf(cols=3, rows=2, step=None)
@@ -46,11 +30,11 @@ def shelf():
 
 
 @pytest.fixture(scope="module")
-def grown(shelf, tmp_path_factory):
+def grown(shelf, tmp_path_factory, refuse_writes):
     """The shelf grown by one row, computed with every writer refusing, in an empty folder."""
     folder = tmp_path_factory.mktemp("cwd")
     with pytest.MonkeyPatch.context() as mp:
-        _no_writes(mp, folder)
+        refuse_writes(mp, folder)
         result = synthkit.retarget(shelf, target={"axis_steps": {"y": 1}}, analysis=COARSE, seed=0)
     assert os.listdir(folder) == []
     return result

@@ -6,7 +6,6 @@ examples."""
 from __future__ import annotations
 
 import doctest
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,23 +24,6 @@ from synthkit.samples import surfacing_transfer as sample
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "data-samples"
-
-
-@pytest.fixture
-def nothing_written(tmp_path, monkeypatch):
-    """Work in an empty folder in which nothing may be written, and with the atomic writers raising
-    (every module that writes is imported above, before they are patched, so none keeps the patch)."""
-    folder = tmp_path / "cwd"
-    folder.mkdir()
-    monkeypatch.chdir(folder)
-
-    def refuse(*args, **kwargs):
-        raise AssertionError(f"an in-memory run wrote {args[0] if args else ''}")
-
-    monkeypatch.setattr(synthkit.io.atomic, "write_bytes_atomic", refuse)
-    monkeypatch.setattr(synthkit.io.atomic, "write_text_atomic", refuse)
-    yield folder
-    assert os.listdir(folder) == []
 
 
 def crease():

@@ -17,6 +17,7 @@ base class. Each method's own function lives in ``synthkit/methods/<method>/api.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from synthkit.config import RunConfig, sub_models, validate_config
-from synthkit.errors import SynthkitError
+from synthkit.errors import ConfigError, SynthkitError
 from synthkit.io.inputs import Inputs, is_memory_object, memory_name
 from synthkit.methods import config_module
 
@@ -107,7 +108,10 @@ def prepare(method: str, call: str, given: Mapping[str, object], keys: Mapping[s
     for dotted, obj in given.items():
         _put(data, dotted.split("."), obj)
     objects: dict[str, object] = {}
-    data = _stand_ins(data, [model], (), objects)
+    try:
+        data = _stand_ins(data, [model], (), objects)
+    except ConfigError as exc:
+        raise ConfigError(f"{call}: {exc}") from None
     files: list[Path] = []
     cfg = validate_config(model, data, source=call, base_dir=Path.cwd(), inputs=files,
                           memory_inputs=objects.keys())
@@ -136,11 +140,14 @@ def _stand_ins(value: Any, models: list, loc: tuple, objects: dict[str, object])
         out = {}
         for key, item in value.items():
             fields = [m.model_fields[key] for m in models if key in getattr(m, "model_fields", {})]
-            if fields and is_memory_object(item) and any(_is_input_file(f.annotation, f.metadata) for f in fields):
-                name = memory_name(".".join(str(p) for p in (*loc, key)))
-                objects[name] = item
-                out[key] = name
-                continue
+            if fields and any(_is_input_file(f.annotation, f.metadata) for f in fields):
+                dotted = ".".join(str(p) for p in (*loc, key))
+                if is_memory_object(item):
+                    objects[memory_name(dotted)] = item
+                    out[key] = memory_name(dotted)
+                    continue
+                if item is not None and not isinstance(item, str | os.PathLike):
+                    raise ConfigError(f"{dotted}: expected a mesh, an image array or a path, got {type(item).__name__}")
             inner = [m for f in fields for m in sub_models(f.annotation)]
             out[key] = _stand_ins(item, inner, (*loc, key), objects)
         return out

@@ -42,6 +42,13 @@ def test_prepare_gives_the_command_lines_messages(echo_method):
         prepare("echo", "synthkit.echo()", {"image": img}, {"filter": {"sigma": -1}})
 
 
+@pytest.mark.parametrize(("value", "kind"), [([[0, 1]], "list"), (42, "int")])
+def test_prepare_refuses_what_is_neither_an_object_nor_a_path(echo_method, value, kind):
+    expected = rf"^synthkit.echo\(\): image: expected a mesh, an image array or a path, got {kind}$"
+    with pytest.raises(ConfigError, match=expected):
+        prepare("echo", "synthkit.echo()", {"image": value}, {})
+
+
 def test_prepare_reads_paths_against_the_current_folder(echo_method, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     save_image(tmp_path / "in.png", np.full((2, 2), 0.5, np.float32))

@@ -72,7 +72,9 @@ def _as3(img: np.ndarray) -> np.ndarray:
 
 
 FFT_WORKERS = min(2, os.cpu_count() or 1)
-"""Threads of the batched FFTs (the channels of a template, the source's spectra)."""
+"""Threads of the source's spectra (computed once). A template's transforms (3 x 32 rows of 128)
+run on one thread: 0.08 ms against 0.11 ms with two, and 2.5 ms in a walk whose other threads
+keep the cores busy (the same bytes either way)."""
 
 
 class PatchMatcher:
@@ -107,11 +109,11 @@ class PatchMatcher:
     def _spectrum(self, arr: np.ndarray) -> np.ndarray:
         """Spectrum ``(..., fh, fw // 2 + 1)`` of the flipped ``(..., B, B)`` arrays, zero-padded."""
         flipped = np.ascontiguousarray(arr[..., ::-1, ::-1], dtype=np.float32)
-        rows = sfft.rfft(flipped, n=self.fshape[1], axis=-1, workers=FFT_WORKERS)
-        return sfft.fft(rows, n=self.fshape[0], axis=-2, workers=FFT_WORKERS)
+        rows = sfft.rfft(flipped, n=self.fshape[1], axis=-1)
+        return sfft.fft(rows, n=self.fshape[0], axis=-2, overwrite_x=True)
 
     def _valid(self, spectrum: np.ndarray) -> np.ndarray:
-        full = sfft.irfft2(spectrum, s=self.fshape, workers=FFT_WORKERS)
+        full = sfft.irfft2(spectrum, s=self.fshape)
         B = self.patch
         return full[B - 1 : B - 1 + self.valid[0], B - 1 : B - 1 + self.valid[1]]
 

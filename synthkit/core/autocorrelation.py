@@ -458,8 +458,9 @@ class IncrementalAutocorrelation:
         def chunk(lo: int, hi: int) -> None:
             lin[lo:hi], quad[lo:hi] = self._candidate_terms(deltas[lo:hi], block, small)
 
-        # one chunk per thread (the per-candidate work is small); each candidate's values are
-        # computed alike in any chunk, so any number of threads gives the same bytes
+        # one chunk per thread (the per-candidate work is small); the chunks' sizes follow the
+        # number of threads, and BLAS rounds products of other sizes differently (an ulp): the
+        # same bytes for a given number of threads
         threads = max(1, min(int(workers or 1), K))
         bounds = [round(i * K / threads) for i in range(threads + 1)]
         jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
@@ -667,8 +668,9 @@ class IncrementalAutocorrelation:
         (two matrix products per tile's candidates).
 
         Candidates go through in chunks of ``_CHUNK`` (small arrays stay in cache); ``workers``
-        threads (default 1) share the chunks. The chunks are the same for any number of threads
-        and each is computed by one thread, so the values are the same bytes for any ``workers``.
+        threads (default 1) share the chunks. In the windowed case the chunks are the same for any
+        number of threads, so the values are the same bytes for any ``workers``; the spectral case
+        cuts one chunk per thread, and its values differ across ``workers`` by an ulp.
         Exact: the same values as recomputing S_T of the whole image, up to floating rounding
         (float32 transforms: about 1e-7 relative).
 

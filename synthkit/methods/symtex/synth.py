@@ -136,7 +136,9 @@ def guided_walk(
     seams : "dp" (minimum-error boundary cuts) or "graphcut" (graph-cut seams) for every candidate.
     progress : optional wrapper ``progress(iterable, total=, desc=)`` for a progress bar.
     workers : threads sharing the incremental evaluation of a tile's candidates (default
-        ``min(2, os.cpu_count())``); the result does not depend on it.
+        ``min(2, os.cpu_count())``); with two or more, a tile's fixed evaluation work runs in a
+        second thread while the candidates are built. The same result for a given ``workers``
+        (across them, candidate values may differ by an ulp).
     """
     src = np.asarray(source, dtype=np.float32)
     canvas, origins, sources = init.image.copy(), init.origins.copy(), init.sources.copy()

@@ -191,7 +191,7 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
             y0, x0 = int(ys[i]), int(xs[j])
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
             pending = [_PREPARE.submit(st.prepare, y0, x0, patch, patch, T, workers=workers)
-                       for st, T in zip(states, targets, strict=True)] if workers > 1 else []
+                       for st, T in zip(states, targets, strict=True)] if states and workers > 1 else []
             try:
                 pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch,
                                                     candidates, seams)

@@ -482,10 +482,10 @@ def bench_issue24(modes=None, base: str = BASE_COMMIT) -> None:
                 out[which] = (time.perf_counter() - start, report["metrics"], time.process_time() - cpu)
             new, old = out["new"], out["old"]
             record(AREA, f"issue 24: {name}, defaults (vs {base[:7]})", new[0], "s", goal=goal, baseline=old[0])
-            record(AREA, f"  {name} CPU time, all threads (vs before)", new[2], "s", baseline=old[2])
+            record(AREA, f"  {name} CPU time, all threads (vs {base[:7]})", new[2], "s", baseline=old[2])
             for key in FIGURES[cfg["mode"]]:
                 if key in new[1] and key in old[1]:
-                    record(AREA, f"  {cfg['mode']} {key} (vs before)", new[1][key], "", baseline=old[1][key])
+                    record(AREA, f"  {cfg['mode']} {key} (vs {base[:7]})", new[1][key], "", baseline=old[1][key])
             if cfg["mode"] == "tile":
                 print(f"tile returned: {new[1]['tile_choice']} (before: {old[1]['tile_choice']})")
 

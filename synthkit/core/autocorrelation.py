@@ -674,6 +674,9 @@ class IncrementalAutocorrelation:
         Exact: the same values as recomputing S_T of the whole image, up to floating rounding
         (float32 transforms: about 1e-7 relative).
 
+        The target's spectral weights are kept while the same array object comes again (modify a
+        target in place only as a new array).
+
         Returns ``values (K,)`` and ``halves (K, wy + 1, M1)``: ``halves[k, dy, dx mod M1]`` is
         ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`); ``halves``
         is None in the spectral case (:meth:`apply` then computes the accepted change's window).

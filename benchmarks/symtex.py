@@ -399,15 +399,15 @@ BASE_COMMIT = "bcd5d3c2754bd82710fba4cc42f0fa0ef07883f6"
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "textures"
 
 
-def base_synthkit(folder: Path):
-    """Import ``synthkit`` as of :data:`BASE_COMMIT` under the name ``synthkit_base`` (its files
+def base_synthkit(folder: Path, commit: str = BASE_COMMIT):
+    """Import ``synthkit`` as of ``commit`` (default :data:`BASE_COMMIT`) under the name ``synthkit_base`` (its files
     from ``git archive``, the package's own imports renamed), beside today's ``synthkit``."""
     import importlib
     import re
     import subprocess
 
     repo = Path(__file__).resolve().parents[1]
-    data = subprocess.run(["git", "-C", str(repo), "archive", BASE_COMMIT, "synthkit"], capture_output=True, check=True)
+    data = subprocess.run(["git", "-C", str(repo), "archive", commit, "synthkit"], capture_output=True, check=True)
     folder.mkdir(parents=True, exist_ok=True)
     subprocess.run(["tar", "-x", "-C", str(folder)], input=data.stdout, check=True)
     (folder / "synthkit").rename(folder / "synthkit_base")
@@ -428,14 +428,16 @@ def _photo(name: str, shape: tuple[int, int], fallback) -> np.ndarray:
     return fallback(max(shape))[: shape[0], : shape[1]]
 
 
-def bench_issue24() -> None:
+def bench_issue24(modes=None, base: str = BASE_COMMIT) -> None:
     """Issue 24's speed goals, each through the runner with the config's defaults, today's code
     against :data:`BASE_COMMIT`'s in the same process (new first, then old; one run each: the
     machine is shared, so the ratio is the figure; the process's CPU time, which other processes'
     load disturbs less than the wall time, is recorded beside it): ``quilt`` to 512x512 from a 640x480 photo
     (aerial_rocks; goal 3 s), ``transfer`` 512x512 (noise source, dot lattice target; goal 10 s),
     ``symmetrize`` 256x256 (a warped dot lattice; goal 5 s), ``tile`` of a 640x480 photo
-    (texture_bricks; goal 10 s). Also the symmetrize result's E_symm, and which tile each returns."""
+    (texture_bricks; goal 10 s). Also the symmetrize result's E_symm, and which tile each returns.
+    ``modes``: only the runs of these modes (``--issue24-modes``; default all); ``base``: the commit
+    compared with (``--base``; default :data:`BASE_COMMIT`)."""
     import tempfile
 
     import yaml
@@ -454,13 +456,23 @@ def bench_issue24() -> None:
     }
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        old_runner = base_synthkit(folder / "base")
+        old_runner = base_synthkit(folder / "base", base)
         save_image(folder / "rocks.png", _photo("aerial_rocks_02_diff_1k.jpg", (480, 640), textures.noise))
         save_image(folder / "bricks.png", _photo("texture_bricks.jpg", (480, 640), textures.bricks))
         save_image(folder / "noise.png", textures.noise(128))
         save_image(folder / "dots.png", textures.dots(128))
         save_image(folder / "warped.png", textures.smooth_warp(textures.dots(256), 5.0))
+        # warm-up: imports and compiled kernels are paid by both versions before any timing
+        warm = {"source": "noise.png", "target": "dots.png", "output_size": [64, 64]}
+        warm_cfgs = [{**warm, "mode": "transfer", "synth": {"patch": 16, "overlap": 6, "sweeps": 1}},
+                     {"mode": "symmetrize", "source": "dots.png", "deform": {"points": 8, "max_evaluations": 20}}]
+        for k, warm_cfg in enumerate(warm_cfgs):
+            (folder / f"warm{k}.yaml").write_text(yaml.safe_dump({"method": "symmetry-texture", **warm_cfg}))
+            for which, fn in (("new", run_config), ("old", old_runner.run_config)):
+                fn(folder / f"warm{k}.yaml", out_dir=folder / f"warm{k}-{which}", show_progress=False)
         for name, (cfg, goal) in runs.items():
+            if modes and cfg["mode"] not in modes:
+                continue
             path = folder / f"{name.split()[0]}.yaml"
             path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
             out = {}
@@ -469,11 +481,11 @@ def bench_issue24() -> None:
                 report = fn(path, out_dir=folder / f"{name.split()[0]}-{which}", show_progress=False)
                 out[which] = (time.perf_counter() - start, report["metrics"], time.process_time() - cpu)
             new, old = out["new"], out["old"]
-            record(AREA, f"issue 24: {name}, defaults (vs before)", new[0], "s", goal=goal, baseline=old[0])
-            record(AREA, f"  {name} CPU time, all threads (vs before)", new[2], "s", baseline=old[2])
+            record(AREA, f"issue 24: {name}, defaults (vs {base[:7]})", new[0], "s", goal=goal, baseline=old[0])
+            record(AREA, f"  {name} CPU time, all threads (vs {base[:7]})", new[2], "s", baseline=old[2])
             for key in FIGURES[cfg["mode"]]:
                 if key in new[1] and key in old[1]:
-                    record(AREA, f"  {cfg['mode']} {key} (vs before)", new[1][key], "", baseline=old[1][key])
+                    record(AREA, f"  {cfg['mode']} {key} (vs {base[:7]})", new[1][key], "", baseline=old[1][key])
             if cfg["mode"] == "tile":
                 print(f"tile returned: {new[1]['tile_choice']} (before: {old[1]['tile_choice']})")
 
@@ -499,6 +511,13 @@ def main() -> None:
         action="append",
         help="run only these parts (repeatable); the other figures of bench-results/symtex.json are kept",
     )
+    ap.add_argument(
+        "--issue24-modes",
+        nargs="+",
+        choices=("quilt", "transfer", "symmetrize", "tile"),
+        help="the issue24 part runs only these modes",
+    )
+    ap.add_argument("--base", default=BASE_COMMIT, help="commit the issue24 part compares with")
     args = ap.parse_args()
     parts = args.only or PARTS
     if args.only and (RESULTS_DIR / f"{AREA}.json").exists():
@@ -514,7 +533,7 @@ def main() -> None:
     if "symmetrize" in parts:
         bench_symmetrize(args.quick)
     if "issue24" in parts:
-        bench_issue24()
+        bench_issue24(args.issue24_modes, args.base)
     if "transfer" in parts:
         bench_transfer(args.quick)
         if not args.quick:

@@ -11,6 +11,7 @@ this way.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.fft as sfft
@@ -18,27 +19,41 @@ from threadpoolctl import ThreadpoolController
 
 from synthkit.core.symmetry import check_signal
 
-__all__ = ["IncrementalAutocorrelation"]
+__all__ = ["IncrementalAutocorrelation", "one_blas_thread"]
 
 _CHUNK = 4  # candidates per batched transform in IncrementalAutocorrelation.l2_of_changes
 _EXECUTORS: dict[int, ThreadPoolExecutor] = {}
 
 
 _BLAS: ThreadpoolController | None = None
+_BLAS_DEPTH = 0
 
 
-def _one_blas_thread():
+@contextmanager
+def one_blas_thread():
     """Context: the BLAS libraries loaded (numpy's and scipy's OpenBLAS) run on one thread, and
     get their thread counts back on exit (process-wide: entered by the calling thread only, around
-    work whose helper threads it waits for).
+    work whose helper threads it waits for; nested entries cost nothing).
 
     The spectral evaluation's products are a few milliseconds each; OpenBLAS's own threads, on a
     machine shared with other work, then wait for a core more than they compute (measured: a 512
     sweep at window 0.5 took 30 s with them and 12 s without). Work is shared by our threads instead."""
-    global _BLAS
+    global _BLAS, _BLAS_DEPTH
+    if _BLAS_DEPTH:
+        _BLAS_DEPTH += 1
+        try:
+            yield
+        finally:
+            _BLAS_DEPTH -= 1
+        return
     if _BLAS is None:
         _BLAS = ThreadpoolController()
-    return _BLAS.limit(limits=1, user_api="blas")
+    with _BLAS.limit(limits=1, user_api="blas"):
+        _BLAS_DEPTH = 1
+        try:
+            yield
+        finally:
+            _BLAS_DEPTH = 0
 
 
 def _executor(threads: int) -> ThreadPoolExecutor:
@@ -98,6 +113,7 @@ class IncrementalAutocorrelation:
         self._sums_cache: tuple | None = None
         self._torus_cache: dict = {}
         self._ac: np.ndarray | None = None
+        self._prepared: tuple | None = None
         self.refresh()
 
     @property
@@ -263,9 +279,12 @@ class IncrementalAutocorrelation:
             cache = {"weights": np.zeros((3, sq.size), dtype=self.fft_dtype), "sq": sq, "col": col, "T": None}
             cache["weights"][0] = parseval(np.ones((2 * self.window[0] + 1, 2 * self.window[1] + 1)))
             self._weight_cache[key] = cache
-        if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
+        if T is cache.get("T_given"):  # the walk passes the same array every tile
+            pass
+        elif cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
             cache["T"] = T.copy()
             cache["weights"][1] = parseval(T)
+        cache["T_given"] = T
         return cache["weights"], cache["sq"], cache["col"]
 
     def _base_sums(self, T: np.ndarray) -> tuple[float, float, float, float, float]:
@@ -366,7 +385,7 @@ class IncrementalAutocorrelation:
             return st
         H, W = self.f.shape
         g = self.f - self.offset
-        G = sfft.rfft2(g, workers=2)
+        G = sfft.rfft2(g)  # one thread: the walk's other threads keep the second core
         P = G.real**2 + G.imag**2
         st = {"version": self._ac_version, "g": g, "G": G, "P": P, "gsum": float(g.sum())}
         # the lines dy = H / 2 and dx = W / 2 of AC (outside the window), as in the Parseval sums
@@ -375,6 +394,36 @@ class IncrementalAutocorrelation:
         st["ac_col"] = sfft.fft(P @ (mult * (-1.0) ** np.arange(mult.size))).real / (H * W) if W % 2 == 0 else None
         self._torus_cache["state"] = st
         return st
+
+    def prepare(self, y0: int, x0: int, h: int, w: int, target: np.ndarray, *, workers: int | None = None):
+        """The spectral evaluation's work at block ``h x w`` at ``(y0, x0)`` that does not depend on
+        the candidates (:meth:`_spectral_l2`): the block's fields, the small-grid weights and the
+        current image's window sums, kept until ``f``, the block or the target change.
+
+        The guided walk calls it in a second thread while it builds the tile's candidates; with
+        ``workers`` > 1 the kernels near zero displacement run beside the block's fields. Returns
+        ``(block, small, sums)``, or None when the window is not the whole torus (nothing to prepare)."""
+        H, W = self.f.shape
+        if not self._spectral(h, w):
+            return None
+        T = np.asarray(target, dtype=np.float64)
+        st = self._torus_state()
+        weights, sq, _ = self._spectral_weights(h, w, T)
+        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
+        key = (y0 % H, x0 % W, h, w, self._ac_version, id(t_key))
+        if self._prepared is not None and self._prepared[0] == key:
+            return self._prepared[1]
+        base = self._window_sums(st, weights, sq)
+        self._torus_tables()  # built once, before a second thread reads it
+        # the kernels near zero displacement, beside the block's fields when there are two threads
+        pending = _executor(2).submit(self._near_zero_kernels, st, y0, x0, h, w) if (workers or 1) > 1 else None
+        tau = self._tau(weights, t_key, T, st["P"].shape)
+        block = self._block_fields(st, y0, x0, h, w, tau[1])
+        kernels = pending.result() if pending is not None else self._near_zero_kernels(st, y0, x0, h, w)
+        small = self._small_grid_weights(st, y0, x0, h, w, T, t_key, kernels)
+        result = (block, small, (*base, tau[2], tau[3]))
+        self._prepared = (key, result)
+        return result
 
     def _spectral_l2(self, y0: int, x0: int, deltas: np.ndarray, T: np.ndarray, workers: int | None):
         """``(lin (K, 3), quad (K,), base sums)`` of the spectral case without a full-image transform
@@ -401,17 +450,7 @@ class IncrementalAutocorrelation:
         current image's sums), :meth:`_block_fields` (``U_1``, ``U_T``, ``U_ac`` and the line
         strips), :meth:`_small_grid_weights` and, per candidate, :meth:`_candidate_terms`."""
         K, h, w = deltas.shape
-        st = self._torus_state()
-        weights, sq, _ = self._spectral_weights(h, w, T)
-        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
-        base = self._window_sums(st, weights, sq)
-        self._torus_tables()  # built once, before a second thread reads it
-        # the kernels near zero displacement, beside the block's fields when there are two threads
-        pending = _executor(2).submit(self._near_zero_kernels, st, y0, x0, h, w) if (workers or 1) > 1 else None
-        tau = self._tau(weights, t_key, T, st["P"].shape)
-        block = self._block_fields(st, y0, x0, h, w, tau[1])
-        kernels = pending.result() if pending is not None else self._near_zero_kernels(st, y0, x0, h, w)
-        small = self._small_grid_weights(st, y0, x0, h, w, T, t_key, kernels)
+        block, small, sums = self.prepare(y0, x0, h, w, T, workers=workers)
         deltas = deltas.astype(self.fft_dtype, copy=False)
         lin = np.empty((K, 3))
         quad = np.empty(K)
@@ -419,8 +458,9 @@ class IncrementalAutocorrelation:
         def chunk(lo: int, hi: int) -> None:
             lin[lo:hi], quad[lo:hi] = self._candidate_terms(deltas[lo:hi], block, small)
 
-        # one chunk per thread (the per-candidate work is small); each candidate's values are
-        # computed alike in any chunk, so any number of threads gives the same bytes
+        # one chunk per thread (the per-candidate work is small); the chunks' sizes follow the
+        # number of threads, and BLAS rounds products of other sizes differently (an ulp): the
+        # same bytes for a given number of threads
         threads = max(1, min(int(workers or 1), K))
         bounds = [round(i * K / threads) for i in range(threads + 1)]
         jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
@@ -429,7 +469,7 @@ class IncrementalAutocorrelation:
         else:
             for job in jobs:
                 chunk(*job)
-        return lin, quad, (*base, tau[2], tau[3])
+        return lin, quad, sums
 
     def _window_sums(self, st: dict, weights: np.ndarray, sq: np.ndarray) -> tuple[float, float, float]:
         """``sum AC``, ``<AC, T>`` and ``sum AC^2`` over the window (float64, Parseval less the lines)."""
@@ -540,7 +580,9 @@ class IncrementalAutocorrelation:
         k, h, w = d.shape
         M_r, M_c = block["M_r"], block["M_c"]
         flat = d.reshape(k, h * w)
-        D = sfft.rfft2(d, s=small["shape"]).reshape(k, -1).astype(np.complex128)
+        # rfft2(d, s=shape) without transforming the zero rows (the same bytes, a third of the time)
+        My, Mx = small["shape"]
+        D = sfft.fft(sfft.rfft(d, n=Mx, axis=2), n=My, axis=1, overwrite_x=True).reshape(k, -1).astype(np.complex128)
         A = D.real**2 + D.imag**2
         a_lin = A @ small["wa"]  # sum a T, sum a AC
         a_sq = (A * A) @ small["wsq"]
@@ -626,10 +668,14 @@ class IncrementalAutocorrelation:
         (two matrix products per tile's candidates).
 
         Candidates go through in chunks of ``_CHUNK`` (small arrays stay in cache); ``workers``
-        threads (default 1) share the chunks. The chunks are the same for any number of threads
-        and each is computed by one thread, so the values are the same bytes for any ``workers``.
+        threads (default 1) share the chunks. In the windowed case the chunks are the same for any
+        number of threads, so the values are the same bytes for any ``workers``; the spectral case
+        cuts one chunk per thread, and its values differ across ``workers`` by an ulp.
         Exact: the same values as recomputing S_T of the whole image, up to floating rounding
         (float32 transforms: about 1e-7 relative).
+
+        The target's spectral weights are kept while the same array object comes again (modify a
+        target in place only as a new array).
 
         Returns ``values (K,)`` and ``halves (K, wy + 1, M1)``: ``halves[k, dy, dx mod M1]`` is
         ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`); ``halves``
@@ -648,7 +694,7 @@ class IncrementalAutocorrelation:
             raise ValueError(f"target shape {T.shape} differs from the window {wshape}")
         spectral = self._spectral(h, w)
         if spectral:
-            with _one_blas_thread():
+            with one_blas_thread():
                 lin, quad, sums = self._spectral_l2(y0, x0, deltas, T, workers)
             half = None
         else:

@@ -142,3 +142,27 @@ def test_spectral_float32_and_lazy_ac_after_apply(rng):
         g[np.ix_(ry, rx)] += deltas[2]
     c = g - f.mean()
     np.testing.assert_allclose(inc.ac, sy.translational(c, window=win, standardize=False) * (c * c).sum(), atol=1e-9)
+
+
+def test_prepare_in_another_thread_gives_the_same_values(rng):
+    """The guided walk prepares a tile's fixed work in a second thread: the values are the bytes
+    of an unprepared evaluation, and a change of f invalidates the prepared work."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    shape = (48, 40)
+    win = ((shape[0] - 1) // 2, (shape[1] - 1) // 2)
+    f = rng.random(shape)
+    T = sy.translational(rng.random(shape), window=win)
+    deltas = 0.3 * rng.standard_normal((5, 8, 8))
+    a = IncrementalAutocorrelation(f, window=win, offset=f.mean(), fft_dtype=np.float32)
+    b = IncrementalAutocorrelation(f, window=win, offset=f.mean(), fft_dtype=np.float32)
+    plain, _ = a.l2_of_changes(9, 30, deltas, T, workers=2)
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(b.prepare, 9, 30, 8, 8, T, workers=2).result()
+    prepared, _ = b.l2_of_changes(9, 30, deltas, T, workers=2)
+    np.testing.assert_array_equal(prepared, plain)
+    for inc in (a, b):
+        inc.apply(9, 30, deltas[1])
+    np.testing.assert_array_equal(b.l2_of_changes(9, 30, deltas, T)[0], a.l2_of_changes(9, 30, deltas, T)[0])
+    windowed = IncrementalAutocorrelation(f, window=(5, 5))
+    assert windowed.prepare(0, 0, 8, 8, T[:11, :11]) is None

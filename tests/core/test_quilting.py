@@ -162,3 +162,35 @@ def test_patch_matcher_reuses_the_weight_term_and_checks_shapes(rng):
         m.costs(tgt[:4], w)
     with pytest.raises(ValueError, match="larger than the 20x18 source"):
         q.PatchMatcher(src, 19)
+
+
+def _numpy_vertical_cuts(err):
+    """The former numpy dynamic program (reference for the compiled one)."""
+    K, B, w = err.shape
+    acc = err[:, 0, :].astype(np.float64)
+    back = np.zeros((K, B, w), dtype=np.int8)
+    left = np.full((K, w), np.inf)
+    right = np.full((K, w), np.inf)
+    for y in range(1, B):
+        left[:, 1:] = acc[:, :-1]
+        right[:, :-1] = acc[:, 1:]
+        best = np.minimum(np.minimum(left, acc), right)
+        back[:, y, :] = np.where(left == best, -1, np.where(acc == best, 0, 1))
+        acc = best + err[:, y, :]
+    path = np.zeros((K, B), dtype=np.int64)
+    path[:, B - 1] = np.argmin(acc, axis=1)
+    for y in range(B - 1, 0, -1):
+        path[:, y - 1] = path[:, y] + back[np.arange(K), y, path[:, y]]
+    return path
+
+
+def test_compiled_cuts_equal_the_numpy_program_with_ties_and_padding(rng):
+    """Ties (rounded errors, zero columns) and inf padding take the same paths as the numpy loop."""
+    for trial in range(60):
+        K, B, w = int(rng.integers(1, 30)), int(rng.integers(2, 34)), int(rng.integers(1, 14))
+        err = rng.random((K, B, w))
+        if trial % 3 == 0:
+            err = np.round(err * 3)
+        if trial % 2 == 0:
+            err[:, :, int(rng.integers(1, w + 1)) :] = np.inf
+        np.testing.assert_array_equal(q.min_vertical_cuts(err), _numpy_vertical_cuts(err))

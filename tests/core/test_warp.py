@@ -98,3 +98,27 @@ def test_mesh_sampler_lanczos_keeps_identity_and_range():
     assert half.min() >= img.min() and half.max() <= img.max()
     with pytest.raises(ValueError, match="interpolation"):
         s.warp(img, V, interpolation="nearest")
+
+
+def test_arap_solve_equals_the_numpy_rotation_fit():
+    """The compiled rotation fit of ARAP2D.solve gives the bytes of the former numpy code."""
+    rng = np.random.default_rng(5)
+    V = np.concatenate([[[0, 0], [64, 0], [0, 64], [64, 64]], rng.random((80, 2)) * 62 + 1])
+    F = Delaunay(V).simplices.astype(np.int64)
+    handles = rng.choice(len(V), 20, replace=False)
+    solver = warp.ARAP2D(V, F, handles)
+    P = V[handles] + rng.standard_normal((20, 2)) * 2
+    U1 = solver._step1.solve(np.concatenate([np.zeros(solver._n_shape1), P.ravel()])).reshape(-1, 2)
+    rest, cur = V[F], U1[F]
+    rc = rest - rest.mean(axis=1, keepdims=True)
+    cc = cur - cur.mean(axis=1, keepdims=True)
+    a = (rc * cc).sum(axis=(1, 2))
+    b = (rc[..., 0] * cc[..., 1] - rc[..., 1] * cc[..., 0]).sum(axis=1)
+    norm = np.hypot(a, b)
+    norm = np.where(norm > 0, norm, 1.0)
+    cos, sin = a / norm, b / norm
+    fitted = np.stack([cos[:, None] * rc[..., 0] - sin[:, None] * rc[..., 1],
+                       sin[:, None] * rc[..., 0] + cos[:, None] * rc[..., 1]], axis=2)
+    d = np.concatenate([fitted[:, 1] - fitted[:, 0], fitted[:, 2] - fitted[:, 1], fitted[:, 0] - fitted[:, 2]])
+    expected = solver._step2.solve(np.concatenate([d.ravel(), P.ravel()])).reshape(-1, 2)
+    np.testing.assert_array_equal(solver.solve(P), expected)

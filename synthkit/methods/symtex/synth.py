@@ -24,13 +24,18 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
-from synthkit.core.autocorrelation import IncrementalAutocorrelation
+from synthkit.core.autocorrelation import IncrementalAutocorrelation, one_blas_thread
+
+_PREPARE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="symtex-prepare")
+"""The thread that prepares a tile's evaluation while the walk builds its candidates."""
 
 
 @dataclass
@@ -131,7 +136,9 @@ def guided_walk(
     seams : "dp" (minimum-error boundary cuts) or "graphcut" (graph-cut seams) for every candidate.
     progress : optional wrapper ``progress(iterable, total=, desc=)`` for a progress bar.
     workers : threads sharing the incremental evaluation of a tile's candidates (default
-        ``min(2, os.cpu_count())``); the result does not depend on it.
+        ``min(2, os.cpu_count())``); with two or more, a tile's fixed evaluation work runs in a
+        second thread while the candidates are built. The same result for a given ``workers``
+        (across them, candidate values may differ by an ulp).
     """
     src = np.asarray(source, dtype=np.float32)
     canvas, origins, sources = init.image.copy(), init.origins.copy(), init.sources.copy()
@@ -157,17 +164,40 @@ def guided_walk(
             return float(sum(l2_of_autocorrelations(st.ac[None], T)[0] for st, T in zip(states, targets, strict=True)))
         return full_value(canvas)
 
-    result = WalkResult(canvas, origins)
+    result = WalkResult(canvas, origins, sources)
     value = current_value()
     result.history.append(value)
-    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
     matcher = q.PatchMatcher(src, patch)
+    with one_blas_thread() if states else nullcontext():
+        _walk(result, value, src, matcher, (ys, xs), states, targets, full_value, current_value, signals=signals,
+              patch=patch, candidates=candidates, sweeps=sweeps, seams=seams, progress=progress, workers=workers)
+    return result
+
+
+def _walk(result, value, src, matcher, grid, states, targets, full_value, current_value, *, signals, patch,
+          candidates, sweeps, seams, progress, workers) -> None:
+    """The sweeps of :func:`guided_walk` over the tiles of ``grid`` (ys, xs), updating ``result`` in place.
+
+    The candidates' fixed work of each tile (:meth:`IncrementalAutocorrelation.prepare`: fields
+    of the current image, which a change of the previous tile invalidates) runs in a second thread
+    while this one builds the tile's candidates; then the candidates are scored."""
+    canvas, origins, sources = result.image, result.origins, result.sources
+    H, W = canvas.shape[:2]
+    ys, xs = grid
+    tiles = [(i, j) for i in range(len(ys)) for j in range(len(xs))]
     for _ in range(sweeps):
         changed = 0
         for i, j in progress(tiles, total=len(tiles), desc="guided walk") if progress else tiles:
             y0, x0 = int(ys[i]), int(xs[j])
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
-            pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch, candidates, seams)
+            pending = [_PREPARE.submit(st.prepare, y0, x0, patch, patch, T, workers=workers)
+                       for st, T in zip(states, targets, strict=True)] if states and workers > 1 else []
+            try:
+                pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch,
+                                                    candidates, seams)
+            finally:
+                for job in pending:
+                    job.result()
             result.iterations += 1
             result.candidates_evaluated += len(pos)
             if states:
@@ -197,8 +227,6 @@ def guided_walk(
         result.changed += changed
         if changed == 0:
             break
-    result.image, result.origins, result.sources = canvas, origins, sources
-    return result
 
 
 def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):

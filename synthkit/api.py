@@ -164,7 +164,8 @@ def run_in_memory(method: str, call: str, compute: Callable, cfg: RunConfig, inp
                   progress: bool = False) -> Result:
     """Run ``compute(cfg, inputs, ctx)`` (a method pipeline's compute step) with a context that
     writes nothing; return its :class:`Result` with ``timings["total"]``. An error's line starts
-    with ``call`` instead of a config file's name."""
+    with ``call`` instead of a config file's name (the error object is kept, with what it carries,
+    such as retarget's statistics of a mesh without repetition)."""
     from synthkit.runner import RunContext
 
     ctx = RunContext(None, seed=cfg.seed, show_progress=progress, previews="none")
@@ -173,9 +174,8 @@ def run_in_memory(method: str, call: str, compute: Callable, cfg: RunConfig, inp
     try:
         result = compute(cfg, inputs, ctx)
     except SynthkitError as exc:
-        line = str(exc)
-        if line.startswith(call):
-            raise
-        raise type(exc)(f"{call}: {line}", keep_outputs=False) from None
+        if not str(exc).startswith(call):
+            exc.args = (f"{call}: {exc}", *exc.args[1:])  # the same error, with what it carries
+        raise exc from None
     result.timings["total"] = time.perf_counter() - start
     return result

@@ -107,8 +107,9 @@ def test_steps_error_names_the_key(shelf):
 def test_no_repetition_is_refused_and_analyze_only_says_why():
     blob = trimesh.creation.icosphere(subdivisions=2)
     blob.vertices = blob.vertices * (1 + 0.15 * np.random.default_rng(0).random((len(blob.vertices), 1)))
-    with pytest.raises(InputError, match=r"^synthkit.retarget\(\): input: no repetition found"):
+    with pytest.raises(InputError, match=r"^synthkit.retarget\(\): input: no repetition found") as refused:
         synthkit.retarget(blob, seed=0)
+    assert refused.value.result.metrics["n_principal"] == 0  # the statistics come with the refusal
     stats = synthkit.retarget(blob, analyze_only=True, seed=0)
     assert stats.mesh is None and stats.asset is None and stats.retargeted is None
     assert stats.principal_offsets.shape == (0, 3) and stats.metrics["n_principal"] == 0

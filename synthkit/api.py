@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +36,7 @@ __all__ = ["Result", "prepare", "run_in_memory", "result_fields"]
 
 
 @dataclass(kw_only=True)
-class Result:
+class Result(ABC):
     """What a method run in memory gives back; each method's subclass adds its outputs.
 
     Attributes
@@ -57,10 +58,10 @@ class Result:
     quality_warnings: list[str] = field(default_factory=list)
     input_files: list[Path] = field(default_factory=list)
 
+    @abstractmethod
     def write(self, ctx) -> None:
         """Write the output files and previews through ``ctx.path`` (a
         :class:`synthkit.runner.RunContext` with a staging folder); each method implements it."""
-        raise NotImplementedError(f"{type(self).__name__} does not write its outputs")
 
     def save(self, folder: Path | str, *, overwrite: bool = False, previews: str = "all") -> dict[str, Any]:
         """Write the outputs into ``folder`` as the command line writes them, with ``report.json``;

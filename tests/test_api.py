@@ -193,3 +193,13 @@ def test_a_scene_in_memory_counts_its_meshes_and_names_its_key():
     inputs = Inputs({"<memory:input>": scene})
     assert inputs.mesh("<memory:input>").metadata["merged_geometries"] == 2
     assert inputs.source("<memory:input>") == "input" and inputs.source("/a/b.obj") == "/a/b.obj"
+
+
+def test_a_result_class_must_write_its_outputs():
+    from synthkit.api import Result
+
+    class Silent(Result):
+        pass
+
+    with pytest.raises(TypeError, match="abstract method 'write'|abstract method write"):
+        Silent(config=None)

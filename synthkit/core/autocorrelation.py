@@ -152,18 +152,26 @@ class IncrementalAutocorrelation:
             self._plans[key] = (shape, rows, cols)
         return self._plans[key]
 
+    def _blocks(self, deltas: np.ndarray, dtype=None) -> np.ndarray:
+        """``deltas`` as ``(K, h, w)`` (one ``(h, w)`` block becomes ``K = 1``); ValueError when a
+        block exceeds half the image (the incremental update assumes it wraps onto itself nowhere)."""
+        deltas = np.asarray(deltas, dtype=dtype)
+        if deltas.ndim == 2:
+            deltas = deltas[None]
+        h, w = deltas.shape[1:]
+        H, W = self.f.shape
+        if h > H // 2 or w > W // 2:
+            raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
+        return deltas
+
     def delta_grid(self, y0: int, x0: int, deltas: np.ndarray) -> np.ndarray:
         """``dAC`` on the padded FFT grid, ``(K, M0, M1)``: displacement ``d`` sits at ``d mod M``.
 
         Only displacements inside the window are meaningful; :meth:`window_of` extracts them.
         """
-        deltas = np.asarray(deltas, dtype=np.float64)
-        if deltas.ndim == 2:
-            deltas = deltas[None]
+        deltas = self._blocks(deltas, np.float64)
         K, h, w = deltas.shape
         H, W = self.f.shape
-        if h > H // 2 or w > W // 2:
-            raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
         wy, wx = self.window
         shape, _, _ = self._plan(h, w)
         ry = (y0 - wy + np.arange(h + 2 * wy)) % H
@@ -681,13 +689,8 @@ class IncrementalAutocorrelation:
         ``dAC_k(dy, dx)`` for ``0 <= dy <= wy``, ``|dx| <= wx`` (:meth:`window_from_half`); ``halves``
         is None in the spectral case (:meth:`apply` then computes the accepted change's window).
         """
-        deltas = np.asarray(deltas)
-        if deltas.ndim == 2:
-            deltas = deltas[None]
+        deltas = self._blocks(deltas)
         K, h, w = deltas.shape
-        H, W = self.f.shape
-        if h > H // 2 or w > W // 2:
-            raise ValueError(f"block {h}x{w} exceeds half the {H}x{W} image")
         T = np.asarray(target, dtype=np.float64)
         wshape = (2 * self.window[0] + 1, 2 * self.window[1] + 1)
         if T.shape != wshape:

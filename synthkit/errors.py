@@ -44,6 +44,19 @@ class QualityError(SynthkitError):
     exit_code = 3
 
 
+class KeyedError(ValueError):
+    """A value a method's stage refuses. Stage code knows no exit codes: its method's pipeline turns
+    this into a :class:`ConfigError` or :class:`InputError`. ``key`` names the config entry at fault
+    as the stage knows it (a whole key such as ``"target.steps[1]=1"``, or a key within the section
+    the pipeline adds), or is None when the input itself is at fault; ``message`` says what is
+    wrong. ``str()`` is ``"<key>: <message>"``, or the message alone without a key."""
+
+    def __init__(self, key: str | None, message: str):
+        super().__init__(f"{key}: {message}" if key else message)
+        self.key = key
+        self.message = message
+
+
 class Terminated(BaseException):
     """The process received SIGTERM (from ``timeout``, a batch scheduler or ``kill``): unwinds like
     KeyboardInterrupt, so staging folders are removed, and exits with 128 + 15 = 143."""

@@ -203,3 +203,12 @@ def test_a_result_class_must_write_its_outputs():
 
     with pytest.raises(TypeError, match="abstract method 'write'|abstract method write"):
         Silent(config=None)
+
+
+def test_a_keyed_error_reads_key_then_message():
+    from synthkit.errors import KeyedError
+
+    named = KeyedError("chain[0].b", "piece 'b' is placed already")
+    assert str(named) == "chain[0].b: piece 'b' is placed already" and named.message == "piece 'b' is placed already"
+    assert isinstance(named, ValueError) and named.key == "chain[0].b"
+    assert str(KeyedError(None, "x.obj: no UVs")) == "x.obj: no UVs"

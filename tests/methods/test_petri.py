@@ -14,13 +14,12 @@ from click.testing import CliRunner
 from synthkit.cli.main import cli
 from synthkit.config import validate_config
 from synthkit.core.mesh import boundary_loops, face_areas
-from synthkit.errors import ConfigError
+from synthkit.errors import ConfigError, KeyedError
 from synthkit.io.assets import load_asset
 from synthkit.io.meshes import load_face_labels, save_mesh
 from synthkit.methods.petri import analysis, construction, pipeline
 from synthkit.methods.petri.assembly import PieceLibrary
 from synthkit.methods.petri.config import CONFIG
-from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.evaluation import origin_preference
 from synthkit.methods.petri.net import (
     SELECTABLE,
@@ -105,13 +104,14 @@ def test_lattice_from_annotation_matches_truth(building_mesh):
 
 def test_lattice_that_does_not_fit(building_mesh):
     V, _ = building_mesh
-    with pytest.raises(KeyedError, match=r"^\[2\.5, 3\.0, 2\.0\] does not fit the model: along X") as err:
+    with pytest.raises(KeyedError, match=r"^unit: \[2\.5, 3\.0, 2\.0\] does not fit the model: along X") as err:
         analysis.resolve_lattice(V.min(0), V.max(0), unit=(2.5, 3.0, 2.0))
     assert err.value.key == "unit"
-    with pytest.raises(KeyedError, match=r"^\[20\.0, 0\.0, 22\.0, 3\.0\] lies outside the example") as err:
+    outside = r"^annotation\.rect: \[20\.0, 0\.0, 22\.0, 3\.0\] lies outside the example"
+    with pytest.raises(KeyedError, match=outside) as err:
         analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (20.0, 0.0, 22.0, 3.0), None))
     assert err.value.key == "annotation.rect"
-    with pytest.raises(KeyedError, match=r"^1\.5 does not fit the model: along Z") as err:
+    with pytest.raises(KeyedError, match=r"^annotation\.depth_unit: 1\.5 does not fit the model: along Z") as err:
         analysis.resolve_lattice(V.min(0), V.max(0), annotation=("front", (2.0, 3.0, 4.0, 6.0), 1.5))
     assert err.value.key == "annotation.depth_unit"
 

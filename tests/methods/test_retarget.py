@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 from synthkit.cli.main import cli
 from synthkit.core.mesh import normalize_unit, weld
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, InputError
+from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.assets import load_asset
 from synthkit.io.images import load_image, save_image
 from synthkit.io.meshes import load_face_labels, load_mesh, save_mesh
@@ -37,7 +37,7 @@ from synthkit.methods.retarget.analysis import (
 from synthkit.methods.retarget.corners import carry, pack, unpack
 from synthkit.methods.retarget.options import AnalysisOptions, Target, options_of
 from synthkit.methods.retarget.outputs import label_colours
-from synthkit.methods.retarget.problem import KeyedError, resolve_steps
+from synthkit.methods.retarget.problem import resolve_steps
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     collapse_short_seam_edges,

@@ -16,9 +16,9 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import clip_by_planes, face_areas, remove_unreferenced, split_by_planes
 from synthkit.core.quality import degenerate_faces
+from synthkit.errors import KeyedError
 from synthkit.methods.petri.appearance import Look, carry
 from synthkit.methods.petri.curves import VIEW_AXES
-from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.joints import close_t_junctions
 from synthkit.methods.petri.options import LatticeOptions
 

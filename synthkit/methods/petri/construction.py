@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from synthkit.errors import KeyedError
 from synthkit.methods.petri.curves import (
     PLANE_AXES,
     PLANE_POINT_AXES,
@@ -25,7 +26,6 @@ from synthkit.methods.petri.curves import (
     resample_polyline,
     units_along,
 )
-from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.options import SpaceOptions
 
 

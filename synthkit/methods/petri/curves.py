@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from synthkit.methods.petri.errors import KeyedError
+from synthkit.errors import KeyedError
 
 PLANE_AXES = {"xy": (0, 1, 2), "xz": (0, 2, 1), "yz": (1, 2, 0)}
 """Plane -> world (and lattice) axes of (a, b, c): the curve's two point axes, then the sweep axis."""

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from synthkit.errors import KeyedError
 from synthkit.methods.petri.curves import (
     PLANE_AXES,
     PLANE_POINT_AXES,
@@ -28,7 +29,6 @@ from synthkit.methods.petri.curves import (
     resample_polyline,
     units_along,
 )
-from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.options import SpaceOptions
 
 MIN_ANGLE_DEG = 30.0

@@ -1,7 +1,7 @@
 """``petri-synth`` run: analysis, construction space, Petri nets, inference, assembly, evaluation.
 
 One run for a single curve and a curve network (:mod:`.spaces`). The only module of the method that
-knows config keys and exit codes: the stages raise :class:`~.errors.KeyedError` (a config error) or
+knows config keys and exit codes: the stages raise :class:`~synthkit.errors.KeyedError` (a config error) or
 :class:`~.net.Unfillable` (an input error), mapped here by :func:`refusals`.
 """
 
@@ -15,7 +15,7 @@ import trimesh
 
 from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, InputError
+from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.assets import Asset
 from synthkit.io.inputs import Inputs
 from synthkit.methods.petri import analysis
@@ -24,7 +24,6 @@ from synthkit.methods.petri.assembly import Assembler, PieceLibrary, quality_lim
 from synthkit.methods.petri.config import PetriConfig
 from synthkit.methods.petri.construction import build_construction_space
 from synthkit.methods.petri.curves import PLANE_AXES
-from synthkit.methods.petri.errors import KeyedError
 from synthkit.methods.petri.evaluation import (
     Synthesis,
     example_doc,
@@ -49,7 +48,7 @@ def refusals(section: str, prefix: str = "") -> Iterator[None]:
     try:
         yield
     except KeyedError as exc:
-        raise ConfigError(f"{prefix}{section}.{exc.key}: {exc}") from None
+        raise ConfigError(f"{prefix}{section}.{exc.key}: {exc.message}") from None
     except Unfillable as exc:
         raise InputError(str(exc)) from None
 

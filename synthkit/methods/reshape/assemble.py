@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from synthkit.errors import KeyedError
 from synthkit.io.textured import TexturedMesh
-from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
 
@@ -22,14 +22,14 @@ __all__ = ["piece_portals", "place_pieces", "portal_gaps", "snap_joined", "assem
 
 def piece_portals(mesh: TexturedMesh, extra: dict, *, tol: float, key: str) -> dict[str, np.ndarray]:
     """Portal name -> render vertices of one piece (detected end planes and boundary loops, given
-    indices: ``key.portals.<name>`` names them in a StageError)."""
+    indices: ``key.portals.<name>`` names them in a KeyedError)."""
     found = {**detect_portals(mesh.V, tol=tol), **boundary_portals(mesh.V, mesh.F, tol=tol)}
     for name, idx in extra.items():
         idx = np.asarray(idx, np.int64)
         bad = idx[(idx < 0) | (idx >= len(mesh.positions))]
         if len(bad):
-            raise StageError(f"vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)",
-                             f"{key}.portals.{name}")
+            raise KeyedError(f"{key}.portals.{name}",
+                             f"vertex {int(bad[0])} is out of range ({len(mesh.positions)} vertices)")
         found[name] = np.flatnonzero(np.isin(mesh.position_index, idx))
     return found
 
@@ -40,7 +40,7 @@ def place_pieces(names: list[str], meshes: list[TexturedMesh], extra: list[dict]
     joined render vertices ``(piece a, indices, piece b, indices)``. ``extra`` are the pieces'
     portals given by file vertex index, ``chain`` the joins (``a``, ``a_portal``, ``b``,
     ``b_portal``) placing each later piece; ``tol`` the portal plane tolerance (model units).
-    StageError names the ``pieces[i]``, ``chain[i]`` or ``chain`` key at fault."""
+    KeyedError names the ``pieces[i]``, ``chain[i]`` or ``chain`` key at fault."""
     if not chain and len(names) == 1:
         return [np.zeros(3)], [], []
     offsets: dict[str, np.ndarray] = {names[0]: np.zeros(3)}
@@ -51,27 +51,27 @@ def place_pieces(names: list[str], meshes: list[TexturedMesh], extra: list[dict]
         key = f"chain[{i}]"
         for side, piece, portal in (("a", j.a, j.a_portal), ("b", j.b, j.b_portal)):
             if piece not in portals:
-                raise StageError(f"no piece named {piece!r} (pieces: {', '.join(names)})", f"{key}.{side}")
+                raise KeyedError(f"{key}.{side}", f"no piece named {piece!r} (pieces: {', '.join(names)})")
             if portal not in portals[piece]:
-                raise StageError(f"piece {piece} has no portal {portal!r} (portals: {', '.join(portals[piece])})",
-                                 f"{key}.{side}_portal")
+                raise KeyedError(f"{key}.{side}_portal",
+                                 f"piece {piece} has no portal {portal!r} (portals: {', '.join(portals[piece])})")
         if j.a not in offsets:
-            raise StageError(f"piece {j.a!r} is not placed yet (join pieces in chain order)", f"{key}.a")
+            raise KeyedError(f"{key}.a", f"piece {j.a!r} is not placed yet (join pieces in chain order)")
         if j.b in offsets:
-            raise StageError(f"piece {j.b!r} is placed already", f"{key}.b")
+            raise KeyedError(f"{key}.b", f"piece {j.b!r} is placed already")
         ma, mb = meshes[names.index(j.a)], meshes[names.index(j.b)]
         Pa = portal_positions(ma.V, portals[j.a][j.a_portal], tol=tol) + offsets[j.a]
         Pb = portal_positions(mb.V, portals[j.b][j.b_portal], tol=tol)
         try:
             t, gap = align_portals(Pa, Pb, tol=100 * tol)
         except ValueError as exc:
-            raise StageError(f"{j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}", key) from None
+            raise KeyedError(key, f"{j.a}.{j.a_portal} and {j.b}.{j.b_portal}: {exc}") from None
         offsets[j.b] = t
         joins.append({"a": f"{j.a}.{j.a_portal}", "b": f"{j.b}.{j.b_portal}", "vertices": len(Pa), "placed_gap": gap})
         joined.append((names.index(j.a), portals[j.a][j.a_portal], names.index(j.b), portals[j.b][j.b_portal]))
     missing = [n for n in names if n not in offsets]
     if missing:
-        raise StageError(f"pieces {', '.join(missing)} are not joined to the first piece {names[0]}", "chain")
+        raise KeyedError("chain", f"pieces {', '.join(missing)} are not joined to the first piece {names[0]}")
     return [offsets[n] for n in names], joins, joined
 
 

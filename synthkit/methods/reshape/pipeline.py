@@ -30,13 +30,12 @@ import trimesh
 
 from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, InputError
+from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
 from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import retexture as RT
 from synthkit.methods.reshape.assemble import assemble, frozen_nodes, place_pieces, portal_gaps, snap_joined
-from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
 from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
@@ -186,9 +185,9 @@ class Scene:
     source: object
 
 
-def _mapped(exc: StageError) -> ConfigError | InputError:
+def _mapped(exc: KeyedError) -> ConfigError | InputError:
     """A stage's error as the command line reports it: ConfigError naming its key, else InputError."""
-    return ConfigError(f"{exc.key}: {exc}") if exc.key else InputError(str(exc))
+    return ConfigError(str(exc)) if exc.key else InputError(exc.message)
 
 
 def _read(inputs: Inputs, path) -> TexturedMesh:
@@ -211,7 +210,7 @@ def _load(cfg, opt: Options, inputs: Inputs, ctx) -> Scene:
         try:
             offsets, joins, joined = place_pieces(names, meshes, [p for _, _, p in specs], cfg.chain,
                                                   tol=opt.graph.portal_tol * piece_size)
-        except StageError as exc:
+        except KeyedError as exc:
             raise _mapped(exc) from None
         V, F, fm, ranges = assemble(names, meshes, offsets)
         snap_joined(V, ranges, joined)
@@ -281,7 +280,7 @@ def _textures(opt: Options, ctx, sc, graph, X) -> tuple[dict, dict]:
             ctx.budget.require("texture_reshape", f"{len(images)} textures", 4.0 * texels, "texels",
                                bytes_each=_BYTES_PER_TEXEL)
             results = RT.reshape_jobs(jobs, images, ctx.rng, options=options)
-        except StageError as exc:
+        except KeyedError as exc:
             raise _mapped(exc) from None
         entries, boxes = RT.atlas_entries(sc.meshes, results, images)
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))

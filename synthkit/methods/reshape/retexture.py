@@ -10,7 +10,7 @@ UVs and material, so its texture comes back unchanged. Each texture is analysed 
 (:func:`texture.surface.analyse_texture`), in the order surfaces first use it, so the tile seeds
 drawn from the run's ``rng`` are the same for a given seed.
 
-Errors are :class:`StageError` (a ValueError) naming the file and the surface, and carrying the
+Errors are :class:`KeyedError` (a ValueError) naming the file and the surface, and carrying the
 config ``key`` a value of which is at fault: a grid spacing below one texel
 (``texture_reshape.spacing``), a bake over ``texture_reshape.max_side``; None when the input is: a
 textured surface without UVs, UVs spanning a whole tile on a texture that is not toroidal, a
@@ -29,8 +29,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from synthkit.errors import KeyedError
 from synthkit.io.textured import Retexture, TexturedMesh
-from synthkit.methods.reshape.errors import StageError
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.options import TextureOptions
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
@@ -93,11 +93,11 @@ def check_uv(source, name, material, path, UV, toroidal) -> tuple[bool, np.ndarr
     [0, 1] and span more than a whole tile (plus :data:`WHOLE_TILE_SLACK`) along an axis; otherwise
     they are moved by whole tiles into [0, 1] (by the tile holding their centre) and a small
     excursion past [0, 1] is clamped (house atlases have UVs 0.14 texel outside). A ``material``
-    listed in ``toroidal`` is toroidal whatever its UVs. StageError for missing UVs, or for UVs
+    listed in ``toroidal`` is toroidal whatever its UVs. KeyedError for missing UVs, or for UVs
     spanning a whole tile when ``toroidal`` lists other materials only."""
     if np.isnan(UV).any():
-        raise StageError(f"{source}: surface {name} (material {material}) has no UVs, but its texture "
-                           f"{path.name} needs them")
+        raise KeyedError(None, f"{source}: surface {name} (material {material}) has no UVs, but its texture "
+                               f"{path.name} needs them")
     outside = bool(((UV < -1e-9) | (UV > 1 + 1e-9)).any())
     whole = outside and bool((np.ptp(UV, axis=0) > 1 + WHOLE_TILE_SLACK).any())
     toroidal = whole if toroidal == "auto" else material in toroidal
@@ -105,11 +105,9 @@ def check_uv(source, name, material, path, UV, toroidal) -> tuple[bool, np.ndarr
         return True, UV
     if whole:
         lo, hi = UV.min(axis=0), UV.max(axis=0)
-        raise StageError(
-            f"{source}: surface {name} (material {material}) has UVs spanning a whole tile "
-            f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} is not toroidal "
-            "(texture_reshape.toroidal)"
-        )
+        raise KeyedError(None, f"{source}: surface {name} (material {material}) has UVs spanning a whole tile "
+                               f"(u {lo[0]:.4g}..{hi[0]:.4g}, v {lo[1]:.4g}..{hi[1]:.4g}) but texture {path.name} "
+                               "is not toroidal (texture_reshape.toroidal)")
     shift = np.floor(0.5 * (UV.min(axis=0) + UV.max(axis=0)))
     return False, np.clip(UV - shift, 0.0, 1.0)
 
@@ -137,14 +135,14 @@ def _degenerate(C, F) -> str | None:
 
 
 def _texture(path, images, read, spacing: float) -> tuple[int, int]:
-    """``(W, H)`` of the texture at ``path`` (``read(path)`` once into ``images``); StageError on
+    """``(W, H)`` of the texture at ``path`` (``read(path)`` once into ``images``); KeyedError on
     ``texture_reshape.spacing`` when the grid spacing is below one of its texels."""
     if path not in images:
         images[path] = read(path)
     H, W = images[path].shape[:2]
     if spacing * min(H, W) < 1:
-        raise StageError(f"{spacing:g} of {path.name} ({W} x {H}) is {spacing * min(H, W):.3g} texels, "
-                           "below one texel", "texture_reshape.spacing")
+        raise KeyedError("texture_reshape.spacing",
+                         f"{spacing:g} of {path.name} ({W} x {H}) is {spacing * min(H, W):.3g} texels, below one texel")
     return W, H
 
 
@@ -232,7 +230,7 @@ def reshape_jobs(jobs, images, rng, *, options: TextureOptions) -> dict:
     non-toroidal surface whose map is affine is extended (:func:`texture.extend.extend_surface`,
     analysis None), the others take the paper's reshape. A surface mapping the same
     texels as an earlier one, stretched alike (front and back walls of the houses share their atlas
-    patch), shares its result. A stage ValueError becomes a StageError naming the surface."""
+    patch), shares its result. A stage ValueError becomes a KeyedError naming the surface."""
     params, analyses, results, done = options.params, {}, {}, {}
     for job in jobs:
         same = _job_key(job)
@@ -255,8 +253,8 @@ def reshape_jobs(jobs, images, rng, *, options: TextureOptions) -> dict:
                                   params=params, rng=rng)
         except ValueError as exc:
             if "max_side" in str(exc):
-                raise StageError(f"surface {job.name}: {exc}", "texture_reshape.max_side") from None
-            raise StageError(f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
+                raise KeyedError("texture_reshape.max_side", f"surface {job.name}: {exc}") from None
+            raise KeyedError(None, f"{job.texture}: surface {job.name}: texture reshape failed: {exc}") from None
         results[job.name] = (job, res, analyses[key])
     return results
 

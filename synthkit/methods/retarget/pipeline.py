@@ -30,7 +30,7 @@ import trimesh
 
 from synthkit.api import result_fields
 from synthkit.core.mesh import normalize_unit
-from synthkit.errors import ConfigError, InputError
+from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.assets import Asset
 from synthkit.io.inputs import Inputs
 from synthkit.methods.retarget.analysis import Analysis, analyze
@@ -45,7 +45,7 @@ from synthkit.methods.retarget.figures import (
 )
 from synthkit.methods.retarget.options import SynthesisOptions, Target, options_of
 from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
-from synthkit.methods.retarget.problem import KeyedError, build_problem, resolve_steps
+from synthkit.methods.retarget.problem import build_problem, resolve_steps
 from synthkit.methods.retarget.seams import Retargeted, stitch
 
 __all__ = ["compute", "run", "NoRepetition", "check_analysis_budget"]

@@ -9,20 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from synthkit.errors import KeyedError
 from synthkit.methods.retarget.analysis import Analysis, describe
 from synthkit.methods.retarget.options import SynthesisOptions, Target
 from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, make_grid
 
-__all__ = ["KeyedError", "resolve_steps", "voxel_sets", "build_problem"]
-
-
-class KeyedError(ValueError):
-    """A ValueError caused by one config entry: ``key`` names it (``"target.steps[1]=1"``,
-    ``"pins"``); the message starts with it."""
-
-    def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {message}")
-        self.key = key
+__all__ = ["resolve_steps", "voxel_sets", "build_problem"]
 
 
 def resolve_steps(target: Target, an: Analysis, Vn, *, keys: dict | None = None) -> np.ndarray:

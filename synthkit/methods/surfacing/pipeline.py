@@ -22,7 +22,7 @@ import numpy as np
 import trimesh
 
 from synthkit.api import result_fields
-from synthkit.errors import ConfigError
+from synthkit.errors import ConfigError, KeyedError
 from synthkit.io.inputs import Inputs
 from synthkit.methods.surfacing import prepare
 from synthkit.methods.surfacing.config import SurfacingConfig
@@ -156,7 +156,7 @@ def compute(cfg: SurfacingConfig, inputs: Inputs, ctx):
         return transfer_pipeline.compute(cfg, inputs, ctx)
     try:
         return _segment(cfg, inputs, ctx)
-    except prepare.KeyedValueError as exc:
+    except KeyedError as exc:
         raise ConfigError(str(exc)) from None
 
 

@@ -4,7 +4,7 @@ mesh into its stroked regions. :mod:`.pipeline` (mode segment) and :mod:`.transf
 (mode transfer, which segments its target and source meshes from strokes) both use it, so that
 neither imports the other.
 
-Errors are :class:`KeyedValueError`: a ValueError whose line starts with the config key it
+Errors are :class:`~synthkit.errors.KeyedError`: a ValueError whose line starts with the config key it
 concerns; the two pipelines raise it as a ConfigError (exit 2).
 """
 
@@ -13,19 +13,16 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from synthkit.errors import KeyedError
 from synthkit.methods.surfacing import views
 from synthkit.methods.surfacing.options import segment_options, stroke_colors
 from synthkit.methods.surfacing.segment import Segmentation, segment
 from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
 
-__all__ = ["KeyedValueError", "ViewCache", "mesh_colors", "stroke_owners", "segmentation", "BYTES_PER_NODE"]
+__all__ = ["ViewCache", "mesh_colors", "stroke_owners", "segmentation", "BYTES_PER_NODE"]
 
 BYTES_PER_NODE = 1500
 """Peak bytes per graph node over the graph, hierarchy and cuts (docs/findings/surface-by-numbers.md)."""
-
-
-class KeyedValueError(ValueError):
-    """A bad value of the config; the message starts with its key (``regions[1].points[0]: ...``)."""
 
 
 def mesh_colors(mesh: trimesh.Trimesh) -> np.ndarray | None:
@@ -64,8 +61,8 @@ def _image_sets(cfg, cache: ViewCache, inputs) -> tuple[list[np.ndarray], list[s
         img = inputs.image(item.image)
         cam, face_at, rendered = cache[item.view]
         if img.shape[:2] != face_at.shape:
-            raise KeyedValueError(f"images[{k}].image: {item.image} is {img.shape[1]}x{img.shape[0]} pixels, but "
-                                  f"view '{item.view}' renders {cam.size}x{cam.size} (views.size)")
+            raise KeyedError(f"images[{k}].image", f"{item.image} is {img.shape[1]}x{img.shape[0]} pixels, but "
+                             f"view '{item.view}' renders {cam.size}x{cam.size} (views.size)")
         sets, count = views.image_strokes(img, rendered, face_at, cache.V, cache.F, cam, stroke_colors(cfg, k),
                                           tolerance=item.tolerance, opacity=item.opacity)
         counts.append({"image": str(item.image), "view": item.view, **count})
@@ -76,7 +73,7 @@ def _image_sets(cfg, cache: ViewCache, inputs) -> tuple[list[np.ndarray], list[s
     return out, seen, counts
 
 
-def _no_strokes(key: str, region, counts: list[dict]) -> KeyedValueError:
+def _no_strokes(key: str, region, counts: list[dict]) -> KeyedError:
     """The error of a region left without strokes, naming an image's unread paint when there is some."""
     odd = [(k, c) for k, c in enumerate(counts) if c["ignored"]]
     hint = ""
@@ -84,8 +81,8 @@ def _no_strokes(key: str, region, counts: list[dict]) -> KeyedValueError:
         k, c = max(odd, key=lambda kc: kc[1]["ignored"])
         hint = (f"; images[{k}]: {c['ignored']} painted pixels match no stroke colour (most often "
                 f"{c['ignored_rgb']}; check images[{k}].colors)")
-    return KeyedValueError(f"{key} ({region.name}): region has no strokes (give vertices, faces, points or "
-                           f"images){hint}")
+    return KeyedError(f"{key} ({region.name})", f"region has no strokes (give vertices, faces, points or "
+                      f"images){hint}")
 
 
 def _one_view_notes(cfg, seen: list[set], other: list[bool]) -> list[str]:
@@ -100,11 +97,11 @@ def _one_view_notes(cfg, seen: list[set], other: list[bool]) -> list[str]:
 
 
 def _keyed(key: str, call, *args, **kwargs):
-    """``call(*args, **kwargs)``, its ValueError raised again as a :class:`KeyedValueError` of ``key``."""
+    """``call(*args, **kwargs)``, its ValueError raised again as a :class:`KeyedError` of ``key``."""
     try:
         return call(*args, **kwargs)
     except ValueError as exc:
-        raise KeyedValueError(f"{key}: {exc}") from None
+        raise KeyedError(key, str(exc)) from None
 
 
 def stroke_owners(cfg, mesh: trimesh.Trimesh, cache: ViewCache, inputs,
@@ -143,7 +140,7 @@ def segmentation(cfg, ctx, mesh: trimesh.Trimesh, vertex_owner, face_owner) -> S
     ctx.budget.require("input", cfg.input, n_nodes, "graph nodes", bytes_each=BYTES_PER_NODE)
     colors = mesh_colors(mesh) if opt.region_model == "color" else None
     if opt.region_model == "color" and colors is None:
-        raise KeyedValueError(f"region_term.model: color: {cfg.input} has no vertex colours and no texture")
+        raise KeyedError("region_term.model", f"color: {cfg.input} has no vertex colours and no texture")
     seg = _keyed("regions", segment, np.asarray(mesh.vertices), np.asarray(mesh.faces), vertex_owner, face_owner,
                  len(cfg.regions), opt, colors=colors, rng=ctx.rng)
     for name, seconds in seg.timings.items():

@@ -25,7 +25,7 @@ import trimesh
 from synthkit.api import result_fields
 from synthkit.core.mesh import face_areas, face_normals, weld
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError
+from synthkit.errors import ConfigError, KeyedError
 from synthkit.io.inputs import Inputs
 from synthkit.io.signals import image_grid, read_face_labels, texture_of, vertex_attribute, vertex_colors
 from synthkit.methods.surfacing import prepare
@@ -687,5 +687,5 @@ def compute(cfg, inputs: Inputs, ctx) -> TransferResult:
     """Run ``cfg`` (mode transfer) over ``inputs`` without writing."""
     try:
         return _transfer(cfg, inputs, ctx)
-    except prepare.KeyedValueError as exc:
+    except KeyedError as exc:
         raise ConfigError(str(exc)) from None

@@ -209,6 +209,16 @@ def _per_model(rows, key="rand_index_error"):
     return {m: float(np.mean(v)) for m, v in out.items()}
 
 
+def _worst_leak(rows, protocol) -> None:
+    """The model of ``default``'s largest growth and of its largest leak (printed when it ran)."""
+    if (protocol, "default") not in rows:
+        return
+    rs = rows[(protocol, "default")]
+    g, k = max(rs, key=lambda r: r["growth"]), max(rs, key=lambda r: r["leak"])
+    print(f"default largest growth {g['growth']:.2f} on {g['model']}, largest leak {k['leak']:.3f} of the mesh "
+          f"on {k['model']}")
+
+
 def _not_below_voronoi(rows, protocol, models) -> None:
     """The models on which ``default`` is not below the Voronoi baseline (printed when it ran)."""
     if (protocol, "default") not in rows:
@@ -271,6 +281,7 @@ def _summarise(rows, models, human, args):
                       f"mean {np.mean(ratios):.4f}; face agreement: min {min(agree):.4f}, mean {np.mean(agree):.4f}")
                 record(AREA, f"{protocol}_{name}_cut_cost_ratio_max", float(max(ratios)), "1", goal=1.01)
                 record(AREA, f"{protocol}_{name}_face_disagreement_max", float(1 - min(agree)), "1", goal=0.01)
+        _worst_leak(rows, protocol)
         _not_below_voronoi(rows, protocol, models)
         _within_best(rows, protocol, models)
 

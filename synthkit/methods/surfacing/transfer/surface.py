@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
 
-__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_bowties"]
+__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold"]
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -101,6 +101,18 @@ class Surface:
     _support_index: np.ndarray | None = field(default=None, repr=False)
     up: np.ndarray | None = None
     _planar: bool | None = field(default=None, repr=False)
+    _neighbours: tuple | None = field(default=None, repr=False)
+
+    @property
+    def neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """Face adjacency from ``pairs`` in CSR form: ``(indptr (#F + 1,), indices (2 #pairs,))``, the
+        neighbours of face ``f`` being ``indices[indptr[f]:indptr[f + 1]]``; built once."""
+        if self._neighbours is None:
+            n = len(self.F)
+            A = sp.csr_matrix((np.ones(2 * len(self.pairs), np.int8),
+                               (self.pairs.ravel(), self.pairs[:, ::-1].ravel())), shape=(n, n))
+            self._neighbours = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+        return self._neighbours
 
     @property
     def planar(self) -> bool:
@@ -221,8 +233,8 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     else:
         try:
             solver = pp3d.MeshVectorHeatSolver(V3, F3)
-        except RuntimeError:  # faces touching only at a vertex: split those vertices and try again
-            F3, split = split_bowties(F3)
+        except RuntimeError:  # not a manifold (bowties, double-sided faces, edges of 3+ faces): cut, try again
+            F3, split = split_nonmanifold(F3)
             V3, old3 = V3[split], old3[split]
             vertex_ids, index = old[old3], None
             pairs, edges = face_adjacency(F3)
@@ -236,19 +248,23 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
                    index)
 
 
-def split_bowties(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``F (#F, 3)`` with every vertex split into one copy per fan of faces joined through edges
-    around it (so faces touching only at a vertex no longer share it): ``(F2 (#F, 3), old (#V2,))``,
-    ``old`` the vertex each new vertex copies."""
+def split_nonmanifold(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``F (#F, 3)`` cut into a manifold, consistently wound mesh without changing any face's corners'
+    positions: two faces stay joined across an edge only when they are the only two faces on it and
+    run along it in opposite directions; every vertex is then split into one copy per fan of faces
+    joined around it (so faces touching only at a vertex, coincident double-sided faces and edges
+    of three or more faces no longer share vertices). ``(F2 (#F, 3), old (#V2,))``, ``old`` the
+    vertex each new vertex copies."""
     F = np.asarray(F, np.int64)
     n = 3 * len(F)
     pairs, edges = face_adjacency(F)
-    links = []
-    for end in (0, 1):
-        v = edges[:, end]
-        cf = 3 * pairs[:, 0] + np.argmax(F[pairs[:, 0]] == v[:, None], axis=1)
-        cg = 3 * pairs[:, 1] + np.argmax(F[pairs[:, 1]] == v[:, None], axis=1)
-        links.append(np.stack([cf, cg], 1))
+    _, which, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    corner = [np.stack([np.argmax(F[pairs[:, s]] == edges[:, end, None], axis=1) for end in (0, 1)], 1)
+              for s in (0, 1)]  # (k, 2) corner of the edge's ends in each face of the pair
+    forward = [(c[:, 1] - c[:, 0]) % 3 == 1 for c in corner]
+    joined = (count[which.ravel()] == 1) & (forward[0] != forward[1])
+    links = [np.stack([3 * pairs[joined, 0] + corner[0][joined, end], 3 * pairs[joined, 1] + corner[1][joined, end]], 1)
+             for end in (0, 1)]
     L = np.concatenate(links)
     A = sp.coo_matrix((np.ones(len(L)), (L[:, 0], L[:, 1])), shape=(n, n))
     _, comp = connected_components(A, directed=False)

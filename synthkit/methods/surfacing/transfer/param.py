@@ -114,19 +114,54 @@ def up_error(P: np.ndarray, Q: np.ndarray, up: np.ndarray, *, signed: bool = Fal
 
 class Locator:
     """Point location in triangles ``T (n, 3, 2)``: the triangle holding each query point and its
-    barycentric coordinates, among the 8 triangles with the nearest centroids."""
+    barycentric coordinates, among the 8 triangles with the nearest centroids.
 
-    def __init__(self, T: np.ndarray):
+    ``plane``: for the faces ``faces (n,)`` of a planar surface, whose domain is an isometry (times a
+    scale) of its plane, ``(surface, faces)``: the nearest centroids are then looked up in the
+    surface's one tree of all its face centroids (:attr:`.Surface.plane_tree`, built once, where a
+    tree of the patch's own faces was built per patch); where one of a point's 8 nearest faces is
+    not among ``faces`` (near the patch's border), in a tree of ``T`` alone, built then. The 8
+    nearest of all faces, when all are the patch's, are its 8 nearest: the same candidates."""
+
+    def __init__(self, T: np.ndarray, *, plane: tuple[Surface, np.ndarray] | None = None):
         self.T = np.asarray(T, np.float64)
-        self.tree = cKDTree((self.T[:, 0] + self.T[:, 1] + self.T[:, 2]) / 3.0)  # the centroids
         self.k = int(min(8, len(self.T)))
+        self._tree = None
+        self.plane = None
+        if plane is not None and self.k == 8:
+            surface, faces = plane
+            row = np.full(len(surface.F), -1, np.int64)
+            row[faces] = np.arange(len(faces))
+            # the affine map from domain to plane coordinates, exact on the first triangle's corners
+            P = surface.plane_coordinates[surface.F[faces[0]]]
+            A = np.linalg.solve(np.c_[self.T[0], np.ones(3)], P)
+            self.plane = (surface.plane_tree, row, A)
+
+    @property
+    def tree(self) -> cKDTree:
+        """Tree of the centroids of ``T``, built on first use."""
+        if self._tree is None:
+            self._tree = cKDTree((self.T[:, 0] + self.T[:, 1] + self.T[:, 2]) / 3.0)
+        return self._tree
+
+    def nearest(self, Q: np.ndarray, k: int) -> np.ndarray:
+        """Rows of ``T`` ``(n, k)`` with the ``k`` nearest centroids to each point of ``Q (n, 2)``,
+        nearest first."""
+        if self.plane is None:
+            return self.tree.query(Q, k=k)[1].reshape(len(Q), k)
+        tree, row, A = self.plane
+        cand = row[tree.query(Q @ A[:2] + A[2], k=k)[1].reshape(len(Q), k)]
+        off = np.flatnonzero((cand < 0).any(axis=1))
+        if len(off):
+            cand[off] = self.tree.query(Q[off], k=k)[1].reshape(len(off), k)
+        return cand
 
     def contains(self, Q: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
         """``(n,) bool``: whether each point of ``Q (n, 2)`` lies in a triangle, exactly
         ``locate(Q)[2]``, testing the triangle with the nearest centroid first and the other
         candidates only for the points it does not hold."""
         Q = np.asarray(Q, np.float64).reshape(-1, 2)
-        _, first = self.tree.query(Q, k=1)
+        first = self.nearest(Q, 1)[:, 0]
         T = self.T[first]
         a, b, c = T[:, 0], T[:, 1], T[:, 2]
         v0, v1, v2 = b - a, c - a, Q - a
@@ -144,8 +179,7 @@ class Locator:
         """``(tri (n,), bary (n, 3), inside (n,) bool)`` for ``Q (n, 2)``; outside points get the
         candidate they are least outside of, with clamped coordinates."""
         Q = np.asarray(Q, np.float64).reshape(-1, 2)
-        _, cand = self.tree.query(Q, k=self.k)
-        cand = cand.reshape(len(Q), self.k)
+        cand = self.nearest(Q, self.k)
         T = self.T[cand]
         a, b, c = T[..., 0, :], T[..., 1, :], T[..., 2, :]
         v0, v1, v2 = b - a, c - a, Q[:, None, :] - a
@@ -367,7 +401,7 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):
         return None
-    locator = Locator(Us[source.F[src_faces]])
+    locator = Locator(Us[source.F[src_faces]], plane=(source, src_faces) if source.planar else None)
     faces, dist = _accept(target, Ut, seed, radius, bound, 1.0)
     if not len(faces):
         return None

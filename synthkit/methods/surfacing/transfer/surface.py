@@ -102,6 +102,20 @@ class Surface:
     up: np.ndarray | None = None
     _planar: bool | None = field(default=None, repr=False)
     _neighbours: tuple | None = field(default=None, repr=False)
+    _plane_tree: cKDTree | None = field(default=None, repr=False)
+
+    @property
+    def plane_coordinates(self) -> np.ndarray:
+        """``(#V, 2)`` coordinates of a planar surface's vertices in its first face's frame."""
+        return self.V @ np.stack([self.X[0], self.Y[0]], axis=1)
+
+    @property
+    def plane_tree(self) -> cKDTree:
+        """Tree of a planar surface's face centroids in :attr:`plane_coordinates`, built once."""
+        if self._plane_tree is None:
+            P = self.plane_coordinates[self.F]
+            self._plane_tree = cKDTree((P[:, 0] + P[:, 1] + P[:, 2]) / 3.0)
+        return self._plane_tree
 
     @property
     def neighbours(self) -> tuple[np.ndarray, np.ndarray]:

@@ -371,6 +371,44 @@ def test_planar_surface_maps_by_its_own_coordinates():
                                (U[flat.F[7, 1]] - U[flat.F[7, 0]])[0], atol=1e-12)  # in the face's frame
 
 
+def test_planar_locator_finds_the_same_triangles_as_a_tree_of_the_patch():
+    """A planar source's patch locator (one tree of the surface, issue 29's speed-up) gives exactly the
+    triangles, barycentrics and inside flags of a locator built on the patch's own triangles, inside,
+    at the patch's border and outside it."""
+    from synthkit.methods.surfacing.transfer.param import centred_log_map
+
+    V, F = sample.grid(24)
+    flat = make_surface(V, F, np.arange(len(F)), None)
+    U = 1.7 * centred_log_map(flat, 300, radius=1.0, bound=2.0) @ rotation(0.4).T
+    faces = np.flatnonzero((np.linalg.norm(U, axis=1) < 0.6)[flat.F].all(axis=1))
+    T = U[flat.F[faces]]
+    Q = np.random.default_rng(0).uniform(-0.8, 0.8, (4000, 2))
+    fast, own = Locator(T, plane=(flat, faces)), Locator(T)
+    assert fast.plane is not None
+    for got, want in zip(fast.locate(Q), own.locate(Q), strict=True):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(fast.contains(Q), own.contains(Q))
+    inside = fast.contains(Q)
+    assert 0.2 < inside.mean() < 0.8  # points on both sides of the border were asked
+
+
+def test_nonmanifold_region_is_cut_for_the_log_maps():
+    """Regions potpourri3d refuses (a double-sided face, an edge of three faces) are cut along those
+    edges into manifold, consistently wound pieces, every face kept with its corners' positions."""
+    from synthkit.methods.surfacing.transfer.surface import split_nonmanifold
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0], [2, 0.5, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [1, 5, 2], [0, 4, 2]])  # [0, 2, 1] doubles the first
+    G, old = split_nonmanifold(F)
+    np.testing.assert_array_equal(old[G], F)
+    pairs = {tuple(sorted(p)) for p in make_surface(V[old], G, np.arange(5), None, largest=False).pairs.tolist()}
+    # edges 0-2 (four faces) and 1-2 (three) are cut; 0-1 joins the first face and its double, run in
+    # opposite directions (a fold, which the overlap test handles)
+    assert pairs == {(0, 2)}
+    s = make_surface(V, F, np.arange(5), None, largest=False)  # refused by potpourri3d before the cut
+    assert len(s.F) == 5 and s.log_map(0).shape == (len(s.V), 2)
+
+
 def test_poisson_blend_hides_a_seam_and_keeps_the_detail():
     """Two patches of one field, the right one offset by 0.4: the kernel blend keeps the jump one ring
     wide, Poisson blending spreads it and keeps each patch's gradient."""

@@ -19,7 +19,10 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
 
-__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold"]
+__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
+
+LOG_MAP_CACHE = 32 * 2**20
+"""Bytes of log maps a surface keeps (at least the latest): 200 maps of a 10k-vertex surface."""
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -103,6 +106,7 @@ class Surface:
     _planar: bool | None = field(default=None, repr=False)
     _neighbours: tuple | None = field(default=None, repr=False)
     _plane_tree: cKDTree | None = field(default=None, repr=False)
+    _log_maps: dict = field(default_factory=dict, repr=False)
 
     @property
     def plane_coordinates(self) -> np.ndarray:
@@ -160,12 +164,23 @@ class Surface:
         return float(self.areas.sum())
 
     def log_map(self, vertex: int) -> np.ndarray:
-        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame
-        (computed over the support mesh, so the region's own border does not bend it)."""
+        """Log map ``(#V, 2)`` (read-only) of the surface from ``vertex``, in its potpourri3d tangent
+        frame (computed over the support mesh, so the region's own border does not bend it). The
+        latest maps are kept, up to :data:`LOG_MAP_CACHE` bytes: a seed that cannot be placed is
+        retried with other matches from the same vertex (house1's walls: 482 maps of 140 vertices)."""
+        v = int(vertex)
+        if v in self._log_maps:
+            self._log_maps[v] = self._log_maps.pop(v)  # most recent last
+            return self._log_maps[v]
         if self._support_index is None:
-            return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
-        L = self._solver.compute_log_map(int(self._support_index[vertex]))
-        return np.asarray(L, np.float64)[self._support_index]
+            L = np.asarray(self._solver.compute_log_map(v), np.float64)
+        else:
+            L = np.asarray(self._solver.compute_log_map(int(self._support_index[v])), np.float64)[self._support_index]
+        L.setflags(write=False)
+        while self._log_maps and (len(self._log_maps) + 1) * L.nbytes > LOG_MAP_CACHE:
+            self._log_maps.pop(next(iter(self._log_maps)))
+        self._log_maps[v] = L
+        return L
 
 
 def _face_frames(V, F, vframes):

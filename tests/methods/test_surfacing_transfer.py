@@ -548,6 +548,55 @@ def obj_faces_uv(path: Path):
     return t, t.UV[t.F]
 
 
+def level_share(P: np.ndarray, Q: np.ndarray) -> tuple[float, np.ndarray]:
+    """Share of the vertical area of triangles ``P (n, 3, 3)`` (y up) whose up direction maps within
+    10 degrees of +v through their UVs ``Q (n, 3, 2)``, and those faces' angles in degrees."""
+    A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
+    B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
+    n = np.cross(A[..., 0], A[..., 1])
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
+    walls = np.linalg.norm(up, axis=1) > 0.5
+    J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
+    d = np.einsum("nij,nj->ni", J, up)
+    angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
+    return float(area[walls][angle < 10].sum() / area[walls].sum()), angle
+
+
+@pytest.mark.slow
+@needs("architecture/houses/house1_baked.obj", "textures/texture_bricks.jpg")
+def test_real_house_walls_level_and_blended(tmp_path):
+    """issue 29 on a house wall: house1's walls (double-sided faces, edges of four faces: potpourri3d
+    refused them before they were cut) take the brick photo with orientation: up, courses level on
+    at least 95% of the vertical area, borders blended below the random baseline's."""
+    from synthkit.io.meshes import load_mesh
+
+    path = DATA / "architecture/houses/house1_baked.obj"
+    walls = np.abs(load_mesh(path).face_normals[:, 1]) < 0.3
+    (tmp_path / "walls.seg").write_text("".join(f"{int(not w)}\n" for w in walls))
+    pair = {"target": {"labels": "walls.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(DATA / "textures/texture_bricks.jpg"), "width": 1.5}}
+    cfg = write_config(tmp_path, "house1", top={"input": str(path)}, pairs=[pair], baseline=True,
+                       synthesis={"orientation": "up"})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    m = json.loads((tmp_path / "out" / "report.json").read_text())["metrics"]
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    region = obj.face_material == obj.materials.index("transfer_0")
+    level, angle = level_share(obj.V[obj.F[region]], uv[region])
+    p = m["pairs"][0]
+    seams = [p[k + "texture_seam_visibility" + u] for k in ("", "baseline_") for u in ("", "_unblended")]
+    print(f"house1 walls: {walls.sum()} faces, coverage {m['coverage']:.3f}, level {level:.3f}, texture seam "
+          "visibility {:.3f} (unblended {:.3f}) vs baseline {:.3f} ({:.3f})".format(*seams))
+    # measured: level 0.996, coverage 0.915 (the gable wall's two triangles are longer than a patch),
+    # seam visibility 2.33 (unblended 3.16) vs the baseline's 2.52 (3.30)
+    assert level >= 0.95, np.percentile(angle, [50, 90, 99])
+    assert m["coverage"] >= 0.9 and m["distortion_max"] <= 2.0
+    assert p["texture_seam_visibility"] < min(p["texture_seam_visibility_unblended"],
+                                              p["baseline_texture_seam_visibility"])
+
+
 @pytest.mark.slow
 @needs("meshes/spot/spot_triangulated.obj", "textures/texture_bricks.jpg")
 def test_real_bricks_photo_onto_the_body_of_spot(tmp_path):
@@ -625,18 +674,7 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     assert np.abs(got - brick).max() < 0.08, (got, brick)
     assert got[0] > got[2] + 0.05  # brick red, where the plaster was white-grey
     # orientation: up keeps the courses level: the wall's up direction maps to the atlas's +v
-    P, Q = obj.V[obj.F[region]], uv[region]
-    A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
-    B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
-    n = np.cross(A[..., 0], A[..., 1])
-    area = 0.5 * np.linalg.norm(n, axis=1)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
-    walls = np.linalg.norm(up, axis=1) > 0.5
-    J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
-    d = np.einsum("nij,nj->ni", J, up)
-    angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
-    level = area[walls][angle < 10].sum() / area[walls].sum()
+    level, angle = level_share(obj.V[obj.F[region]], uv[region])
     # issue 29: at least 95% of the vertical area within 10 degrees; measured 1.000 (0.808 when only the
     # seed was held level; free orientation: 0.07 of the faces)
     assert level >= 0.95, np.percentile(angle, [50, 90, 99])

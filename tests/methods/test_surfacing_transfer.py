@@ -685,6 +685,43 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
 
 
 @pytest.mark.slow
+@needs("architecture/tudorhouse/tudorhouse.obj", "architecture/houses/house_a_bake.png")
+def test_real_subdivided_tudor_keeps_its_own_texture_outside_the_region(tmp_path):
+    """extraction.subdivide on a textured real house: the faces outside the region keep the house's
+    atlas (colour at their centres equal to the input's at the same points), and the run is not
+    called degraded for the non-manifold edges the subdivision itself makes (57 -> 162)."""
+    from synthkit.io.images import load_image
+    from synthkit.io.meshes import load_mesh
+    from synthkit.io.signals import texture_of
+
+    path = DATA / "architecture/tudorhouse/tudorhouse.obj"
+    mesh = load_mesh(path)
+    uv0, img = texture_of(mesh)
+    F = np.asarray(mesh.faces)
+    plaster = bilinear(img, uv0[F].mean(axis=1)).mean(axis=1) > 0.55
+    (tmp_path / "plaster.seg").write_text("".join(f"{int(not p)}\n" for p in plaster))
+    pair = {"target": {"labels": "plaster.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(DATA / "architecture/houses/house_a_bake.png"), "rect": [0, 0, 580, 280],
+                       "width": 2400.0}}
+    cfg = write_config(tmp_path, "tudor", top={"input": str(path)}, pairs=[pair], baseline=False,
+                       synthesis={"patch_radius": 250.0, "orientation": "up"}, extraction={"subdivide": 1})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["status"] == "ok" and report["metrics"]["coverage"] == 1.0
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    own = obj.face_material == obj.materials.index("original")
+    assert own.sum() == 4 * (~plaster).sum()
+    centres = obj.V[obj.F[own]].mean(axis=1)
+    near, dist, tri = trimesh.proximity.closest_point(trimesh.Trimesh(mesh.vertices, F, process=False), centres)
+    bary = trimesh.triangles.points_to_barycentric(np.asarray(mesh.vertices)[F[tri]], near)
+    want = bilinear(img, np.einsum("nk,nkc->nc", bary, uv0[F[tri]]))
+    got = bilinear(load_image(tmp_path / "out" / "original.png"), uv[own].mean(axis=1))
+    assert dist.max() < 1e-6 * np.ptp(mesh.vertices, axis=0).max()
+    assert np.percentile(np.abs(got - want).max(axis=1), 95) < 0.02
+
+
+@pytest.mark.slow
 @needs("meshes/bunny_small.ply")
 def test_real_bunny_detail_from_one_region_onto_another(tmp_path):
     from synthkit.io.meshes import load_mesh

@@ -10,9 +10,9 @@ the smaller area: 0.6 units). Measured in one process:
   seam cost stops falling, extraction with the kernel blend), seconds per step kind;
 - the random-matching baseline (``matching: random``, same trimming), and the random/no-trim
   baseline of the quality check with the same number of patches; their seam costs beside ours;
-- the parameterization step as it was before issue 29 (an SVD per 2 x 2 Jacobian,
-  :func:`svd_distortion` here, and log maps with the overlap test on the planar source grid)
-  against now (closed form, the grid's own coordinates), same seed (``--only parameterize`` runs
+- the parameterization step of the code before issue 29 (:data:`BASE_COMMIT`, from ``git archive``,
+  or ``--base COMMIT``) against today's, the same transfer alternated three times in this process:
+  wall seconds of the step and CPU seconds spent in ``mutual_patch`` (``--only parameterize`` runs
   this alone).
 
 The paper's figure: "usually a few minutes" offline on a 1.5 GHz PC, dominated by the
@@ -20,7 +20,7 @@ parameterization, then by patch finding. Goals on this machine: the whole transf
 fan precomputation <= 10 s.
 
 Run: ``.venv/bin/python benchmarks/surfacing_transfer.py`` (writes bench-results/surfacing_transfer.json), or with
-``--only parameterize`` (the parameterization timing alone).
+``--only parameterize`` (the parameterization timing alone), ``--base COMMIT``.
 """
 
 from __future__ import annotations
@@ -35,10 +35,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import print_table, record, write_results  # noqa: E402
-from synthkit.methods.surfacing.transfer import param  # noqa: E402
+from benchmarks.symtex import base_synthkit  # noqa: E402
+from synthkit.methods.surfacing.transfer import surface as surface_module  # noqa: E402
+from synthkit.methods.surfacing.transfer import synth as synth_module  # noqa: E402
 from synthkit.methods.surfacing.transfer.extract import corner_values, vertex_values  # noqa: E402
 from synthkit.methods.surfacing.transfer.fans import build_index, make_cloud  # noqa: E402
-from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface  # noqa: E402
+from synthkit.methods.surfacing.transfer.surface import Signal, make_surface  # noqa: E402
 from synthkit.methods.surfacing.transfer.synth import Options, Synthesis  # noqa: E402
 from synthkit.samples import surfacing_transfer as sample  # noqa: E402
 
@@ -69,42 +71,92 @@ def transfer(target_mesh, source_mesh, opt: Options, seed: int):
     return time.perf_counter() - t, res
 
 
-def svd_distortion(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`param.distortion` as it was before issue 29 (``np.linalg.svd`` per Jacobian), the
-    baseline of the parameterization timing."""
-    J, ok = param.jacobians(P, Q)
-    s = np.linalg.svd(J, compute_uv=False)
-    with np.errstate(divide="ignore"):
-        dist = np.maximum(s[:, 0], 1.0 / s[:, 1])
-    return np.where(ok & np.isfinite(dist), dist, np.inf), np.linalg.det(J)
+BASE_COMMIT = "2342190d9de31856f0a084ff02480fdd8ec7b70b"
+"""The code before issue 29 (the parent of its first transfer commit), the baseline of the
+parameterization timing."""
 
 
-def parameterize_speed(target_mesh, source_mesh, opt: Options) -> None:
-    """Parameterization seconds as before issue 29 (:func:`svd_distortion`, and the planar source
-    grid parameterized by log maps with the overlap test) and now (closed form, the grid's own
-    coordinates), alternated twice in this process with the same seed."""
-    fast, planar = param.distortion, Surface.planar
-    runs: dict[str, list] = {"before": [], "now": []}
-    for _ in range(2):
-        for name in runs:
-            if name == "before":
-                param.distortion, Surface.planar = svd_distortion, property(lambda self: False)
-            try:
-                _, again = transfer(target_mesh, source_mesh, opt, 0)
-            finally:
-                param.distortion, Surface.planar = fast, planar
-            runs[name].append((again.timings["parameterize"], len(again.patches)))
-    print(f"parameterize (seconds, patches): before {runs['before']}, now {runs['now']}", file=sys.stderr)
-    before, after = (min(t for t, _ in runs[k]) for k in ("before", "now"))
-    record(AREA, "  parameterize, closed form + planar source", after, "s", baseline=before)
+def base_transfer(folder: Path, commit: str):
+    """:func:`transfer` run by ``synthkit`` as of ``commit`` (its files from ``git archive``, imported
+    as ``synthkit_base``) with the step's CPU seconds: a function like :func:`timed_transfer`."""
+    import importlib
+
+    base_synthkit(folder, commit)
+    mods = {name: importlib.import_module(f"synthkit_base.methods.surfacing.transfer.{name}")
+            for name in ("surface", "synth")}
+    return lambda target_mesh, source_mesh, opt, seed: timed_transfer(target_mesh, source_mesh, opt, seed, mods)
+
+
+def timed_transfer(target_mesh, source_mesh, opt: Options, seed: int, mods=None):
+    """:func:`transfer` through the modules ``mods`` (``surface``, ``synth``; default today's) with
+    the process CPU seconds spent in ``mutual_patch``: ``(result, cpu)``."""
+    sf, sy = (mods["surface"], mods["synth"]) if mods else (surface_module, synth_module)
+    inner, cpu = sy.mutual_patch, [0.0]
+
+    def counted(*args, **kw):
+        c = time.process_time()
+        try:
+            return inner(*args, **kw)
+        finally:
+            cpu[0] += time.process_time() - c
+
+    sy.mutual_patch = counted
+    try:
+        S, G = target_mesh
+        V, F, colors = source_mesh
+        target = sf.make_surface(S, G, np.arange(len(G)), None, largest=False)
+        source = sf.make_surface(V, F, np.arange(len(F)), sf.Signal("color", values=colors[F]))
+        radius = 0.3 * np.sqrt(min(target.area, source.area))
+        o = sy.Options(**{k: getattr(opt, k) for k in ("bound", "matching", "trimming")}, patch_radius=radius)
+        res = sy.Synthesis(target, source, o, rng=np.random.default_rng(seed)).run()
+    finally:
+        sy.mutual_patch = inner
+    return res, cpu[0]
+
+
+def parameterize_speed(target_mesh, source_mesh, opt: Options, base: str = BASE_COMMIT) -> None:
+    """Parameterization seconds (wall, and CPU in ``mutual_patch``) of the code before issue 29
+    (``base``) and today's, alternated three times in this process with the same seed; the
+    patches, coverage and final seam cost of both."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = {"before": base_transfer(Path(tmp), base), "now": timed_transfer}
+        rows: dict[str, list] = {k: [] for k in runs}
+        for _ in range(3):
+            for name, run in runs.items():
+                res, cpu = run(target_mesh, source_mesh, opt, 0)
+                rows[name].append((res.timings["parameterize"], cpu, len(res.patches),
+                                   float((res.patch_of >= 0).mean()), res.seam_cost[-1]))
+    for name, r in rows.items():
+        wall, cpu = [x[0] for x in r], [x[1] for x in r]
+        print(f"parameterize {name} ({base[:7] if name == 'before' else 'today'}): wall {np.round(wall, 2).tolist()} "
+              f"(mean {np.mean(wall):.2f}), CPU {np.round(cpu, 2).tolist()} (mean {np.mean(cpu):.2f}); patches "
+              f"{r[0][2]}, coverage {r[0][3]:.4f}, seam cost {r[0][4]:.4f}", file=sys.stderr)
+    for i, what in ((0, "wall"), (1, "CPU")):
+        best = {k: min(x[i] for x in r) for k, r in rows.items()}
+        mean = {k: float(np.mean([x[i] for x in r])) for k, r in rows.items()}
+        record(AREA, f"  parameterize {what}, best of 3 (vs {base[:7]})", best["now"], "s", baseline=best["before"])
+        record(AREA, f"  parameterize {what}, mean of 3 (vs {base[:7]})", mean["now"], "s", baseline=mean["before"])
+
+
+def parse_args():
+    """``--only parameterize`` and ``--base COMMIT`` (default :data:`BASE_COMMIT`)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=["parameterize"], help="run only the parameterization timing")
+    ap.add_argument("--base", default=BASE_COMMIT, help="commit whose code is the timing's baseline")
+    return ap.parse_args()
 
 
 def main() -> int:
     rng = np.random.default_rng(0)
     target_mesh = sample.sphere(5)
     source_mesh = colour_source(rng)
-    if sys.argv[1:] == ["--only", "parameterize"]:
-        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0))
+    args = parse_args()
+    if args.only == "parameterize":
+        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base)
         print_table(AREA)
         return 0
     V, F, colors = source_mesh
@@ -131,7 +183,7 @@ def main() -> int:
     record(AREA, "seam cost (random + no trim)", res_none.seam_cost[-1], "")
     cov = res.patch_of >= 0
     record(AREA, "distortion max (bound 2)", float(res.distortion[cov].max()), "", goal=2.0)
-    parameterize_speed(target_mesh, source_mesh, base_opt)
+    parameterize_speed(target_mesh, source_mesh, base_opt, args.base)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}")
     return 0

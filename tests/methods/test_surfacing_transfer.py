@@ -371,6 +371,44 @@ def test_planar_surface_maps_by_its_own_coordinates():
                                (U[flat.F[7, 1]] - U[flat.F[7, 0]])[0], atol=1e-12)  # in the face's frame
 
 
+def test_planar_locator_finds_the_same_triangles_as_a_tree_of_the_patch():
+    """A planar source's patch locator (one tree of the surface, issue 29's speed-up) gives exactly the
+    triangles, barycentrics and inside flags of a locator built on the patch's own triangles, inside,
+    at the patch's border and outside it."""
+    from synthkit.methods.surfacing.transfer.param import centred_log_map
+
+    V, F = sample.grid(24)
+    flat = make_surface(V, F, np.arange(len(F)), None)
+    U = 1.7 * centred_log_map(flat, 300, radius=1.0, bound=2.0) @ rotation(0.4).T
+    faces = np.flatnonzero((np.linalg.norm(U, axis=1) < 0.6)[flat.F].all(axis=1))
+    T = U[flat.F[faces]]
+    Q = np.random.default_rng(0).uniform(-0.8, 0.8, (4000, 2))
+    fast, own = Locator(T, plane=(flat, faces)), Locator(T)
+    assert fast.plane is not None
+    for got, want in zip(fast.locate(Q), own.locate(Q), strict=True):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(fast.contains(Q), own.contains(Q))
+    inside = fast.contains(Q)
+    assert 0.2 < inside.mean() < 0.8  # points on both sides of the border were asked
+
+
+def test_nonmanifold_region_is_cut_for_the_log_maps():
+    """Regions potpourri3d refuses (a double-sided face, an edge of three faces) are cut along those
+    edges into manifold, consistently wound pieces, every face kept with its corners' positions."""
+    from synthkit.methods.surfacing.transfer.surface import split_nonmanifold
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0], [2, 0.5, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [1, 5, 2], [0, 4, 2]])  # [0, 2, 1] doubles the first
+    G, old = split_nonmanifold(F)
+    np.testing.assert_array_equal(old[G], F)
+    pairs = {tuple(sorted(p)) for p in make_surface(V[old], G, np.arange(5), None, largest=False).pairs.tolist()}
+    # edges 0-2 (four faces) and 1-2 (three) are cut; 0-1 joins the first face and its double, run in
+    # opposite directions (a fold, which the overlap test handles)
+    assert pairs == {(0, 2)}
+    s = make_surface(V, F, np.arange(5), None, largest=False)  # refused by potpourri3d before the cut
+    assert len(s.F) == 5 and s.log_map(0).shape == (len(s.V), 2)
+
+
 def test_poisson_blend_hides_a_seam_and_keeps_the_detail():
     """Two patches of one field, the right one offset by 0.4: the kernel blend keeps the jump one ring
     wide, Poisson blending spreads it and keeps each patch's gradient."""
@@ -510,6 +548,55 @@ def obj_faces_uv(path: Path):
     return t, t.UV[t.F]
 
 
+def level_share(P: np.ndarray, Q: np.ndarray) -> tuple[float, np.ndarray]:
+    """Share of the vertical area of triangles ``P (n, 3, 3)`` (y up) whose up direction maps within
+    10 degrees of +v through their UVs ``Q (n, 3, 2)``, and those faces' angles in degrees."""
+    A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
+    B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
+    n = np.cross(A[..., 0], A[..., 1])
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
+    walls = np.linalg.norm(up, axis=1) > 0.5
+    J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
+    d = np.einsum("nij,nj->ni", J, up)
+    angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
+    return float(area[walls][angle < 10].sum() / area[walls].sum()), angle
+
+
+@pytest.mark.slow
+@needs("architecture/houses/house1_baked.obj", "textures/texture_bricks.jpg")
+def test_real_house_walls_level_and_blended(tmp_path):
+    """issue 29 on a house wall: house1's walls (double-sided faces, edges of four faces: potpourri3d
+    refused them before they were cut) take the brick photo with orientation: up, courses level on
+    at least 95% of the vertical area, borders blended below the random baseline's."""
+    from synthkit.io.meshes import load_mesh
+
+    path = DATA / "architecture/houses/house1_baked.obj"
+    walls = np.abs(load_mesh(path).face_normals[:, 1]) < 0.3
+    (tmp_path / "walls.seg").write_text("".join(f"{int(not w)}\n" for w in walls))
+    pair = {"target": {"labels": "walls.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(DATA / "textures/texture_bricks.jpg"), "width": 1.5}}
+    cfg = write_config(tmp_path, "house1", top={"input": str(path)}, pairs=[pair], baseline=True,
+                       synthesis={"orientation": "up"})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    m = json.loads((tmp_path / "out" / "report.json").read_text())["metrics"]
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    region = obj.face_material == obj.materials.index("transfer_0")
+    level, angle = level_share(obj.V[obj.F[region]], uv[region])
+    p = m["pairs"][0]
+    seams = [p[k + "texture_seam_visibility" + u] for k in ("", "baseline_") for u in ("", "_unblended")]
+    print(f"house1 walls: {walls.sum()} faces, coverage {m['coverage']:.3f}, level {level:.3f}, texture seam "
+          "visibility {:.3f} (unblended {:.3f}) vs baseline {:.3f} ({:.3f})".format(*seams))
+    # measured: level 0.996, coverage 0.915 (the gable wall's two triangles are longer than a patch),
+    # seam visibility 2.33 (unblended 3.16) vs the baseline's 2.52 (3.30)
+    assert level >= 0.95, np.percentile(angle, [50, 90, 99])
+    assert m["coverage"] >= 0.9 and m["distortion_max"] <= 2.0
+    assert p["texture_seam_visibility"] < min(p["texture_seam_visibility_unblended"],
+                                              p["baseline_texture_seam_visibility"])
+
+
 @pytest.mark.slow
 @needs("meshes/spot/spot_triangulated.obj", "textures/texture_bricks.jpg")
 def test_real_bricks_photo_onto_the_body_of_spot(tmp_path):
@@ -587,18 +674,7 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     assert np.abs(got - brick).max() < 0.08, (got, brick)
     assert got[0] > got[2] + 0.05  # brick red, where the plaster was white-grey
     # orientation: up keeps the courses level: the wall's up direction maps to the atlas's +v
-    P, Q = obj.V[obj.F[region]], uv[region]
-    A = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)
-    B = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
-    n = np.cross(A[..., 0], A[..., 1])
-    area = 0.5 * np.linalg.norm(n, axis=1)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    up = np.array([0.0, 1.0, 0.0]) - n[:, 1:2] * n
-    walls = np.linalg.norm(up, axis=1) > 0.5
-    J = B @ np.linalg.pinv(A)  # (n, 2, 3): 3-D tangent vectors to UV
-    d = np.einsum("nij,nj->ni", J, up)
-    angle = np.degrees(np.arctan2(np.abs(d[:, 0]), d[:, 1]))[walls]
-    level = area[walls][angle < 10].sum() / area[walls].sum()
+    level, angle = level_share(obj.V[obj.F[region]], uv[region])
     # issue 29: at least 95% of the vertical area within 10 degrees; measured 1.000 (0.808 when only the
     # seed was held level; free orientation: 0.07 of the faces)
     assert level >= 0.95, np.percentile(angle, [50, 90, 99])
@@ -606,6 +682,43 @@ def test_real_brick_atlas_region_onto_tudor_plaster_panels(tmp_path):
     if m["seam_ratio"] > 0.5:  # the known-answer goal (at most half the random/no-trim baseline), missed here
         pytest.xfail(f"issue 11 seam goal missed on tudorhouse: seam ratio {m['seam_ratio']:.2f} > 0.5 (its plaster "
                      "is painted over facade triangles that also carry the timber frame; README)")
+
+
+@pytest.mark.slow
+@needs("architecture/tudorhouse/tudorhouse.obj", "architecture/houses/house_a_bake.png")
+def test_real_subdivided_tudor_keeps_its_own_texture_outside_the_region(tmp_path):
+    """extraction.subdivide on a textured real house: the faces outside the region keep the house's
+    atlas (colour at their centres equal to the input's at the same points), and the run is not
+    called degraded for the non-manifold edges the subdivision itself makes (57 -> 162)."""
+    from synthkit.io.images import load_image
+    from synthkit.io.meshes import load_mesh
+    from synthkit.io.signals import texture_of
+
+    path = DATA / "architecture/tudorhouse/tudorhouse.obj"
+    mesh = load_mesh(path)
+    uv0, img = texture_of(mesh)
+    F = np.asarray(mesh.faces)
+    plaster = bilinear(img, uv0[F].mean(axis=1)).mean(axis=1) > 0.55
+    (tmp_path / "plaster.seg").write_text("".join(f"{int(not p)}\n" for p in plaster))
+    pair = {"target": {"labels": "plaster.seg", "label": 0}, "signal": "texture",
+            "source": {"image": str(DATA / "architecture/houses/house_a_bake.png"), "rect": [0, 0, 580, 280],
+                       "width": 2400.0}}
+    cfg = write_config(tmp_path, "tudor", top={"input": str(path)}, pairs=[pair], baseline=False,
+                       synthesis={"patch_radius": 250.0, "orientation": "up"}, extraction={"subdivide": 1})
+    result = run(cfg, tmp_path / "out", "--previews", "none")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["status"] == "ok" and report["metrics"]["coverage"] == 1.0
+    obj, uv = obj_faces_uv(tmp_path / "out" / "transferred.obj")
+    own = obj.face_material == obj.materials.index("original")
+    assert own.sum() == 4 * (~plaster).sum()
+    centres = obj.V[obj.F[own]].mean(axis=1)
+    near, dist, tri = trimesh.proximity.closest_point(trimesh.Trimesh(mesh.vertices, F, process=False), centres)
+    bary = trimesh.triangles.points_to_barycentric(np.asarray(mesh.vertices)[F[tri]], near)
+    want = bilinear(img, np.einsum("nk,nkc->nc", bary, uv0[F[tri]]))
+    got = bilinear(load_image(tmp_path / "out" / "original.png"), uv[own].mean(axis=1))
+    assert dist.max() < 1e-6 * np.ptp(mesh.vertices, axis=0).max()
+    assert np.percentile(np.abs(got - want).max(axis=1), 95) < 0.02
 
 
 @pytest.mark.slow

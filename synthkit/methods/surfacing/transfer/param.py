@@ -32,11 +32,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from synthkit.core.flow import NUMBA_CACHE
 from synthkit.methods.surfacing.transfer.surface import Surface
 
 __all__ = ["Locator", "Patch", "distortion", "jacobians", "mutual_patch", "rotation", "singular_values_2x2", "up_error",
@@ -114,19 +114,54 @@ def up_error(P: np.ndarray, Q: np.ndarray, up: np.ndarray, *, signed: bool = Fal
 
 class Locator:
     """Point location in triangles ``T (n, 3, 2)``: the triangle holding each query point and its
-    barycentric coordinates, among the 8 triangles with the nearest centroids."""
+    barycentric coordinates, among the 8 triangles with the nearest centroids.
 
-    def __init__(self, T: np.ndarray):
+    ``plane``: for the faces ``faces (n,)`` of a planar surface, whose domain is an isometry (times a
+    scale) of its plane, ``(surface, faces)``: the nearest centroids are then looked up in the
+    surface's one tree of all its face centroids (:attr:`.Surface.plane_tree`, built once, where a
+    tree of the patch's own faces was built per patch); where one of a point's 8 nearest faces is
+    not among ``faces`` (near the patch's border), in a tree of ``T`` alone, built then. The 8
+    nearest of all faces, when all are the patch's, are its 8 nearest: the same candidates."""
+
+    def __init__(self, T: np.ndarray, *, plane: tuple[Surface, np.ndarray] | None = None):
         self.T = np.asarray(T, np.float64)
-        self.tree = cKDTree(self.T.mean(axis=1))
         self.k = int(min(8, len(self.T)))
+        self._tree = None
+        self.plane = None
+        if plane is not None and self.k == 8:
+            surface, faces = plane
+            row = np.full(len(surface.F), -1, np.int64)
+            row[faces] = np.arange(len(faces))
+            # the affine map from domain to plane coordinates, exact on the first triangle's corners
+            P = surface.plane_coordinates[surface.F[faces[0]]]
+            A = np.linalg.solve(np.c_[self.T[0], np.ones(3)], P)
+            self.plane = (surface.plane_tree, row, A)
+
+    @property
+    def tree(self) -> cKDTree:
+        """Tree of the centroids of ``T``, built on first use."""
+        if self._tree is None:
+            self._tree = cKDTree((self.T[:, 0] + self.T[:, 1] + self.T[:, 2]) / 3.0)
+        return self._tree
+
+    def nearest(self, Q: np.ndarray, k: int) -> np.ndarray:
+        """Rows of ``T`` ``(n, k)`` with the ``k`` nearest centroids to each point of ``Q (n, 2)``,
+        nearest first."""
+        if self.plane is None:
+            return self.tree.query(Q, k=k)[1].reshape(len(Q), k)
+        tree, row, A = self.plane
+        cand = row[tree.query(Q @ A[:2] + A[2], k=k)[1].reshape(len(Q), k)]
+        off = np.flatnonzero((cand < 0).any(axis=1))
+        if len(off):
+            cand[off] = self.tree.query(Q[off], k=k)[1].reshape(len(off), k)
+        return cand
 
     def contains(self, Q: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
         """``(n,) bool``: whether each point of ``Q (n, 2)`` lies in a triangle, exactly
         ``locate(Q)[2]``, testing the triangle with the nearest centroid first and the other
         candidates only for the points it does not hold."""
         Q = np.asarray(Q, np.float64).reshape(-1, 2)
-        _, first = self.tree.query(Q, k=1)
+        first = self.nearest(Q, 1)[:, 0]
         T = self.T[first]
         a, b, c = T[:, 0], T[:, 1], T[:, 2]
         v0, v1, v2 = b - a, c - a, Q - a
@@ -144,8 +179,7 @@ class Locator:
         """``(tri (n,), bary (n, 3), inside (n,) bool)`` for ``Q (n, 2)``; outside points get the
         candidate they are least outside of, with clamped coordinates."""
         Q = np.asarray(Q, np.float64).reshape(-1, 2)
-        _, cand = self.tree.query(Q, k=self.k)
-        cand = cand.reshape(len(Q), self.k)
+        cand = self.nearest(Q, self.k)
         T = self.T[cand]
         a, b, c = T[..., 0, :], T[..., 1, :], T[..., 2, :]
         v0, v1, v2 = b - a, c - a, Q[:, None, :] - a
@@ -259,45 +293,55 @@ def unfold(surface: Surface, face: int, *, radius: float) -> np.ndarray:
     return U
 
 
-def _piece(pairs: np.ndarray, ok: np.ndarray, seed: int) -> np.ndarray:
-    """Mask of the faces with ``ok`` connected to ``seed`` through ``ok`` faces (the components of
-    the ``ok`` faces alone, not of the whole surface)."""
-    n = len(ok)
+@numba.njit(cache=NUMBA_CACHE)
+def _grow(indptr: np.ndarray, indices: np.ndarray, ok: np.ndarray, seed: int) -> np.ndarray:  # pragma: no cover
+    """Mask of the faces with ``ok (#F,)`` connected to ``seed`` through ``ok`` faces, by a depth-first
+    walk over the face adjacency ``(indptr, indices)`` (CSR) from the seed (empty when the seed is not ok)."""
+    out = np.zeros(len(ok), np.bool_)
     if not ok[seed]:
-        return np.zeros(n, bool)
-    nodes = np.flatnonzero(ok)
-    local = np.full(n, -1, np.int64)
-    local[nodes] = np.arange(len(nodes))
-    keep = pairs[ok[pairs[:, 0]] & ok[pairs[:, 1]]]
-    m = len(nodes)
-    A = sp.coo_matrix((np.ones(len(keep)), (local[keep[:, 0]], local[keep[:, 1]])), shape=(m, m))
-    _, comp = connected_components(A, directed=False)
-    out = np.zeros(n, bool)
-    out[nodes[comp == comp[local[seed]]]] = True
+        return out
+    stack = np.empty(len(ok), np.int64)
+    stack[0] = seed
+    out[seed] = True
+    top = 1
+    while top:
+        top -= 1
+        f = stack[top]
+        for j in range(indptr[f], indptr[f + 1]):
+            g = indices[j]
+            if ok[g] and not out[g]:
+                out[g] = True
+                stack[top] = g
+                top += 1
     return out
+
+
+def _piece(surface: Surface, ok: np.ndarray, seed: int) -> np.ndarray:
+    """Mask of the faces with ``ok (#F,)`` connected to ``seed`` through ``ok`` faces (the component of
+    the ``ok`` faces alone, not of the whole surface)."""
+    indptr, indices = surface.neighbours
+    return _grow(indptr, indices, ok, int(seed))
 
 
 def _drop_overlaps(T: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Mask over ``faces`` without the farther face of each pair where one centroid lies strictly
-    inside the other's domain triangle ``T (n, 3, 2)``."""
+    inside the other's domain triangle ``T (n, 3, 2)``, among the 7 nearest centroids of each."""
     if len(faces) < 2:
         return np.ones(len(faces), bool)
-    loc = Locator(T)
     cen = T.mean(axis=1)
-    _, cand = loc.tree.query(cen, k=loc.k)
-    keep = np.ones(len(faces), bool)
-    for j in range(1, loc.k):
-        other = cand[:, j]
-        a, b, c = T[other, 0], T[other, 1], T[other, 2]
-        den = (b - a)[:, 0] * (c - a)[:, 1] - (c - a)[:, 0] * (b - a)[:, 1]
-        den = np.where(np.abs(den) < 1e-300, 1e-300, den)
-        v = cen - a
-        w1 = (v[:, 0] * (c - a)[:, 1] - (c - a)[:, 0] * v[:, 1]) / den
-        w2 = ((b - a)[:, 0] * v[:, 1] - v[:, 0] * (b - a)[:, 1]) / den
-        strictly = (w1 > 1e-6) & (w2 > 1e-6) & (1 - w1 - w2 > 1e-6)
-        mine = np.linalg.norm(cen, axis=1) >= np.linalg.norm(cen[other], axis=1)
-        keep &= ~(strictly & mine)
-        keep[other[strictly & ~mine]] = False
+    _, cand = cKDTree(cen).query(cen, k=min(8, len(T)))
+    other = cand[:, 1:]  # (n, k - 1); column 0 is the face itself
+    a, b, c = T[other, 0], T[other, 1], T[other, 2]
+    den = (b - a)[..., 0] * (c - a)[..., 1] - (c - a)[..., 0] * (b - a)[..., 1]
+    den = np.where(np.abs(den) < 1e-300, 1e-300, den)
+    v = cen[:, None, :] - a
+    w1 = (v[..., 0] * (c - a)[..., 1] - (c - a)[..., 0] * v[..., 1]) / den
+    w2 = ((b - a)[..., 0] * v[..., 1] - v[..., 0] * (b - a)[..., 1]) / den
+    strictly = (w1 > 1e-6) & (w2 > 1e-6) & (1 - w1 - w2 > 1e-6)
+    r = np.linalg.norm(cen, axis=1)
+    mine = r[:, None] >= r[other]
+    keep = ~(strictly & mine).any(axis=1)
+    keep[other[strictly & ~mine]] = False
     return keep
 
 
@@ -309,20 +353,29 @@ def _accept(surface: Surface, U: np.ndarray, seed: int, radius: float, bound: fl
         near = (np.linalg.norm(U, axis=1) < radius)[F].all(axis=1)
     near[seed] = True
     cand = np.flatnonzero(near)
-    dist, det = distortion(surface.V[F[cand]], U[F[cand]] / scale)
     ok = np.zeros(len(F), bool)
+    if surface.planar:  # mapped by an isometry (times scale): every face undistorted, unflipped, turned alike
+        dist = np.ones(len(cand))
+        ok[cand] = True
+        return _connected(surface, ok, seed, dist, cand)
+    dist, det = distortion(surface.V[F[cand]], U[F[cand]] / scale)
     ok[cand] = (dist <= bound) & (det > 0)
     if surface.up is not None:
         with np.errstate(invalid="ignore"):
             ok[cand] &= ~(up_error(surface.V[F[cand]], U[F[cand]], surface.up) > UP_TOLERANCE)
-    ok = _piece(surface.pairs, ok, seed)
+    ok = _piece(surface, ok, seed)
     faces = np.flatnonzero(ok)
-    keep = np.ones(len(faces), bool) if surface.planar else _drop_overlaps(U[F[faces]], faces)
+    keep = _drop_overlaps(U[F[faces]], faces)
     if not keep.all():
         ok[faces[~keep]] = False
-        ok = _piece(surface.pairs, ok, seed)
-        faces = np.flatnonzero(ok)
-    d = np.zeros(len(F))
+    return _connected(surface, ok, seed, dist, cand)
+
+
+def _connected(surface: Surface, ok: np.ndarray, seed: int, dist: np.ndarray, cand: np.ndarray):
+    """``(faces (p,), distortion (p,))``: the faces with ``ok (#F,)`` connected to ``seed`` and their
+    distortions, given as ``dist`` over the faces ``cand`` (a superset)."""
+    faces = np.flatnonzero(_piece(surface, ok, seed))
+    d = np.zeros(len(surface.F))
     d[cand] = dist
     return faces, d[faces]
 
@@ -348,7 +401,7 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):
         return None
-    locator = Locator(Us[source.F[src_faces]])
+    locator = Locator(Us[source.F[src_faces]], plane=(source, src_faces) if source.planar else None)
     faces, dist = _accept(target, Ut, seed, radius, bound, 1.0)
     if not len(faces):
         return None
@@ -358,7 +411,7 @@ def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, 
     inside = found[:len(corners)][corner_of.reshape(-1, 3)].all(axis=1) & found[len(corners):]
     ok = np.zeros(len(target.F), bool)
     ok[faces[inside]] = True
-    ok = _piece(target.pairs, ok, seed)
+    ok = _piece(target, ok, seed)
     if not ok[seed]:
         return None
     sel = ok[faces]

@@ -19,7 +19,10 @@ from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
 
-__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_bowties"]
+__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
+
+LOG_MAP_CACHE = 32 * 2**20
+"""Bytes of log maps a surface keeps (at least the latest): 200 maps of a 10k-vertex surface."""
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -101,6 +104,33 @@ class Surface:
     _support_index: np.ndarray | None = field(default=None, repr=False)
     up: np.ndarray | None = None
     _planar: bool | None = field(default=None, repr=False)
+    _neighbours: tuple | None = field(default=None, repr=False)
+    _plane_tree: cKDTree | None = field(default=None, repr=False)
+    _log_maps: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def plane_coordinates(self) -> np.ndarray:
+        """``(#V, 2)`` coordinates of a planar surface's vertices in its first face's frame."""
+        return self.V @ np.stack([self.X[0], self.Y[0]], axis=1)
+
+    @property
+    def plane_tree(self) -> cKDTree:
+        """Tree of a planar surface's face centroids in :attr:`plane_coordinates`, built once."""
+        if self._plane_tree is None:
+            P = self.plane_coordinates[self.F]
+            self._plane_tree = cKDTree((P[:, 0] + P[:, 1] + P[:, 2]) / 3.0)
+        return self._plane_tree
+
+    @property
+    def neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """Face adjacency from ``pairs`` in CSR form: ``(indptr (#F + 1,), indices (2 #pairs,))``, the
+        neighbours of face ``f`` being ``indices[indptr[f]:indptr[f + 1]]``; built once."""
+        if self._neighbours is None:
+            n = len(self.F)
+            A = sp.csr_matrix((np.ones(2 * len(self.pairs), np.int8),
+                               (self.pairs.ravel(), self.pairs[:, ::-1].ravel())), shape=(n, n))
+            self._neighbours = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+        return self._neighbours
 
     @property
     def planar(self) -> bool:
@@ -134,12 +164,23 @@ class Surface:
         return float(self.areas.sum())
 
     def log_map(self, vertex: int) -> np.ndarray:
-        """Log map ``(#V, 2)`` of the surface from ``vertex``, in its potpourri3d tangent frame
-        (computed over the support mesh, so the region's own border does not bend it)."""
+        """Log map ``(#V, 2)`` (read-only) of the surface from ``vertex``, in its potpourri3d tangent
+        frame (computed over the support mesh, so the region's own border does not bend it). The
+        latest maps are kept, up to :data:`LOG_MAP_CACHE` bytes: a seed that cannot be placed is
+        retried with other matches from the same vertex (house1's walls: 482 maps of 140 vertices)."""
+        v = int(vertex)
+        if v in self._log_maps:
+            self._log_maps[v] = self._log_maps.pop(v)  # most recent last
+            return self._log_maps[v]
         if self._support_index is None:
-            return np.asarray(self._solver.compute_log_map(int(vertex)), np.float64)
-        L = self._solver.compute_log_map(int(self._support_index[vertex]))
-        return np.asarray(L, np.float64)[self._support_index]
+            L = np.asarray(self._solver.compute_log_map(v), np.float64)
+        else:
+            L = np.asarray(self._solver.compute_log_map(int(self._support_index[v])), np.float64)[self._support_index]
+        L.setflags(write=False)
+        while self._log_maps and (len(self._log_maps) + 1) * L.nbytes > LOG_MAP_CACHE:
+            self._log_maps.pop(next(iter(self._log_maps)))
+        self._log_maps[v] = L
+        return L
 
 
 def _face_frames(V, F, vframes):
@@ -221,8 +262,8 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     else:
         try:
             solver = pp3d.MeshVectorHeatSolver(V3, F3)
-        except RuntimeError:  # faces touching only at a vertex: split those vertices and try again
-            F3, split = split_bowties(F3)
+        except RuntimeError:  # not a manifold (bowties, double-sided faces, edges of 3+ faces): cut, try again
+            F3, split = split_nonmanifold(F3)
             V3, old3 = V3[split], old3[split]
             vertex_ids, index = old[old3], None
             pairs, edges = face_adjacency(F3)
@@ -236,19 +277,23 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
                    index)
 
 
-def split_bowties(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``F (#F, 3)`` with every vertex split into one copy per fan of faces joined through edges
-    around it (so faces touching only at a vertex no longer share it): ``(F2 (#F, 3), old (#V2,))``,
-    ``old`` the vertex each new vertex copies."""
+def split_nonmanifold(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``F (#F, 3)`` cut into a manifold, consistently wound mesh without changing any face's corners'
+    positions: two faces stay joined across an edge only when they are the only two faces on it and
+    run along it in opposite directions; every vertex is then split into one copy per fan of faces
+    joined around it (so faces touching only at a vertex, coincident double-sided faces and edges
+    of three or more faces no longer share vertices). ``(F2 (#F, 3), old (#V2,))``, ``old`` the
+    vertex each new vertex copies."""
     F = np.asarray(F, np.int64)
     n = 3 * len(F)
     pairs, edges = face_adjacency(F)
-    links = []
-    for end in (0, 1):
-        v = edges[:, end]
-        cf = 3 * pairs[:, 0] + np.argmax(F[pairs[:, 0]] == v[:, None], axis=1)
-        cg = 3 * pairs[:, 1] + np.argmax(F[pairs[:, 1]] == v[:, None], axis=1)
-        links.append(np.stack([cf, cg], 1))
+    _, which, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    corner = [np.stack([np.argmax(F[pairs[:, s]] == edges[:, end, None], axis=1) for end in (0, 1)], 1)
+              for s in (0, 1)]  # (k, 2) corner of the edge's ends in each face of the pair
+    forward = [(c[:, 1] - c[:, 0]) % 3 == 1 for c in corner]
+    joined = (count[which.ravel()] == 1) & (forward[0] != forward[1])
+    links = [np.stack([3 * pairs[joined, 0] + corner[0][joined, end], 3 * pairs[joined, 1] + corner[1][joined, end]], 1)
+             for end in (0, 1)]
     L = np.concatenate(links)
     A = sp.coo_matrix((np.ones(len(L)), (L[:, 0], L[:, 1])), shape=(n, n))
     _, comp = connected_components(A, directed=False)

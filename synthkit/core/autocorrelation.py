@@ -487,11 +487,11 @@ class IncrementalAutocorrelation:
 
     def _image_fields(self, st: dict, tau: tuple, t_key) -> dict:
         """Whole-image fields of the current ``g`` (transforms in ``fft_dtype``, kept with the torus
-        state until ``f`` or the target change): ``U_1``, ``U_T``, ``U_ac`` ``(H, W)`` with ``U_X(p) = sum_{d in Wn}
-        (X(d) + X(-d)) g(p + d)`` over the window ``Wn`` (the inverse transform of ``X^ G``, less the
-        half-period lines: correlations of ``g``'s rows and columns with the lines of ``AC``),
-        ``AC = autocorr(g)`` and ``Conv = g * g`` ``(H, W)``: five full-size inverse transforms per
-        image instead of pruned transforms per block."""
+        state until ``f`` or the target change): ``U_1``, ``U_T``, ``U_ac`` ``(H, W)`` with
+        ``U_X(p) = sum_{d in Wn} (X(d) + X(-d)) g(p + d)`` over the window ``Wn`` (the inverse
+        transform of ``X^ G``, ``X`` without its half-period lines), ``AC = autocorr(g)`` and
+        ``Conv = g * g`` ``(H, W)``: four full-size inverse transforms per image instead of pruned
+        transforms per block."""
         cached = st.get("fields")
         if cached is not None and cached[0] is t_key:
             return cached[1]
@@ -499,23 +499,25 @@ class IncrementalAutocorrelation:
         ctype = np.complex64 if self.fft_dtype == np.float32 else np.complex128
         g, G, P = st["g"], st["G"].astype(ctype), st["P"]
         ac_row, ac_col = st["ac_row"], st["ac_col"]
+        # AC without the half-period lines, on the half spectrum: P less the lines' transforms
+        # ((-1)^ky rfft(ac_row)(kx), fft(ac_col)(ky) (-1)^kx) plus the corner they share
+        K = P.copy()
+        sign_y, sign_x = (-1.0) ** np.arange(H)[:, None], (-1.0) ** np.arange(W // 2 + 1)[None, :]
+        if ac_row is not None:
+            K -= sign_y * sfft.rfft(ac_row)[None, :].real
+        if ac_col is not None:
+            K -= sfft.fft(ac_col).real[:, None] * sign_x
+        if ac_row is not None and ac_col is not None:
+            K += ac_row[W // 2] * sign_y * sign_x
         U_T = sfft.irfft2(G * tau[1].astype(self.fft_dtype), s=(H, W))
-        U_ac = sfft.irfft2(G * (2.0 * P).astype(self.fft_dtype), s=(H, W))
+        U_ac = sfft.irfft2(G * (2.0 * K).astype(self.fft_dtype), s=(H, W))
         U_1 = np.full((H, W), 2.0 * st["gsum"])
-        if ac_row is not None:  # the line dy = H / 2: g(y + H / 2, x + j) against ac_row(j)
-            rows = np.roll(g, -(H // 2), axis=0)
-            U_1 -= 2.0 * rows.sum(axis=1, keepdims=True)
-            spec = sfft.rfft(rows.astype(self.fft_dtype), axis=1) * np.conj(sfft.rfft(ac_row)).astype(ctype)
-            U_ac -= 2.0 * sfft.irfft(spec, n=W, axis=1)
-        if ac_col is not None:  # the line dx = W / 2: g(y + j, x + W / 2) against ac_col(j)
-            cols = np.roll(g, -(W // 2), axis=1)
-            U_1 -= 2.0 * cols.sum(axis=0, keepdims=True)
-            spec = sfft.rfft(cols.astype(self.fft_dtype), axis=0) * np.conj(sfft.rfft(ac_col)).astype(ctype)[:, None]
-            U_ac -= 2.0 * sfft.irfft(spec, n=H, axis=0)
-        if ac_row is not None and ac_col is not None:  # the corner, on both lines
-            corner = np.roll(g, (-(H // 2), -(W // 2)), axis=(0, 1))
-            U_1 += 2.0 * corner
-            U_ac += 2.0 * ac_row[W // 2] * corner
+        if ac_row is not None:  # the line dy = H / 2 left out: 2 sum_j g(y + H / 2, j)
+            U_1 -= 2.0 * np.roll(g.sum(axis=1), -(H // 2))[:, None]
+        if ac_col is not None:
+            U_1 -= 2.0 * np.roll(g.sum(axis=0), -(W // 2))[None, :]
+        if ac_row is not None and ac_col is not None:
+            U_1 += 2.0 * np.roll(g, (-(H // 2), -(W // 2)), axis=(0, 1))
         fields = {"U": np.stack([U_1, U_T, U_ac], axis=2), "AC": sfft.irfft2(P.astype(self.fft_dtype), s=(H, W)),
                   "Conv": sfft.irfft2(G * G, s=(H, W))}
         st["fields"] = (t_key, fields)

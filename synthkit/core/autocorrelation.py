@@ -386,21 +386,17 @@ class IncrementalAutocorrelation:
         T = np.asarray(target, dtype=np.float64)
         with self._lock:  # what the whole image gives, computed once by the first thread that needs it
             st = self._torus_state()
-            weights, sq, _ = self._spectral_weights(h, w, T)
-            t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
+            sums, tau = self._image_sums(st, h, w, T)
+            t_key = tau[0]
             key = (y0 % H, x0 % W, h, w, self._ac_version, id(t_key))
             prepared = self._prepared
             if prepared is not None and prepared[0] == key:
                 return prepared[1]
-            if st.get("sums", (None,))[0] is not t_key:
-                st["sums"] = (t_key, self._window_sums(st, weights, sq))
-            base = st["sums"][1]
-            tau = self._tau(weights, t_key, T, st["P"].shape)
             fields = self._image_fields(st, tau, t_key)
         block = self._block_fields(st, fields, y0, x0, h, w)
         kernels = self._near_zero_kernels(fields, y0, x0, h, w)
         small = self._small_grid_weights(st, y0, x0, h, w, T, t_key, kernels)
-        result = (block, small, (*base, tau[2], tau[3]))
+        result = (block, small, sums)
         self._prepared = (key, result)
         return result
 
@@ -485,6 +481,16 @@ class IncrementalAutocorrelation:
             self._torus_cache["tau"] = tau
         return tau
 
+    def _image_sums(self, st: dict, h: int, w: int, T: np.ndarray) -> tuple[tuple, tuple]:
+        """The window sums of the current image and the target's means, ``(sum AC, <AC, T>, sum AC^2,
+        mean T, mean T^2)`` (kept with the torus state while the target stays), and :meth:`_tau`."""
+        weights, sq, _ = self._spectral_weights(h, w, T)
+        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
+        tau = self._tau(weights, t_key, T, st["P"].shape)
+        if st.get("sums", (None,))[0] is not t_key:
+            st["sums"] = (t_key, (*self._window_sums(st, weights, sq), tau[2], tau[3]))
+        return st["sums"][1], tau
+
     def _image_fields(self, st: dict, tau: tuple, t_key) -> dict:
         """Whole-image fields of the current ``g`` (transforms in ``fft_dtype``, kept with the torus
         state until ``f`` or the target change): ``U_1``, ``U_T``, ``U_ac`` ``(H, W)`` with
@@ -566,7 +572,12 @@ class IncrementalAutocorrelation:
             Ts = T[np.ix_(wy + np.arange(-(h - 1), h), wx + np.arange(-(w - 1), w))]
             cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
             self._torus_cache["t_small"] = cache_t
-        wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
+        wa = st.get("wa")  # AC near zero is the same for every block of one image
+        if wa is None or wa[0] is not t_key or wa[1] != (h, w):
+            wa = (t_key, (h, w), np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()],
+                                          axis=1))
+            st["wa"] = wa
+        wa = wa[2]
         w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
         grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
         w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)
@@ -716,8 +727,8 @@ class IncrementalAutocorrelation:
         spectrum until ``f`` changes), otherwise from ``ac``."""
         T = np.asarray(target, dtype=np.float64)
         if self._spectral(*block):
-            weights, sq, _ = self._spectral_weights(*block, T)
-            sums = (*self._window_sums(self._torus_state(), weights, sq), float(T.mean()), float((T * T).mean()))
+            with self._lock:
+                sums = self._image_sums(self._torus_state(), *block, T)[0]
         else:
             sums = self._base_sums(T)
         return float(self._l2(sums, np.zeros((1, 3)), np.zeros(1), T.size)[0])

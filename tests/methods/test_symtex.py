@@ -561,8 +561,11 @@ def test_tile_batches_hold_every_tile_once_in_blocks_that_do_not_meet(size, patc
         for _, j in b:
             cover[(xs[j] + np.arange(patch)) % size] += 1
         assert cover.max() == 1
-    # every other tile: two batches a row, three when the row's count is odd (the last meets the first)
-    assert len(batches) == len(ys) * (2 if len(xs) % 2 == 0 else 3)
+        assert len(b) == 1 or len(b) * patch * patch <= synth.BATCH_SHARE * size * size
+    # every other tile (a third group when the row's count is odd: the last meets the first), cut
+    # into runs of at most a 16th of the image: 512^2 (26 tiles a row) 2 batches a row, 256^2 (13)
+    # 3 + 3, 3 + 3, 1; 96^2 of 16 px patches (10) 2 + 1 + 2 twice; 64^2 (7) one tile each
+    assert len(batches) == len(ys) * {512: 2, 96: 6, 256: 5, 64: 7}[size]
 
 
 def test_batch_accepted_together_only_when_the_exact_objective_falls():

@@ -93,16 +93,6 @@ def random_init(
     return q.QuiltResult(canvas, origins, ys, xs, sources)
 
 
-def l2_of_autocorrelations(acs: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """E_L2 ``(K,)`` of standardized windowed autocorrelations ``acs (K, a, b)`` against ``target (a, b)``."""
-    flat = acs.reshape(acs.shape[0], -1)
-    mu = flat.mean(axis=1, keepdims=True)
-    sd = flat.std(axis=1, keepdims=True)
-    sd = np.where(sd > 0, sd, np.inf)
-    z = (flat - mu) / sd
-    return ((z - target.reshape(1, -1)) ** 2).mean(axis=1)
-
-
 def _band(patch: int, overlaps: tuple[int, int, int, int]) -> np.ndarray:
     top, left, bottom, right = overlaps
     w = np.zeros((patch, patch), dtype=bool)
@@ -202,7 +192,7 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
         pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch, candidates, seams)
         if states:
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
-            values = _incremental_values(states, targets, signals, canvas[np.ix_(ry, rx)], news, (y0, x0), 1)[0]
+            values = _incremental_values(states, targets, signals, canvas[np.ix_(ry, rx)], news, (y0, x0))
         else:
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
             values = np.empty(len(pos))
@@ -333,22 +323,19 @@ def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates
     return pos, keep, np.where(k, patches, region[None])
 
 
-def _incremental_values(states, targets, signals, region, news, corner, workers: int):
+def _incremental_values(states, targets, signals, region, news, corner) -> np.ndarray:
     """E_L2 ``(k,)`` of every candidate block ``news`` replacing ``region`` at ``corner`` (y0, x0),
-    summed over the signals, and per signal the halves and signal changes that apply the best."""
+    summed over the signals (one thread: the walk's threads share the tiles of a batch)."""
     y0, x0 = corner
     patch = region.shape[0]
     values = np.zeros(len(news))
-    grids = []
     for st, T, s_name in zip(states, targets, signals, strict=True):
         f_old = sy.signal(region, s_name).astype(np.float64)
         # all candidates' signals at once: the stack seen as one (K B, B[, C]) image
         stacked = sy.signal(news.reshape(len(news) * patch, *news.shape[2:]), s_name)
         deltas = stacked.reshape(len(news), patch, patch).astype(np.float64) - f_old[None]
-        vals, halves = st.l2_of_changes(y0, x0, deltas, T, workers=workers)
-        values += vals
-        grids.append((halves, deltas))
-    return values, grids
+        values += st.l2_of_changes(y0, x0, deltas, T, workers=1)[0]
+    return values
 
 
 def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:

@@ -221,11 +221,10 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
 
 def _accept(result, found, value, states, signals, current_value, grid, patch) -> tuple[float, int]:
     """Accept the proposals ``found`` (per tile: ``(tile, predicted value, position, cut mask, block,
-    number of candidates)``,
-    each evaluated alone against the current image) whose predicted value is below ``value``:
-    all together when the exact objective of the result is lower; otherwise one by one in
-    order of predicted value, each kept only when the exact objective falls. The objective never
-    rises. Returns the new value and the number of tiles changed."""
+    number of candidates)``, each evaluated alone against the current image) whose predicted value
+    is below ``value``: all together when the exact objective of the result is lower; otherwise one
+    by one in order of predicted value, each kept only when the exact objective falls. The
+    objective never rises. Returns the new value and the number of tiles changed."""
     tol = 1e-12 * max(1.0, abs(value))
     better = sorted((f for f in found if f[1] < value - tol), key=lambda f: f[1])
     if not better:
@@ -278,8 +277,9 @@ BATCH_SHARE = 1 / 16
 """The largest share of the image the blocks of one batch cover (:func:`tile_batches`). The tiles
 of a batch are scored against the same image, each blind to the others' changes; measured on the
 transfer benchmark's pair (noise source, dot lattice target), batches covering 4.7% (256^2) and
-5% (512^2) of the image end at the E_L2 of the tile-by-tile walk, 9.4% about 10% above it
-(docs/findings/symmetry-texture.md, "Speed, third round")."""
+5% (512^2) of the image end on average over seeds within a few percent of the E_L2 of the
+tile-by-tile walk, 9.4% (256^2) 5-10% above it (docs/findings/symmetry-texture.md, "Speed,
+third round")."""
 
 
 def tile_batches(ys: np.ndarray, xs: np.ndarray, patch: int, shape: tuple[int, int]) -> list[list[tuple[int, int]]]:

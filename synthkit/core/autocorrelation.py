@@ -373,6 +373,19 @@ class IncrementalAutocorrelation:
         self._torus_cache["state"] = st
         return st
 
+    def prepare_image(self, target: np.ndarray, block: tuple[int, int]) -> None:
+        """The spectral evaluation's work on the whole current image for blocks ``(h, w)``: its
+        spectrum, window sums and fields (:meth:`_image_fields`), which :meth:`prepare` of every
+        block then cuts from (nothing when the window is not the whole torus). The guided walk
+        calls it while its other threads build the candidates of a batch."""
+        if not self._spectral(*block):
+            return
+        T = np.asarray(target, dtype=np.float64)
+        with self._lock:
+            st = self._torus_state()
+            tau = self._image_sums(st, *block, T)[1]
+            self._image_fields(st, tau, tau[0])
+
     def prepare(self, y0: int, x0: int, h: int, w: int, target: np.ndarray):
         """The spectral evaluation's work at block ``h x w`` at ``(y0, x0)`` that does not depend on
         the candidates (:meth:`_spectral_l2`): the block's fields, the small-grid weights and the

@@ -177,7 +177,8 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
     updating ``result`` in place.
 
     Every tile of a batch is evaluated against the same image (the spectrum and fields of the
-    current image serve the whole batch; ``workers`` threads share its tiles); the tiles whose
+    current image serve the whole batch, computed in this thread while ``workers`` threads build
+    and score its tiles); the tiles whose
     best candidate lowers the objective are then accepted together when the exact objective of
     the result is lower (:func:`_accept`)."""
     canvas = result.image
@@ -206,8 +207,10 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
     for _ in range(sweeps):
         changed = 0
         for batch in progress(batches, total=len(batches), desc="guided walk") if progress else batches:
-            found = list(pool.map(evaluate, batch)) if pool is not None and len(batch) > 1 else [
-                evaluate(t) for t in batch]
+            jobs = [pool.submit(evaluate, t) for t in batch] if pool is not None else []
+            for st, T in zip(states, targets, strict=False):  # while the pool builds the candidates
+                st.prepare_image(T, (patch, patch))
+            found = [job.result() for job in jobs] if jobs else [evaluate(t) for t in batch]
             result.iterations += len(batch)
             result.candidates_evaluated += sum(f[-1] for f in found)
             value, n = _accept(result, found, value, states, signals, current_value, grid, patch)

@@ -10,6 +10,7 @@ this way.
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -114,6 +115,7 @@ class IncrementalAutocorrelation:
         self._torus_cache: dict = {}
         self._ac: np.ndarray | None = None
         self._prepared: tuple | None = None
+        self._lock = threading.Lock()
         self.refresh()
 
     @property
@@ -251,9 +253,10 @@ class IncrementalAutocorrelation:
         if cache["T"] is None or cache["T"].shape != T.shape or not np.array_equal(cache["T"], T):
             cache["T"] = T.copy()
             cache["weights"][1] = self._half_layout(T, shape, keep, rows).ravel()
-        if cache["ac"] != self._ac_version:
-            cache["ac"] = self._ac_version
-            cache["weights"][2] = self._half_layout(self.ac, shape, keep, rows).ravel()
+        if cache["ac"] != self._ac_version:  # a new array: threads scoring other blocks may hold the old one
+            version, weights = self._ac_version, cache["weights"].copy()
+            weights[2] = self._half_layout(self.ac, shape, keep, rows).ravel()
+            cache["weights"], cache["ac"] = weights, version
         return cache["weights"], cache["sq"]
 
     def _spectral(self, h: int, w: int) -> bool:
@@ -351,39 +354,6 @@ class IncrementalAutocorrelation:
         wy = self.window[0]
         return sfft.irfft(sfft.ihfft(spec, axis=1)[:, : wy + 1], n=M1, axis=2, overwrite_x=True)
 
-    def _torus_tables(self):
-        """Pruned inverse-DFT tables of the torus, in the complex type of ``fft_dtype``:
-        ``EH (H, H)`` ``exp(2 pi i ky y / H)`` (row ``y``) and ``EW (W // 2 + 1, W)``
-        ``mult(kx) exp(2 pi i kx x / W)`` (column ``x``), so that ``Re(EH[rows] @ S @ EW[:, cols]) / N``
-        is the inverse transform of the half spectrum ``S`` at those rows and columns only."""
-        if "tables" not in self._torus_cache:
-            H, W = self.f.shape
-            ctype = np.complex64 if self.fft_dtype == np.float32 else np.complex128
-            mult = self._mult_row(W)
-            ky, y = np.arange(H), np.arange(H)
-            EH = np.exp(2j * np.pi * ((y[:, None] * ky[None, :]) % H) / H).astype(ctype)
-            kx, x = np.arange(W // 2 + 1), np.arange(W)
-            EW = (mult[:, None] * np.exp(2j * np.pi * ((kx[:, None] * x[None, :]) % W) / W)).astype(ctype)
-            self._torus_cache["tables"] = (EH, EW, ctype)
-        return self._torus_cache["tables"]
-
-    def _pruned(self, S: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Inverse transform of the half spectrum ``S (H, W // 2 + 1)`` at ``rows x cols`` only."""
-        EH, EW, ctype = self._torus_tables()
-        H, W = self.f.shape
-        return ((EH[rows] @ S.astype(ctype, copy=False)) @ EW[:, cols]).real / (H * W)
-
-    def _pruned_real(self, S: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """:meth:`_pruned` of a real half spectrum (real products for the rows' transform)."""
-        EH, EW, _ = self._torus_tables()
-        H, W = self.f.shape
-        R = S.astype(self.fft_dtype)
-        E = EH[rows]
-        Z = np.empty((len(rows), S.shape[1]), dtype=EH.dtype)
-        Z.real = E.real @ R
-        Z.imag = E.imag @ R
-        return (Z @ EW[:, cols]).real / (H * W)
-
     def _torus_state(self) -> dict:
         """What the spectral evaluation needs of the current ``g = f - offset`` (kept until ``f``
         changes): its half spectrum ``G`` and power ``P = |G|^2`` (float64), the half-period lines of
@@ -403,33 +373,43 @@ class IncrementalAutocorrelation:
         self._torus_cache["state"] = st
         return st
 
-    def prepare(self, y0: int, x0: int, h: int, w: int, target: np.ndarray, *, workers: int | None = None):
+    def prepare_image(self, target: np.ndarray, block: tuple[int, int]) -> None:
+        """The spectral evaluation's work on the whole current image for blocks ``(h, w)``: its
+        spectrum, window sums and fields (:meth:`_image_fields`), which :meth:`prepare` of every
+        block then cuts from (nothing when the window is not the whole torus). The guided walk
+        calls it while its other threads build the candidates of a batch."""
+        if not self._spectral(*block):
+            return
+        T = np.asarray(target, dtype=np.float64)
+        with self._lock:
+            st = self._torus_state()
+            tau = self._image_sums(st, *block, T)[1]
+            self._image_fields(st, tau, tau[0])
+
+    def prepare(self, y0: int, x0: int, h: int, w: int, target: np.ndarray):
         """The spectral evaluation's work at block ``h x w`` at ``(y0, x0)`` that does not depend on
         the candidates (:meth:`_spectral_l2`): the block's fields, the small-grid weights and the
-        current image's window sums, kept until ``f``, the block or the target change.
-
-        The guided walk calls it in a second thread while it builds the tile's candidates; with
-        ``workers`` > 1 the kernels near zero displacement run beside the block's fields. Returns
-        ``(block, small, sums)``, or None when the window is not the whole torus (nothing to prepare)."""
+        current image's window sums, kept until ``f``, the block or the target change. The fields
+        are cut from whole-image fields (:meth:`_image_fields`) computed once per image, so blocks
+        evaluated against the same image (the guided walk's batches; from several threads) share them.
+        Returns ``(block, small, sums)``, or None when the window is not the whole torus (nothing to prepare)."""
         H, W = self.f.shape
         if not self._spectral(h, w):
             return None
         T = np.asarray(target, dtype=np.float64)
-        st = self._torus_state()
-        weights, sq, _ = self._spectral_weights(h, w, T)
-        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
-        key = (y0 % H, x0 % W, h, w, self._ac_version, id(t_key))
-        if self._prepared is not None and self._prepared[0] == key:
-            return self._prepared[1]
-        base = self._window_sums(st, weights, sq)
-        self._torus_tables()  # built once, before a second thread reads it
-        # the kernels near zero displacement, beside the block's fields when there are two threads
-        pending = _executor(2).submit(self._near_zero_kernels, st, y0, x0, h, w) if (workers or 1) > 1 else None
-        tau = self._tau(weights, t_key, T, st["P"].shape)
-        block = self._block_fields(st, y0, x0, h, w, tau[1])
-        kernels = pending.result() if pending is not None else self._near_zero_kernels(st, y0, x0, h, w)
+        with self._lock:  # what the whole image gives, computed once by the first thread that needs it
+            st = self._torus_state()
+            sums, tau = self._image_sums(st, h, w, T)
+            t_key = tau[0]
+            key = (y0 % H, x0 % W, h, w, self._ac_version, id(t_key))
+            prepared = self._prepared
+            if prepared is not None and prepared[0] == key:
+                return prepared[1]
+            fields = self._image_fields(st, tau, t_key)
+        block = self._block_fields(st, fields, y0, x0, h, w)
+        kernels = self._near_zero_kernels(fields, y0, x0, h, w)
         small = self._small_grid_weights(st, y0, x0, h, w, T, t_key, kernels)
-        result = (block, small, (*base, tau[2], tau[3]))
+        result = (block, small, sums)
         self._prepared = (key, result)
         return result
 
@@ -443,12 +423,12 @@ class IncrementalAutocorrelation:
 
         - ``sum dAC = <delta, U_1> + (sum delta)^2``, ``<dAC, X> = <delta, U_X> + sum a X`` for
           ``X = T`` and ``X = AC``, where ``U_X(p) = sum_{d in Wn} (X(d) + X(-d)) g(p + d)`` is a
-          fixed field on the block (a pruned inverse DFT of ``X^ G`` at the block's pixels, the
-          lines subtracted by two row/column correlations);
+          fixed field on the block (cut from the inverse transform of ``X^ G``, computed once per
+          image, the lines subtracted by row/column correlations);
         - ``sum dAC^2 = 2 sum a AC + 2 sum (delta * delta)(s) Conv(s) + 4 sum a c + sum a^2`` less
           ``2 sum (c(d)^2 + c(d) c(-d))`` over the lines: ``sum_d c(d)^2 = sum a AC``,
           ``sum_d c(d) c(-d) = sum_s (delta * delta)(s) Conv(2 p0 + s)`` with ``Conv = g * g``
-          (a pruned inverse DFT of ``G^2`` on ``(2h - 1) x (2w - 1)`` pixels), and ``sum a c``
+          (cut on ``(2h - 1) x (2w - 1)`` pixels from the inverse transform of ``G^2``), and ``sum a c``
           involves ``c`` for ``|d| < (h, w)`` only: every per-candidate term lives on a small grid
           of about ``3h x 3w`` (one small FFT per candidate), and ``c`` on the lines is a product
           of the block with fixed row/column strips of ``g``.
@@ -458,7 +438,7 @@ class IncrementalAutocorrelation:
         current image's sums), :meth:`_block_fields` (``U_1``, ``U_T``, ``U_ac`` and the line
         strips), :meth:`_small_grid_weights` and, per candidate, :meth:`_candidate_terms`."""
         K, h, w = deltas.shape
-        block, small, sums = self.prepare(y0, x0, h, w, T, workers=workers)
+        block, small, sums = self.prepare(y0, x0, h, w, T)
         deltas = deltas.astype(self.fft_dtype, copy=False)
         lin = np.empty((K, 3))
         quad = np.empty(K)
@@ -495,61 +475,90 @@ class IncrementalAutocorrelation:
             ac_sq += float(ac_row[W // 2] ** 2)
         return ac_sum, ac_t, ac_sq
 
-    def _near_zero_kernels(self, st: dict, y0: int, x0: int, h: int, w: int):
-        """``AC`` for ``|d| < (h, w)`` and ``Conv = g * g`` at ``2 p0 + s`` (pruned inverse DFTs)."""
-        H, W = self.f.shape
-        ac_small = self._pruned_real(st["P"], np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)
+    @staticmethod
+    def _near_zero_kernels(fields: dict, y0: int, x0: int, h: int, w: int):
+        """``AC`` for ``|d| < (h, w)`` and ``Conv = g * g`` at ``2 p0 + s`` (cut from :meth:`_image_fields`)."""
+        H, W = fields["AC"].shape
+        ac_small = fields["AC"][np.ix_(np.arange(-(h - 1), h) % H, np.arange(-(w - 1), w) % W)]
         rows, cols = (2 * y0 + np.arange(2 * h - 1)) % H, (2 * x0 + np.arange(2 * w - 1)) % W
-        return ac_small, self._pruned(st["G"] * st["G"], rows, cols)
+        return ac_small, fields["Conv"][np.ix_(rows, cols)]
 
     def _tau(self, weights: np.ndarray, t_key, T: np.ndarray, shape: tuple[int, int]) -> tuple:
-        """``(t_key, the spectral weight of T (shape) in the FFT type, mean(T), mean(T^2))``, kept
-        while the target stays."""
+        """``(t_key, the spectral weight of T (shape) float64, mean(T), mean(T^2))``, kept while the
+        target stays."""
         tau = self._torus_cache.get("tau")
         if tau is None or tau[0] is not t_key:
             N = self.f.size
             tau = 2.0 * weights[1].astype(np.float64).reshape(shape) * (N / self._mult_row(self.f.shape[1]))
-            tau = (t_key, tau.astype(self.fft_dtype), float(T.mean()), float((T * T).mean()))
+            tau = (t_key, tau, float(T.mean()), float((T * T).mean()))
             self._torus_cache["tau"] = tau
         return tau
 
-    def _block_fields(self, st: dict, y0: int, x0: int, h: int, w: int, tau: np.ndarray) -> dict:
-        """The fixed fields on the block: ``fields (h w, 3)`` = ``U_1, U_T, U_ac`` (lines left out)
-        and the line strips ``M_r (h w, W)``, ``M_c (h w, H)`` (None for odd sizes)."""
+    def _image_sums(self, st: dict, h: int, w: int, T: np.ndarray) -> tuple[tuple, tuple]:
+        """The window sums of the current image and the target's means, ``(sum AC, <AC, T>, sum AC^2,
+        mean T, mean T^2)`` (kept with the torus state while the target stays), and :meth:`_tau`."""
+        weights, sq, _ = self._spectral_weights(h, w, T)
+        t_key = self._weight_cache[("spectral", h, w)]["T"]  # a new object whenever the target changes
+        tau = self._tau(weights, t_key, T, st["P"].shape)
+        if st.get("sums", (None,))[0] is not t_key:
+            st["sums"] = (t_key, (*self._window_sums(st, weights, sq), tau[2], tau[3]))
+        return st["sums"][1], tau
+
+    def _image_fields(self, st: dict, tau: tuple, t_key) -> dict:
+        """Whole-image fields of the current ``g`` (transforms in ``fft_dtype``, kept with the torus
+        state until ``f`` or the target change): ``U_1``, ``U_T``, ``U_ac`` ``(H, W)`` with
+        ``U_X(p) = sum_{d in Wn} (X(d) + X(-d)) g(p + d)`` over the window ``Wn`` (the inverse
+        transform of ``X^ G``, ``X`` without its half-period lines), ``AC = autocorr(g)`` and
+        ``Conv = g * g`` ``(H, W)``: four full-size inverse transforms per image instead of pruned
+        transforms per block."""
+        cached = st.get("fields")
+        if cached is not None and cached[0] is t_key:
+            return cached[1]
         H, W = self.f.shape
-        N, dt = H * W, self.fft_dtype
-        g, G, P = st["g"], st["G"], st["P"]
+        ctype = np.complex64 if self.fft_dtype == np.float32 else np.complex128
+        g, G, P = st["g"], st["G"].astype(ctype), st["P"]
         ac_row, ac_col = st["ac_row"], st["ac_col"]
+        # AC without the half-period lines, on the half spectrum: P less the lines' transforms
+        # ((-1)^ky rfft(ac_row)(kx), fft(ac_col)(ky) (-1)^kx) plus the corner they share
+        K = P.copy()
+        sign_y, sign_x = (-1.0) ** np.arange(H)[:, None], (-1.0) ** np.arange(W // 2 + 1)[None, :]
+        if ac_row is not None:
+            K -= sign_y * sfft.rfft(ac_row)[None, :].real
+        if ac_col is not None:
+            K -= sfft.fft(ac_col).real[:, None] * sign_x
+        if ac_row is not None and ac_col is not None:
+            K += ac_row[W // 2] * sign_y * sign_x
+        U_T = sfft.irfft2(G * tau[1].astype(self.fft_dtype), s=(H, W))
+        U_ac = sfft.irfft2(G * (2.0 * K).astype(self.fft_dtype), s=(H, W))
+        U_1 = np.full((H, W), 2.0 * st["gsum"])
+        if ac_row is not None:  # the line dy = H / 2 left out: 2 sum_j g(y + H / 2, j)
+            U_1 -= 2.0 * np.roll(g.sum(axis=1), -(H // 2))[:, None]
+        if ac_col is not None:
+            U_1 -= 2.0 * np.roll(g.sum(axis=0), -(W // 2))[None, :]
+        if ac_row is not None and ac_col is not None:
+            U_1 += 2.0 * np.roll(g, (-(H // 2), -(W // 2)), axis=(0, 1))
+        fields = {"U": np.stack([U_1, U_T, U_ac], axis=2), "AC": sfft.irfft2(P.astype(self.fft_dtype), s=(H, W)),
+                  "Conv": sfft.irfft2(G * G, s=(H, W))}
+        st["fields"] = (t_key, fields)
+        return fields
+
+    def _block_fields(self, st: dict, fields: dict, y0: int, x0: int, h: int, w: int) -> dict:
+        """The fixed fields on the block: ``fields (h w, 3)`` = ``U_1, U_T, U_ac`` (cut from
+        :meth:`_image_fields`) and the line strips ``M_r (h w, W)``, ``M_c (h w, H)`` (None for odd sizes)."""
+        H, W = self.f.shape
+        dt = self.fft_dtype
+        g = st["g"]
         ry, rx = (y0 + np.arange(h)) % H, (x0 + np.arange(w)) % W
-        EH, EW, ctype = self._torus_tables()
-        K1 = P.shape[1]
-        # the spectra of U_T and of U_ac (before its lines), side by side, in the complex type
-        spectra = np.empty((H, 2 * K1), dtype=ctype)
-        Gc = G.astype(ctype)
-        np.multiply(Gc, tau, out=spectra[:, :K1])
-        np.multiply(Gc, (2.0 * P).astype(dt), out=spectra[:, K1:])
-        Z = EH[ry] @ spectra
-        U_T = (Z[:, :K1] @ EW[:, rx]).real / N
-        U_ac = (Z[:, K1:] @ EW[:, rx]).real / N
-        U_1 = np.full((h, w), 2.0 * st["gsum"])
         M_r = M_c = None
-        if ac_row is not None:  # row strip: M_r[(py, px), j] = g(y0 + H / 2 + py, x0 + px + j)
+        if st["ac_row"] is not None:  # row strip: M_r[(py, px), j] = g(y0 + H / 2 + py, x0 + px + j)
             strip = np.roll(g[(ry + H // 2) % H], -(x0 % W), axis=1)
-            U_1 -= 2.0 * strip.sum(axis=1)[:, None]
             strip = np.concatenate([strip, strip[:, :w]], axis=1).astype(dt)
             M_r = np.lib.stride_tricks.sliding_window_view(strip, W, axis=1)[:, :w].reshape(h * w, W)
-            U_ac -= 2.0 * (M_r @ ac_row.astype(dt)).reshape(h, w)
-        if ac_col is not None:  # column strip: M_c[(py, px), j] = g(y0 + py + j, x0 + W / 2 + px)
+        if st["ac_col"] is not None:  # column strip: M_c[(py, px), j] = g(y0 + py + j, x0 + W / 2 + px)
             strip = np.roll(g[:, (rx + W // 2) % W], -(y0 % H), axis=0)
-            U_1 -= 2.0 * strip.sum(axis=0)[None, :]
             strip = np.concatenate([strip, strip[:h]], axis=0).astype(dt)
             M_c = np.lib.stride_tricks.sliding_window_view(strip, H, axis=0)[:h].reshape(h * w, H)
-            U_ac -= 2.0 * (M_c @ ac_col.astype(dt)).reshape(h, w)
-        if M_r is not None and M_c is not None:
-            corner = g[np.ix_((ry + H // 2) % H, (rx + W // 2) % W)]
-            U_1 += 2.0 * corner
-            U_ac += 2.0 * ac_row[W // 2] * corner
-        return {"fields": np.stack([U_1.ravel(), U_T.ravel(), U_ac.ravel()], axis=1), "M_r": M_r, "M_c": M_c}
+        return {"fields": fields["U"][np.ix_(ry, rx)].reshape(h * w, 3), "M_r": M_r, "M_c": M_c}
 
     def _small_grid_weights(self, st: dict, y0: int, x0: int, h: int, w: int, T: np.ndarray, t_key,
                             kernels) -> dict:
@@ -576,7 +585,12 @@ class IncrementalAutocorrelation:
             Ts = T[np.ix_(wy + np.arange(-(h - 1), h), wx + np.arange(-(w - 1), w))]
             cache_t = (t_key, (h, w), small_spec(Ts, sy_, sx_).real * msq)
             self._torus_cache["t_small"] = cache_t
-        wa = np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()], axis=1)
+        wa = st.get("wa")  # AC near zero is the same for every block of one image
+        if wa is None or wa[0] is not t_key or wa[1] != (h, w):
+            wa = (t_key, (h, w), np.stack([cache_t[2].ravel(), (small_spec(ac_small, sy_, sx_).real * msq).ravel()],
+                                          axis=1))
+            st["wa"] = wa
+        wa = wa[2]
         w_conv = (small_spec(conv, np.arange(2 * h - 1), np.arange(2 * w - 1)) * msq).ravel()
         grown = g[np.ix_((y0 + np.arange(-(h - 1), 2 * h - 1)) % H, (x0 + np.arange(-(w - 1), 2 * w - 1)) % W)]
         w_grown = (small_spec(grown, np.arange(-(h - 1), 2 * h - 1) % My, np.arange(-(w - 1), 2 * w - 1) % Mx) * msq)
@@ -671,7 +685,7 @@ class IncrementalAutocorrelation:
         products of the half windows with fixed weights. When the window holds every displacement
         of the torus (the paper's unwindowed S_T; :meth:`_spectral`), no full-size transform runs
         per candidate (:meth:`_spectral_l2`): the sums split into fixed fields of the current image
-        on the block (pruned inverse DFTs, once per tile), terms of the block's own autocorrelation
+        on the block (cut from whole-image fields computed once per image), terms of the block's own autocorrelation
         on a small grid (one small FFT per candidate) and the half-period lines outside the window
         (two matrix products per tile's candidates).
 
@@ -703,8 +717,13 @@ class IncrementalAutocorrelation:
         else:
             lin, quad, half = self._windowed_sums(y0, x0, deltas, T, workers)
             sums = self._base_sums(T)
+        return self._l2(sums, lin, quad, T.size), half
+
+    @staticmethod
+    def _l2(sums: tuple, lin: np.ndarray, quad: np.ndarray, n: int) -> np.ndarray:
+        """E_L2 ``(K,)`` from the window's sums ``(sum ac, <ac, T>, sum ac^2, mean T, mean T^2)`` and
+        the changes' ``lin (K, 3)`` and ``quad (K,)`` over ``n`` window entries."""
         ac_sum, ac_t, ac_sq, t_mean, t_sq = sums
-        n = T.size
         s1 = ac_sum + lin[:, 0]
         p = ac_t + lin[:, 1]
         s2 = ac_sq + 2.0 * lin[:, 2] + quad
@@ -712,7 +731,31 @@ class IncrementalAutocorrelation:
         var = np.maximum(s2 / n - mean * mean, 0.0)
         sd = np.where(var > 0, np.sqrt(var), np.inf)
         corr = (p / n - mean * t_mean) / sd
-        return 1.0 + t_sq - 2.0 * corr, half
+        return 1.0 + t_sq - 2.0 * corr
+
+    def value(self, target: np.ndarray, block: tuple[int, int]) -> float:
+        """E_L2 of the standardized window of the current ``f`` against ``target`` (what
+        :meth:`l2_of_changes` gives a zero change at a block ``(h, w)``): with the whole torus as
+        window, from the image's spectrum (:meth:`_window_sums`; :meth:`prepare` then reuses that
+        spectrum until ``f`` changes), otherwise from ``ac``."""
+        T = np.asarray(target, dtype=np.float64)
+        if self._spectral(*block):
+            with self._lock:
+                sums = self._image_sums(self._torus_state(), *block, T)[0]
+        else:
+            sums = self._base_sums(T)
+        return float(self._l2(sums, np.zeros((1, 3)), np.zeros(1), T.size)[0])
+
+    def assign(self, y0: int, x0: int, block: np.ndarray) -> None:
+        """Set ``f`` to ``block (h, w)`` at ``(y0, x0)`` (wrapping); :attr:`ac` is recomputed from
+        ``f`` when next read (one full-image transform for any number of blocks assigned)."""
+        block = np.asarray(block, dtype=np.float64)
+        H, W = self.f.shape
+        ry = (y0 + np.arange(block.shape[0])) % H
+        rx = (x0 + np.arange(block.shape[1])) % W
+        self.f[np.ix_(ry, rx)] = block
+        self._ac = None
+        self._ac_version += 1
 
     def change_window(self, y0: int, x0: int, delta: np.ndarray) -> np.ndarray:
         """``dAC (2 wy + 1, 2 wx + 1)`` float64 of one block change ``delta (h, w)`` at ``(y0, x0)``

@@ -144,9 +144,10 @@ def test_spectral_float32_and_lazy_ac_after_apply(rng):
     np.testing.assert_allclose(inc.ac, sy.translational(c, window=win, standardize=False) * (c * c).sum(), atol=1e-9)
 
 
-def test_prepare_in_another_thread_gives_the_same_values(rng):
-    """The guided walk prepares a tile's fixed work in a second thread: the values are the bytes
-    of an unprepared evaluation, and a change of f invalidates the prepared work."""
+def test_blocks_scored_in_threads_against_one_image_give_the_same_values(rng):
+    """The guided walk scores the tiles of a batch against the same image from two threads, with
+    the whole-image fields computed once: the values are the bytes of one thread, one block after
+    the other; after assign, value() is E_L2 of the new image and the prepared work is redone."""
     from concurrent.futures import ThreadPoolExecutor
 
     shape = (48, 40)
@@ -154,15 +155,26 @@ def test_prepare_in_another_thread_gives_the_same_values(rng):
     f = rng.random(shape)
     T = sy.translational(rng.random(shape), window=win)
     deltas = 0.3 * rng.standard_normal((5, 8, 8))
+    corners = [(9, 30), (40, 3), (20, 20)]
     a = IncrementalAutocorrelation(f, window=win, offset=f.mean(), fft_dtype=np.float32)
     b = IncrementalAutocorrelation(f, window=win, offset=f.mean(), fft_dtype=np.float32)
-    plain, _ = a.l2_of_changes(9, 30, deltas, T, workers=2)
-    with ThreadPoolExecutor(1) as pool:
-        pool.submit(b.prepare, 9, 30, 8, 8, T, workers=2).result()
-    prepared, _ = b.l2_of_changes(9, 30, deltas, T, workers=2)
-    np.testing.assert_array_equal(prepared, plain)
-    for inc in (a, b):
-        inc.apply(9, 30, deltas[1])
-    np.testing.assert_array_equal(b.l2_of_changes(9, 30, deltas, T)[0], a.l2_of_changes(9, 30, deltas, T)[0])
+    plain = [a.l2_of_changes(y0, x0, deltas, T)[0] for y0, x0 in corners]
+    with ThreadPoolExecutor(2) as pool:
+        threaded = list(pool.map(lambda c: b.l2_of_changes(*c, deltas, T)[0], corners))
+    for p, t in zip(plain, threaded, strict=True):
+        np.testing.assert_array_equal(t, p)
+    assert a.value(T, (8, 8)) == pytest.approx(sy.e_l2(sy.translational(f, window=win), T), rel=1e-6)
+    g = f.copy()
+    g[9:17, 30:38] += deltas[1]
+    a.assign(9, 30, g[9:17, 30:38])
+    assert a.value(T, (8, 8)) == pytest.approx(plain[0][1], rel=1e-6)
+    assert a.value(T, (8, 8)) == pytest.approx(sy.e_l2(sy.translational(g, window=win), T), rel=1e-6)
+    values = a.l2_of_changes(40, 3, deltas, T)[0]
+    for k in range(5):
+        trial = g.copy()
+        trial[np.ix_((40 + np.arange(8)) % 48, 3 + np.arange(8))] += deltas[k]
+        assert values[k] == pytest.approx(sy.e_l2(sy.translational(trial, window=win), T), rel=1e-6)
     windowed = IncrementalAutocorrelation(f, window=(5, 5))
     assert windowed.prepare(0, 0, 8, 8, T[:11, :11]) is None
+    assert windowed.value(T[18:29, 15:26], (8, 8)) == pytest.approx(sy.e_l2(sy.translational(f, window=(5, 5)),
+                                                                              T[18:29, 15:26]), rel=1e-9)

@@ -543,3 +543,50 @@ def test_only_outputs_py_writes_files():
         if path.name != "outputs.py":
             text = path.read_text()
             assert not any(w in text for w in ("save_image(", "np.save(", "ctx.path(", "_png(")), path.name
+
+
+@pytest.mark.parametrize(("size", "patch", "overlap"), [(512, 32, 12), (96, 16, 6), (256, 32, 12), (64, 16, 6)])
+def test_tile_batches_hold_every_tile_once_in_blocks_that_do_not_meet(size, patch, overlap):
+    """A batch is one row's tiles whose toroidal blocks are disjoint (a tile's candidates read its
+    block only, so they can all be scored against the same image); every tile is in one batch."""
+    from synthkit.core import quilting
+
+    ys, xs = quilting.tile_grid(size, patch, overlap), quilting.tile_grid(size, patch, overlap)
+    batches = synth.tile_batches(ys, xs, patch, (size, size))
+    tiles = [t for b in batches for t in b]
+    assert sorted(tiles) == [(i, j) for i in range(len(ys)) for j in range(len(xs))]
+    for b in batches:
+        assert len({i for i, _ in b}) == 1
+        cover = np.zeros(size, int)
+        for _, j in b:
+            cover[(xs[j] + np.arange(patch)) % size] += 1
+        assert cover.max() == 1
+        assert len(b) == 1 or len(b) * patch * patch <= synth.BATCH_SHARE * size * size
+    # every other tile (a third group when the row's count is odd: the last meets the first), cut
+    # into runs of at most a 16th of the image: 512^2 (26 tiles a row) 2 batches a row, 256^2 (13)
+    # 3 + 3, 3 + 3, 1; 96^2 of 16 px patches (10) 2 + 1 + 2 twice; 64^2 (7) one tile each
+    assert len(batches) == len(ys) * {512: 2, 96: 6, 256: 5, 64: 7}[size]
+
+
+def test_batch_accepted_together_only_when_the_exact_objective_falls():
+    """Two proposals that each lower the objective alone but together overshoot it: the batch is
+    undone and taken one by one, each kept only when the exact objective falls (it never rises)."""
+    from synthkit.core import quilting
+
+    ys = xs = quilting.tile_grid(64, 16, 6)
+    result = synth.WalkResult(np.full((64, 64, 1), 0.4, np.float32), np.zeros((7, 7, 2), np.int64),
+                              np.zeros((64, 64, 2), np.int64))
+
+    def objective():  # each 16x16 block of 2.0 raises the mean by 0.1
+        return float((result.image.mean() - 0.5) ** 2)
+
+    block, keep = np.full((16, 16, 1), 2.0, np.float32), np.ones((16, 16), bool)
+    found = [((0, 0), 0.0, np.array([3, 4]), keep, block, 5), ((0, 2), 0.0, np.array([5, 6]), keep, block, 5)]
+    value, changed = synth._accept(result, found, objective(), [], ["lum"], objective, (ys, xs), 16)
+    assert changed == 1 and value == pytest.approx(0.0, abs=1e-12) == objective()
+    assert result.image[:16, :16].min() == 2.0 and result.image[:, 16:].max() == pytest.approx(0.4)
+    assert result.origins[0, 0].tolist() == [3, 4] and result.origins[0, 2].tolist() == [0, 0]
+    # from 0 both help: accepted together
+    result.image[:] = 0.0
+    value, changed = synth._accept(result, found, objective(), [], ["lum"], objective, (ys, xs), 16)
+    assert changed == 2 and value == pytest.approx(0.0625) == objective()

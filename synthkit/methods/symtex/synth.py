@@ -193,8 +193,8 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
             pending = [_PREPARE.submit(st.prepare, y0, x0, patch, patch, T, workers=workers)
                        for st, T in zip(states, targets, strict=True)] if states and workers > 1 else []
             try:
-                pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch,
-                                                    candidates, seams)
+                pos, keep, news, border = _candidate_blocks(src, canvas, sources, matcher, ys, xs, (i, j),
+                                                            patch, candidates, seams)
             finally:
                 for job in pending:
                     job.result()
@@ -209,7 +209,7 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
                     trial = canvas.copy()
                     trial[np.ix_(ry, rx)] = news[c]
                     values[c] = full_value(trial)
-            best = int(np.argmin(values))
+            best = choose_candidate(values, value, border)
             if values[best] < value - 1e-12 * max(1.0, abs(value)):
                 canvas[np.ix_(ry, rx)] = news[best]
                 q.paste(sources, q.patch_sources(pos[best][None], patch)[0], keep[best], y0, x0)
@@ -229,10 +229,11 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
             break
 
 
-def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):
+def _candidate_blocks(src, canvas, sources, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):
     """The ``k`` overlap-consistent candidates of tile ``(i, j)`` of the toroidal grid, each cut
-    into place: source positions ``(k, 2)``, cut masks ``(k, B, B) bool`` and the blocks they
-    give ``(k, B, B[, C])``."""
+    into place: source positions ``(k, 2)``, cut masks ``(k, B, B) bool``, the blocks they give
+    ``(k, B, B[, C])`` and their :func:`border_energy` ``(k,)`` (``sources (H, W, 2)``: the
+    canvas's per-pixel source map)."""
     H, W = canvas.shape[:2]
     i, j = tile
     ry, rx = q.region_indices(int(ys[i]), int(xs[j]), patch, (H, W))
@@ -242,7 +243,67 @@ def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates
     patches = q.source_patches(src, pos, patch)
     keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
     k = keep[..., None] if patches.ndim == 4 else keep
-    return pos, keep, np.where(k, patches, region[None])
+    news = np.where(k, patches, region[None])
+    block_sources = np.where(keep[..., None], q.patch_sources(pos, patch), sources[np.ix_(ry, rx)][None])
+    ring = q.region_indices(int(ys[i]) - 1, int(xs[j]) - 1, patch + 2, (H, W))
+    border = border_energy(canvas[np.ix_(*ring)], sources[np.ix_(*ring)], news, block_sources,
+                           inside=_step_energy(patches))
+    return pos, keep, news, border
+
+
+def _lum_steps(lum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared luminance steps ``(..., h, w - 1)`` along x and ``(..., h - 1, w)`` along y."""
+    return np.diff(lum, axis=-1) ** 2, np.diff(lum, axis=-2) ** 2
+
+
+def _step_energy(patches: np.ndarray) -> float:
+    """Mean squared luminance step inside source ``patches (K, B, B[, C])`` (every step natural)."""
+    lum = sy.signal(patches.reshape(-1, *patches.shape[2:]), "lum").reshape(patches.shape[:3])
+    ex, ey = _lum_steps(lum.astype(np.float64))
+    return 0.5 * float(ex.mean() + ey.mean())
+
+
+def border_energy(ring: np.ndarray, ring_sources: np.ndarray, news: np.ndarray, block_sources: np.ndarray, *,
+                  inside: float) -> np.ndarray:
+    """Excess gradient energy ``(K,)`` across the patch borders of each candidate block in place.
+
+    ``ring (B + 2, B + 2[, C])`` and ``ring_sources (B + 2, B + 2, 2)``: the canvas and its source
+    map around the tile (one pixel beyond each side); ``news (K, B, B[, C])`` the candidate blocks
+    and ``block_sources (K, B, B, 2)`` their source maps. Over every step that touches the block
+    and joins pixels that are not source neighbours (a patch border), the squared luminance step
+    less ``inside`` (the mean squared step inside patches) is summed: a border the eye cannot tell
+    from the texture costs about 0, a visible one its contrast times its length.
+    """
+    K, B = news.shape[:2]
+    lum = np.broadcast_to(sy.signal(ring, "lum").astype(np.float64), (K, B + 2, B + 2)).copy()
+    src = np.broadcast_to(ring_sources, (K, B + 2, B + 2, 2)).copy()
+    lum[:, 1:-1, 1:-1] = sy.signal(news.reshape(K * B, *news.shape[2:]), "lum").reshape(K, B, B)
+    src[:, 1:-1, 1:-1] = block_sources
+    ex, ey = _lum_steps(lum)
+    sx, sy_ = np.diff(src, axis=2), np.diff(src, axis=1)
+    bx = (sx[..., 0] != 0) | (sx[..., 1] != 1)
+    by = (sy_[..., 0] != 1) | (sy_[..., 1] != 0)
+    bx[:, [0, -1], :] = False  # the ring's own steps along its first and last rows
+    by[:, :, [0, -1]] = False
+    return ((ex - inside) * bx).sum(axis=(1, 2)) + ((ey - inside) * by).sum(axis=(1, 2))
+
+
+SEAM_SHARE = 0.25
+"""Share of a tile's best E_L2 gain the walk may give up for a less visible patch border (see
+:func:`choose_candidate`; docs/findings/symmetry-texture.md, "Patch edges, third round")."""
+
+
+def choose_candidate(values: np.ndarray, value: float, border: np.ndarray, share: float = SEAM_SHARE) -> int:
+    """Index of the candidate the walk takes: among those whose objective ``values (k,)`` gains at
+    least ``1 - share`` of the best gain over the current ``value``, the one with the least
+    :func:`border_energy` ``border (k,)``; the best by ``values`` when no candidate gains (the walk
+    then keeps the tile; ``share`` 0: the paper's choice, the best by ``values``)."""
+    best = int(np.argmin(values))
+    gain = value - float(values[best])
+    if gain <= 0 or share <= 0:
+        return best
+    near = np.flatnonzero(value - values >= (1.0 - share) * gain)
+    return int(near[np.argmin(border[near])])
 
 
 def _incremental_values(states, targets, signals, region, news, corner, workers: int):
@@ -274,3 +335,24 @@ def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:
     from synthkit.methods.symtex.tile import seam_ratio
 
     return seam_ratio(image, seams=seam_masks(sources))
+
+
+def seam_energy(image: np.ndarray, sources: np.ndarray) -> float:
+    """Visible patch border of a quilted ``image (H, W[, C])`` per step of the image: the gradient
+    energy across patch borders in excess of what the same steps carry inside patches,
+    ``(sum_border d^2 - n_border m) / (n_steps m)`` with ``d`` the luminance step and ``m`` the
+    mean squared step inside patches (both directions, toroidal; borders from ``sources (H, W,
+    2)`` as in :func:`seam_visibility`).
+
+    Unlike :func:`seam_visibility` (a mean over border steps) it grows with the length of visible
+    border: an image cut into many small blocks whose edges show scores high even when most of its
+    borders are invisible; 0 when every border looks like the inside."""
+    from synthkit.core.tiling import seam_masks
+
+    lum = sy.f_lum(np.asarray(image, dtype=np.float32)).astype(np.float64)
+    dx = (np.roll(lum, -1, axis=1) - lum) ** 2
+    dy = (np.roll(lum, -1, axis=0) - lum) ** 2
+    mx, my = seam_masks(sources)
+    inside = 0.5 * (dx[~mx].mean() + dy[~my].mean()) if (~mx).any() and (~my).any() else 0.0
+    excess = float(dx[mx].sum() + dy[my].sum()) - inside * float(mx.sum() + my.sum())
+    return excess / max(2 * lum.size * inside, 1e-20)

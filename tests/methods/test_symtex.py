@@ -543,3 +543,66 @@ def test_only_outputs_py_writes_files():
         if path.name != "outputs.py":
             text = path.read_text()
             assert not any(w in text for w in ("save_image(", "np.save(", "ctx.path(", "_png(")), path.name
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 24, patch edges: the visible border figure and the walk's choice among candidates
+
+
+def _two_patch_image(offset: float):
+    """A 16x16 grey ramp image whose right half is a second patch brightened by ``offset``, with
+    its source map (two patches side by side, so two vertical borders on the torus)."""
+    ramp = np.tile(np.arange(16, dtype=np.float32) * 0.01, (16, 1))
+    img = ramp.copy()
+    img[:, 8:] += offset
+    sources = np.stack(np.mgrid[0:16, 0:16], axis=2)
+    sources[:, 8:, 0] += 100  # the right half comes from elsewhere in the source
+    return np.repeat(img[..., None], 3, axis=2), sources
+
+
+def test_seam_energy_counts_visible_border_per_step():
+    """0 for a periodic triangle wave seen as one patch (its wrap steps, borders on the torus, are
+    the inside's 0.01); two patches of a ramp (steps 0.01 along x), the right one 0.2 brighter:
+    borders at x 7->8 (step 0.21) and across the wrap (x 15->0: -0.35; y 15->0: 0) give their
+    exact excess energy per step of the image."""
+    wave = np.tile(0.01 * np.minimum(np.arange(16), 16 - np.arange(16)), (16, 1)).astype(np.float32)
+    one = np.stack(np.mgrid[0:16, 0:16], axis=2)
+    assert synth.seam_energy(np.repeat(wave[..., None], 3, axis=2), one) == pytest.approx(0.0, abs=1e-6)
+    img, sources = _two_patch_image(0.2)
+    inside = 0.5 * (0.01**2 + 0.0)  # inside steps: 0.01 along x, 0 along y
+    border = 16 * (0.21**2 + 0.35**2 + 0.0)
+    expected = (border - 48 * inside) / (2 * 256 * inside)
+    assert synth.seam_energy(img, sources) == pytest.approx(expected, rel=1e-4)
+    # twice the offset: more visible
+    assert synth.seam_energy(*_two_patch_image(0.4)) > synth.seam_energy(img, sources)
+
+
+def test_border_energy_prices_the_cut_of_each_candidate():
+    """A candidate that continues the canvas's source costs nothing; one from elsewhere costs its
+    steps across the ring less the inside energy, per border step."""
+    canvas, sources = _two_patch_image(0.0)
+    B = 4
+    ring = canvas[3 : 3 + B + 2, 1 : 1 + B + 2]
+    ring_src = sources[3 : 3 + B + 2, 1 : 1 + B + 2]
+    same = ring[None, 1:-1, 1:-1]
+    same_src = ring_src[None, 1:-1, 1:-1]
+    other = same + 0.3
+    other_src = same_src + np.array([50, 0])
+    cost = synth.border_energy(ring, ring_src, np.concatenate([same, other]), np.concatenate([same_src, other_src]),
+                               inside=1e-4)
+    assert cost[0] == 0.0
+    # the other block: 4 borders of 4 steps each; along x the steps are 0.3 +- 0.01, along y 0.3
+    expected = 4 * ((0.31**2 - 1e-4) + (0.29**2 - 1e-4)) + 8 * (0.3**2 - 1e-4)
+    assert cost[1] == pytest.approx(expected, rel=1e-4)
+
+
+def test_choose_candidate_trades_a_share_of_the_gain_for_a_quieter_border():
+    values = np.array([0.90, 0.80, 0.85, 0.70])
+    border = np.array([0.0, 1.0, 0.5, 9.0])
+    # current 1.0: best gain 0.30 (index 3); 3/4 of it is 0.225, met by index 3 only
+    assert synth.choose_candidate(values, 1.0, border, share=0.25) == 3
+    # half of it (0.15): indices 1 (0.20), 2 (0.15), 3 qualify; index 2 has the quietest border
+    assert synth.choose_candidate(values, 1.0, border, share=0.5) == 2
+    assert synth.choose_candidate(values, 1.0, border, share=0.0) == 3
+    # no candidate gains: the best by value (the walk keeps the tile)
+    assert synth.choose_candidate(values, 0.6, border, share=0.5) == 3

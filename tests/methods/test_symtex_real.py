@@ -404,3 +404,60 @@ def test_symmetrize_never_returns_a_worse_image(tmp_path, write_config, name, ne
         smap = np.load(tmp_path / "out" / report["outputs"]["sample_map"])
         H, W = smap.shape[:2]
         np.testing.assert_allclose(smap, np.stack(np.meshgrid(np.arange(W), np.arange(H)), axis=2), atol=1e-4)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 24: guided transfer without visible patch edges (aerial_rocks guided toward each lattice)
+
+
+def _rocks_toward(name: str, share: float):
+    """aerial_rocks (256 px) guided toward photo ``name`` at 192x192 with the defaults (patch 32,
+    overlap 12, 24 candidates, 4 sweeps, seed 0), walk taking ``share``; with unguided quilting."""
+    from synthkit.core import quilting as q
+    from synthkit.methods.symtex import synth
+    from synthkit.methods.symtex.objective import st_window
+
+    src = real_texture("aerial_rocks_02_diff_1k.jpg", 256)
+    path = REAL / name
+    window = st_window((192, 192), 0.5)
+    T = sy.translational(sy.f_lum(load_image(path)), window=window)
+    base_rng, walk_rng = np.random.default_rng(0).spawn(2)
+    base = q.quilt(src, (192, 192), patch=32, overlap=12, rng=base_rng)
+    init = synth.random_init(src, (192, 192), patch=32, overlap=12, rng=walk_rng)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(synth, "SEAM_SHARE", share)
+        walk = synth.guided_walk(src, init, signals=["lum"], targets=[T], window=window, patch=32, candidates=24,
+                                 sweeps=4)
+    e_l2 = float(sy.e_l2(sy.translational(sy.f_lum(walk.image), window=window), T))
+    return e_l2, synth.seam_energy(walk.image, walk.sources), synth.seam_energy(base.image, base.sources)
+
+
+LATTICES = ["lattice-p4.jpg", "lattice-p3-21.jpg", "lattice-p2-2.jpg", "lattice-p2-4.png"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", LATTICES)
+def test_guided_transfer_shows_less_patch_border(name):
+    """The walk's choice of the quietest border among candidates keeping 3/4 of the best gain
+    (synth.SEAM_SHARE) halves the visible border (seam_energy) of the paper's choice (share 0)
+    at an E_L2 within 10% of it (measured: 0.41-0.62 of the border at 0.87-0.996 of E_L2)."""
+    e_paper, seams_paper, _ = _rocks_toward(name, 0.0)
+    e_ours, seams_ours, _ = _rocks_toward(name, synth_share())
+    assert seams_ours <= 0.7 * seams_paper
+    assert e_ours <= 1.1 * e_paper
+
+
+def synth_share() -> float:
+    from synthkit.methods.symtex import synth
+
+    return synth.SEAM_SHARE
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's goal not met: guided seam_energy is 4.8-7.4x unguided "
+                   "quilting's (docs/findings/symmetry-texture.md, 'Patch edges, third round')")
+@pytest.mark.parametrize("name", LATTICES)
+def test_guided_transfer_seam_energy_within_issue_goal(name):
+    """Issue 24's check: guided transfer's visible border at most 1.2x unguided quilting's."""
+    _, seams, unguided = _rocks_toward(name, synth_share())
+    assert seams <= 1.2 * unguided

@@ -293,11 +293,13 @@ SEAM_SHARE = 0.25
 :func:`choose_candidate`; docs/findings/symmetry-texture.md, "Patch edges, third round")."""
 
 
-def choose_candidate(values: np.ndarray, value: float, border: np.ndarray, share: float = SEAM_SHARE) -> int:
+def choose_candidate(values: np.ndarray, value: float, border: np.ndarray, share: float | None = None) -> int:
     """Index of the candidate the walk takes: among those whose objective ``values (k,)`` gains at
     least ``1 - share`` of the best gain over the current ``value``, the one with the least
     :func:`border_energy` ``border (k,)``; the best by ``values`` when no candidate gains (the walk
-    then keeps the tile; ``share`` 0: the paper's choice, the best by ``values``)."""
+    then keeps the tile; ``share`` defaults to :data:`SEAM_SHARE`; 0: the paper's choice, the best
+    by ``values``)."""
+    share = SEAM_SHARE if share is None else share
     best = int(np.argmin(values))
     gain = value - float(values[best])
     if gain <= 0 or share <= 0:
@@ -346,7 +348,8 @@ def seam_energy(image: np.ndarray, sources: np.ndarray) -> float:
 
     Unlike :func:`seam_visibility` (a mean over border steps) it grows with the length of visible
     border: an image cut into many small blocks whose edges show scores high even when most of its
-    borders are invisible; 0 when every border looks like the inside."""
+    borders are invisible; 0 when the borders carry no more than the inside (clipped there: borders
+    smoother than the texture are not seen either)."""
     from synthkit.core.tiling import seam_masks
 
     lum = sy.f_lum(np.asarray(image, dtype=np.float32)).astype(np.float64)
@@ -355,4 +358,4 @@ def seam_energy(image: np.ndarray, sources: np.ndarray) -> float:
     mx, my = seam_masks(sources)
     inside = 0.5 * (dx[~mx].mean() + dy[~my].mean()) if (~mx).any() and (~my).any() else 0.0
     excess = float(dx[mx].sum() + dy[my].sum()) - inside * float(mx.sum() + my.sum())
-    return excess / max(2 * lum.size * inside, 1e-20)
+    return max(excess, 0.0) / max(2 * lum.size * inside, 1e-20)

@@ -578,22 +578,29 @@ def test_seam_energy_counts_visible_border_per_step():
 
 
 def test_border_energy_prices_the_cut_of_each_candidate():
-    """A candidate that continues the canvas's source costs nothing; one from elsewhere costs its
-    steps across the ring less the inside energy, per border step."""
+    """A candidate that continues the canvas's source costs nothing; one from elsewhere, 0.3
+    brighter, costs its 16 steps across the ring less the inside energy (the candidates' own
+    mean squared step, 0.01^2 / 2) each."""
     canvas, sources = _two_patch_image(0.0)
     B = 4
     ring = canvas[3 : 3 + B + 2, 1 : 1 + B + 2]
     ring_src = sources[3 : 3 + B + 2, 1 : 1 + B + 2]
-    same = ring[None, 1:-1, 1:-1]
-    same_src = ring_src[None, 1:-1, 1:-1]
-    other = same + 0.3
-    other_src = same_src + np.array([50, 0])
-    cost = synth.border_energy(ring, ring_src, np.concatenate([same, other]), np.concatenate([same_src, other_src]),
-                               inside=1e-4)
+    block = ring[1:-1, 1:-1]
+    patches = np.stack([block, block + 0.3])
+    positions = np.array([ring_src[1, 1], ring_src[1, 1] + [50, 0]])
+    cost = synth.border_energy(ring, ring_src, patches, np.ones((2, B, B), bool), positions)
     assert cost[0] == 0.0
-    # the other block: 4 borders of 4 steps each; along x the steps are 0.3 +- 0.01, along y 0.3
-    expected = 4 * ((0.31**2 - 1e-4) + (0.29**2 - 1e-4)) + 8 * (0.3**2 - 1e-4)
+    inside = 0.5 * 0.01**2
+    # along x the steps into and out of the block are 0.3 + 0.01 and 0.01 - 0.3, along y +-0.3
+    expected = 4 * (0.31**2 - inside) + 4 * (0.29**2 - inside) + 8 * (0.3**2 - inside)
     assert cost[1] == pytest.approx(expected, rel=1e-4)
+    # a cut keeping only the block's right half: the left half shows the canvas, which continues
+    # the ring; the borders are the cut (4 steps) and the right half's 2 + 2 + 4 steps to the ring
+    half = np.zeros((2, B, B), bool)
+    half[:, :, 2:] = True
+    cut = synth.border_energy(ring, ring_src, patches, half, positions)
+    assert cut[0] == 0.0
+    assert cut[1] == pytest.approx(4 * (0.31**2 - inside) + 4 * (0.29**2 - inside) + 4 * (0.3**2 - inside), rel=1e-4)
 
 
 def test_choose_candidate_trades_a_share_of_the_gain_for_a_quieter_border():

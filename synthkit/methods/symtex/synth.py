@@ -28,11 +28,13 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
 from synthkit.core.autocorrelation import IncrementalAutocorrelation, one_blas_thread
+from synthkit.core.flow import NUMBA_CACHE
 
 _PREPARE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="symtex-prepare")
 """The thread that prepares a tile's evaluation while the walk builds its candidates."""
@@ -243,49 +245,81 @@ def _candidate_blocks(src, canvas, sources, matcher, ys, xs, tile, patch: int, c
     patches = q.source_patches(src, pos, patch)
     keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
     k = keep[..., None] if patches.ndim == 4 else keep
-    news = np.where(k, patches, region[None])
-    block_sources = np.where(keep[..., None], q.patch_sources(pos, patch), sources[np.ix_(ry, rx)][None])
     ring = q.region_indices(int(ys[i]) - 1, int(xs[j]) - 1, patch + 2, (H, W))
-    border = border_energy(canvas[np.ix_(*ring)], sources[np.ix_(*ring)], news, block_sources,
-                           inside=_step_energy(patches))
-    return pos, keep, news, border
+    border = border_energy(canvas[np.ix_(*ring)], sources[np.ix_(*ring)], patches, keep, pos)
+    return pos, keep, np.where(k, patches, region[None]), border
 
 
-def _lum_steps(lum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Squared luminance steps ``(..., h, w - 1)`` along x and ``(..., h - 1, w)`` along y."""
-    return np.diff(lum, axis=-1) ** 2, np.diff(lum, axis=-2) ** 2
+def _lum(stack: np.ndarray) -> np.ndarray:
+    """Luminance ``(K, h, w) float64`` of images ``(K, h, w[, C])`` (seen as one ``(K h, w)`` image)."""
+    K, h, w = stack.shape[:3]
+    return sy.f_lum(stack.reshape(K * h, w, *stack.shape[3:])).astype(np.float64).reshape(K, h, w)
 
 
-def _step_energy(patches: np.ndarray) -> float:
-    """Mean squared luminance step inside source ``patches (K, B, B[, C])`` (every step natural)."""
-    lum = sy.signal(patches.reshape(-1, *patches.shape[2:]), "lum").reshape(patches.shape[:3])
-    ex, ey = _lum_steps(lum.astype(np.float64))
-    return 0.5 * float(ex.mean() + ey.mean())
-
-
-def border_energy(ring: np.ndarray, ring_sources: np.ndarray, news: np.ndarray, block_sources: np.ndarray, *,
-                  inside: float) -> np.ndarray:
-    """Excess gradient energy ``(K,)`` across the patch borders of each candidate block in place.
+def border_energy(ring: np.ndarray, ring_sources: np.ndarray, patches: np.ndarray, keep: np.ndarray,
+                  positions: np.ndarray) -> np.ndarray:
+    """Excess gradient energy ``(K,)`` across the patch borders of each candidate cut into place.
 
     ``ring (B + 2, B + 2[, C])`` and ``ring_sources (B + 2, B + 2, 2)``: the canvas and its source
-    map around the tile (one pixel beyond each side); ``news (K, B, B[, C])`` the candidate blocks
-    and ``block_sources (K, B, B, 2)`` their source maps. Over every step that touches the block
-    and joins pixels that are not source neighbours (a patch border), the squared luminance step
-    less ``inside`` (the mean squared step inside patches) is summed: a border the eye cannot tell
-    from the texture costs about 0, a visible one its contrast times its length.
+    map around the tile (one pixel beyond each side); ``patches (K, B, B[, C])`` the candidates
+    at source ``positions (K, 2)``, each kept where ``keep (K, B, B)``. Over every step that
+    touches the block and joins pixels that are not source neighbours (a patch border) once the
+    candidate is in place, the squared luminance step less the mean squared step inside the
+    candidates (the texture's own) is summed: a border the eye cannot tell from the texture costs
+    about 0, a visible one its contrast times its length (:func:`_border_energy_kernel`).
     """
-    K, B = news.shape[:2]
-    lum = np.broadcast_to(sy.signal(ring, "lum").astype(np.float64), (K, B + 2, B + 2)).copy()
-    src = np.broadcast_to(ring_sources, (K, B + 2, B + 2, 2)).copy()
-    lum[:, 1:-1, 1:-1] = sy.signal(news.reshape(K * B, *news.shape[2:]), "lum").reshape(K, B, B)
-    src[:, 1:-1, 1:-1] = block_sources
-    ex, ey = _lum_steps(lum)
-    sx, sy_ = np.diff(src, axis=2), np.diff(src, axis=1)
-    bx = (sx[..., 0] != 0) | (sx[..., 1] != 1)
-    by = (sy_[..., 0] != 1) | (sy_[..., 1] != 0)
-    bx[:, [0, -1], :] = False  # the ring's own steps along its first and last rows
-    by[:, :, [0, -1]] = False
-    return ((ex - inside) * bx).sum(axis=(1, 2)) + ((ey - inside) * by).sum(axis=(1, 2))
+    K, B = keep.shape[:2]
+    lum_p = _lum(patches)
+    grid = np.stack(np.mgrid[-1 : B + 1, -1 : B + 1], axis=2)
+    implied = np.ascontiguousarray(ring_sources - grid, dtype=np.int64)  # origin each pixel continues
+    return _border_energy_kernel(_lum(ring[None])[0], implied, lum_p, np.ascontiguousarray(keep),
+                                 np.ascontiguousarray(positions, dtype=np.int64))
+
+
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _border_energy_kernel(ring, implied, lum_p, keep, pos):  # pragma: no cover - compiled
+    K, B = keep.shape[0], keep.shape[1]
+    inside, n_inside = 0.0, 0
+    for k in range(K):
+        for y in range(B):
+            for x in range(B):
+                if x + 1 < B:
+                    inside += (lum_p[k, y, x + 1] - lum_p[k, y, x]) ** 2
+                    n_inside += 1
+                if y + 1 < B:
+                    inside += (lum_p[k, y + 1, x] - lum_p[k, y, x]) ** 2
+                    n_inside += 1
+    inside /= max(n_inside, 1)
+    out = np.zeros(K)
+    n = B + 2
+    new = np.zeros((n, n), dtype=np.bool_)
+    val = np.empty((n, n))
+    for k in range(K):
+        for y in range(n):
+            for x in range(n):
+                kept = 0 < y <= B and 0 < x <= B and keep[k, y - 1, x - 1]
+                new[y, x] = kept or (implied[y, x, 0] == pos[k, 0] and implied[y, x, 1] == pos[k, 1])
+                val[y, x] = lum_p[k, y - 1, x - 1] if kept else ring[y, x]
+        total = 0.0
+        for y in range(n):
+            for x in range(n):
+                for dy, dx in ((0, 1), (1, 0)):
+                    y2, x2 = y + dy, x + dx
+                    if y2 >= n or x2 >= n:
+                        continue
+                    inner1 = 0 < y <= B and 0 < x <= B
+                    inner2 = 0 < y2 <= B and 0 < x2 <= B
+                    if not (inner1 or inner2):
+                        continue
+                    if new[y, x] and new[y2, x2]:
+                        continue
+                    if not new[y, x] and not new[y2, x2]:
+                        same = implied[y, x, 0] == implied[y2, x2, 0] and implied[y, x, 1] == implied[y2, x2, 1]
+                        if same:
+                            continue
+                    total += (val[y2, x2] - val[y, x]) ** 2 - inside
+        out[k] = total
+    return out
 
 
 SEAM_SHARE = 0.25

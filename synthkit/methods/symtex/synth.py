@@ -336,7 +336,7 @@ def choose_candidate(values: np.ndarray, value: float, border: np.ndarray, share
     share = SEAM_SHARE if share is None else share
     best = int(np.argmin(values))
     gain = value - float(values[best])
-    if gain <= 0 or share <= 0:
+    if gain <= 0 or share <= 0 or border[best] <= 0:
         return best
     near = np.flatnonzero(value - values >= (1.0 - share) * gain)
     return int(near[np.argmin(border[near])])

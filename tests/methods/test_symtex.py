@@ -613,3 +613,5 @@ def test_choose_candidate_trades_a_share_of_the_gain_for_a_quieter_border():
     assert synth.choose_candidate(values, 1.0, border, share=0.0) == 3
     # no candidate gains: the best by value (the walk keeps the tile)
     assert synth.choose_candidate(values, 0.6, border, share=0.5) == 3
+    # the best's border is no more visible than the texture: nothing to trade its gain for
+    assert synth.choose_candidate(values, 1.0, np.array([0.0, 1.0, 0.5, -0.1]), share=0.5) == 3

@@ -322,7 +322,7 @@ def _border_energy_kernel(ring, implied, lum_p, keep, pos):  # pragma: no cover 
     return out
 
 
-SEAM_SHARE = 0.25
+SEAM_SHARE = 0.15
 """Share of a tile's best E_L2 gain the walk may give up for a less visible patch border (see
 :func:`choose_candidate`; docs/findings/symmetry-texture.md, "Patch edges, third round")."""
 

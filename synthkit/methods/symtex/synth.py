@@ -6,7 +6,9 @@ sweep. At a tile, the ``k`` source patches with the lowest overlap error against
 neighbouring bands are the overlap-consistent candidates; each is cut into place with
 minimum-error boundary cuts, and the tile takes the candidate whose result has the translational
 symmetry representation closest (E_L2) to the target, or keeps its current content when no
-candidate is closer (so the objective never rises: a steepest-descent walk).
+candidate is closer (so the objective never rises: a steepest-descent walk). Among the candidates
+that gain at least 85% of the best one's (:data:`SEAM_SHARE`), it takes the one whose patch border
+shows least (:func:`choose_candidate`, :func:`border_energy`).
 
 Candidates are evaluated incrementally: the change of the windowed autocorrelation caused by
 replacing one block is computed from the block and its surroundings only

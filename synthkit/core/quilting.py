@@ -21,6 +21,7 @@ Building blocks, used by :func:`quilt` and by the symmetry-guided walk:
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass
 
 import numba
@@ -105,6 +106,7 @@ class PatchMatcher:
         self.channels = src.shape[2]
         self._weight_terms: dict[bytes, np.ndarray] = {}
         self._max_cached = max_cached
+        self._cache_lock = threading.Lock()  # the guided walk matches tiles from two threads
 
     def _spectrum(self, arr: np.ndarray) -> np.ndarray:
         """Spectrum ``(..., fh, fw // 2 + 1)`` of the flipped ``(..., B, B)`` arrays, zero-padded."""
@@ -120,12 +122,14 @@ class PatchMatcher:
     def weight_term(self, weight: np.ndarray) -> np.ndarray:
         """``(weight * |s|^2)`` at every valid position ``(Hs - B + 1, Ws - B + 1)``, cached."""
         key = weight.astype(bool).tobytes()
-        term = self._weight_terms.get(key)
+        with self._cache_lock:
+            term = self._weight_terms.get(key)
         if term is None:
             term = self._valid(self.sq_spectrum * self._spectrum(weight.astype(np.float32)))
-            if len(self._weight_terms) >= self._max_cached:
-                self._weight_terms.pop(next(iter(self._weight_terms)))
-            self._weight_terms[key] = term
+            with self._cache_lock:
+                if len(self._weight_terms) >= self._max_cached:
+                    self._weight_terms.pop(next(iter(self._weight_terms)))
+                self._weight_terms[key] = term
         return term
 
     def costs(self, target: np.ndarray, weight: np.ndarray) -> np.ndarray:

@@ -590,3 +590,75 @@ def test_batch_accepted_together_only_when_the_exact_objective_falls():
     result.image[:] = 0.0
     value, changed = synth._accept(result, found, objective(), [], ["lum"], objective, (ys, xs), 16)
     assert changed == 2 and value == pytest.approx(0.0625) == objective()
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 24, patch edges: the visible border figure and the walk's choice among candidates
+
+
+def _two_patch_image(offset: float):
+    """A 16x16 grey ramp image whose right half is a second patch brightened by ``offset``, with
+    its source map (two patches side by side, so two vertical borders on the torus)."""
+    ramp = np.tile(np.arange(16, dtype=np.float32) * 0.01, (16, 1))
+    img = ramp.copy()
+    img[:, 8:] += offset
+    sources = np.stack(np.mgrid[0:16, 0:16], axis=2)
+    sources[:, 8:, 0] += 100  # the right half comes from elsewhere in the source
+    return np.repeat(img[..., None], 3, axis=2), sources
+
+
+def test_seam_energy_counts_visible_border_per_step():
+    """0 for a periodic triangle wave seen as one patch (its wrap steps, borders on the torus, are
+    the inside's 0.01); two patches of a ramp (steps 0.01 along x), the right one 0.2 brighter:
+    borders at x 7->8 (step 0.21) and across the wrap (x 15->0: -0.35; y 15->0: 0) give their
+    exact excess energy per step of the image."""
+    wave = np.tile(0.01 * np.minimum(np.arange(16), 16 - np.arange(16)), (16, 1)).astype(np.float32)
+    one = np.stack(np.mgrid[0:16, 0:16], axis=2)
+    assert synth.seam_energy(np.repeat(wave[..., None], 3, axis=2), one) == pytest.approx(0.0, abs=1e-6)
+    img, sources = _two_patch_image(0.2)
+    inside = 0.5 * (0.01**2 + 0.0)  # inside steps: 0.01 along x, 0 along y
+    border = 16 * (0.21**2 + 0.35**2 + 0.0)
+    expected = (border - 48 * inside) / (2 * 256 * inside)
+    assert synth.seam_energy(img, sources) == pytest.approx(expected, rel=1e-4)
+    # twice the offset: more visible
+    assert synth.seam_energy(*_two_patch_image(0.4)) > synth.seam_energy(img, sources)
+
+
+def test_border_energy_prices_the_cut_of_each_candidate():
+    """A candidate that continues the canvas's source costs nothing; one from elsewhere, 0.3
+    brighter, costs its 16 steps across the ring less the inside energy (the candidates' own
+    mean squared step, 0.01^2 / 2) each."""
+    canvas, sources = _two_patch_image(0.0)
+    B = 4
+    ring = canvas[3 : 3 + B + 2, 1 : 1 + B + 2]
+    ring_src = sources[3 : 3 + B + 2, 1 : 1 + B + 2]
+    block = ring[1:-1, 1:-1]
+    patches = np.stack([block, block + 0.3])
+    positions = np.array([ring_src[1, 1], ring_src[1, 1] + [50, 0]])
+    cost = synth.border_energy(ring, ring_src, patches, np.ones((2, B, B), bool), positions)
+    assert cost[0] == 0.0
+    inside = 0.5 * 0.01**2
+    # along x the steps into and out of the block are 0.3 + 0.01 and 0.01 - 0.3, along y +-0.3
+    expected = 4 * (0.31**2 - inside) + 4 * (0.29**2 - inside) + 8 * (0.3**2 - inside)
+    assert cost[1] == pytest.approx(expected, rel=1e-4)
+    # a cut keeping only the block's right half: the left half shows the canvas, which continues
+    # the ring; the borders are the cut (4 steps) and the right half's 2 + 2 + 4 steps to the ring
+    half = np.zeros((2, B, B), bool)
+    half[:, :, 2:] = True
+    cut = synth.border_energy(ring, ring_src, patches, half, positions)
+    assert cut[0] == 0.0
+    assert cut[1] == pytest.approx(4 * (0.31**2 - inside) + 4 * (0.29**2 - inside) + 4 * (0.3**2 - inside), rel=1e-4)
+
+
+def test_choose_candidate_trades_a_share_of_the_gain_for_a_quieter_border():
+    values = np.array([0.90, 0.80, 0.85, 0.70])
+    border = np.array([0.0, 1.0, 0.5, 9.0])
+    # current 1.0: best gain 0.30 (index 3); 3/4 of it is 0.225, met by index 3 only
+    assert synth.choose_candidate(values, 1.0, border, share=0.25) == 3
+    # half of it (0.15): indices 1 (0.20), 2 (0.15), 3 qualify; index 2 has the quietest border
+    assert synth.choose_candidate(values, 1.0, border, share=0.5) == 2
+    assert synth.choose_candidate(values, 1.0, border, share=0.0) == 3
+    # no candidate gains: the best by value (the walk keeps the tile)
+    assert synth.choose_candidate(values, 0.6, border, share=0.5) == 3
+    # the best's border is no more visible than the texture: nothing to trade its gain for
+    assert synth.choose_candidate(values, 1.0, np.array([0.0, 1.0, 0.5, -0.1]), share=0.5) == 3

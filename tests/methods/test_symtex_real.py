@@ -404,3 +404,56 @@ def test_symmetrize_never_returns_a_worse_image(tmp_path, write_config, name, ne
         smap = np.load(tmp_path / "out" / report["outputs"]["sample_map"])
         H, W = smap.shape[:2]
         np.testing.assert_allclose(smap, np.stack(np.meshgrid(np.arange(W), np.arange(H)), axis=2), atol=1e-4)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 24: guided transfer without visible patch edges (aerial_rocks guided toward each lattice)
+
+
+def _rocks_toward(name: str, share: float | None):
+    """aerial_rocks (256 px) guided toward photo ``name`` at 192x192 with the defaults (patch 32,
+    overlap 12, 24 candidates, 4 sweeps, seed 0), the walk's ``synth.SEAM_SHARE`` set to ``share``
+    (None: the default): its E_L2 and seam energy, and unguided quilting's seam energy."""
+    from synthkit.core import quilting as q
+    from synthkit.methods.symtex import synth
+    from synthkit.methods.symtex.objective import st_window
+
+    src = real_texture("aerial_rocks_02_diff_1k.jpg", 256)
+    path = REAL / name
+    window = st_window((192, 192), 0.5)
+    T = sy.translational(sy.f_lum(load_image(path)), window=window)
+    base_rng, walk_rng = np.random.default_rng(0).spawn(2)
+    base = q.quilt(src, (192, 192), patch=32, overlap=12, rng=base_rng)
+    init = synth.random_init(src, (192, 192), patch=32, overlap=12, rng=walk_rng)
+    with pytest.MonkeyPatch.context() as mp:
+        if share is not None:
+            mp.setattr(synth, "SEAM_SHARE", share)
+        walk = synth.guided_walk(src, init, signals=["lum"], targets=[T], window=window, patch=32, candidates=24,
+                                 sweeps=4)
+    e_l2 = float(sy.e_l2(sy.translational(sy.f_lum(walk.image), window=window), T))
+    return e_l2, synth.seam_energy(walk.image, walk.sources), synth.seam_energy(base.image, base.sources)
+
+
+LATTICES = ["lattice-p4.jpg", "lattice-p3-21.jpg", "lattice-p2-2.jpg", "lattice-p2-4.png"]
+
+
+@pytest.mark.slow
+def test_guided_transfer_shows_less_patch_border():
+    """Over the four lattice photos, the walk's choice of the quietest border among candidates
+    keeping 85% of the best gain (synth.SEAM_SHARE) leaves less visible border (seam_energy)
+    than the paper's choice (share 0) at an E_L2 within the issue's 10% on average (seed 0:
+    seam energy 0.276 -> 0.190 summed, E_L2 0.79-1.13x per photo, 0.94x on average)."""
+    paper = [_rocks_toward(name, 0.0) for name in LATTICES]
+    ours = [_rocks_toward(name, None) for name in LATTICES]
+    assert sum(o[1] for o in ours) <= 0.8 * sum(p[1] for p in paper)
+    assert np.mean([o[0] / p[0] for o, p in zip(ours, paper, strict=True)]) <= 1.1
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's goal not met: guided seam_energy is 6.2-11x unguided "
+                   "quilting's (docs/findings/symmetry-texture.md, 'Patch edges, third round')")
+@pytest.mark.parametrize("name", LATTICES)
+def test_guided_transfer_seam_energy_within_issue_goal(name):
+    """Issue 24's check: guided transfer's visible border at most 1.2x unguided quilting's."""
+    _, seams, unguided = _rocks_toward(name, None)
+    assert seams <= 1.2 * unguided

@@ -7,10 +7,11 @@
 modes), ``optimize`` (guided walk, ARAP or lens search), then ``write`` (:mod:`.outputs`).
 
 Metrics: ``objective_start``, ``objective_end``, ``baseline_objective``, ``iterations`` plus
-mode-specific values; the synthesis modes report ``seam_visibility`` (of the result) and
-``baseline_seam_visibility`` (of unguided quilting), see
-:func:`synthkit.methods.symtex.synth.seam_visibility`. Randomness: ``ctx.rng`` is split once into
-a baseline generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the
+mode-specific values; the synthesis modes report ``seam_visibility`` and ``seam_energy`` (of the
+result) and ``baseline_seam_visibility``, ``baseline_seam_energy`` (of unguided quilting), see
+:func:`synthkit.methods.symtex.synth.seam_visibility` and
+:func:`~synthkit.methods.symtex.synth.seam_energy`. Randomness: ``ctx.rng`` is split once into a
+baseline generator and a walk generator, so ``mode: quilt`` with a seed gives exactly the
 baseline of a guided run with that seed.
 """
 
@@ -172,12 +173,12 @@ def _run_synth(opts: SymtexOptions, ctx, src: np.ndarray, tgt: np.ndarray | None
             baseline = q.quilt(src, out_shape, patch=sc.patch, overlap=sc.overlap, tol=sc.tol, seams=sc.seams,
                                rng=base_rng, progress=ctx.progress)
             baseline_value = objective.value(baseline.image)
-        baseline_seams = synth_mod.seam_visibility(baseline.image, baseline.sources)
+        baseline_seams = seam_figures(baseline.image, baseline.sources)
     if opts.mode == "quilt":
         image = baseline.image
         start = end = baseline_value
         iterations = len(baseline.ys) * len(baseline.xs)
-        ctx.metrics.update(tiles=iterations, seam_visibility=baseline_seams)
+        ctx.metrics.update(tiles=iterations, **baseline_seams)
     else:
         with ctx.stage("optimize"):
             init = baseline if sc.init == "quilt" else synth_mod.random_init(
@@ -191,8 +192,8 @@ def _run_synth(opts: SymtexOptions, ctx, src: np.ndarray, tgt: np.ndarray | None
         start, end = walk.history[0], objective.value(image)
         iterations = walk.iterations
         ctx.metrics.update(
-            seam_visibility=synth_mod.seam_visibility(image, walk.sources),
-            **({"baseline_seam_visibility": baseline_seams} if opts.baseline else {}),
+            **seam_figures(image, walk.sources),
+            **({f"baseline_{k}": v for k, v in baseline_seams.items()} if opts.baseline else {}),
             sweeps=len(walk.history) - 1,
             tiles_changed=walk.changed,
             candidates_evaluated=walk.candidates_evaluated,
@@ -209,6 +210,13 @@ def _run_synth(opts: SymtexOptions, ctx, src: np.ndarray, tgt: np.ndarray | None
     )
     return {"image": image, "baseline": baseline.image if opts.mode != "quilt" and opts.baseline else None,
             "objective": objective, "targets": targets}
+
+
+def seam_figures(image: np.ndarray, sources: np.ndarray) -> dict:
+    """``seam_visibility`` (mean over border steps) and ``seam_energy`` (visible border per step) of
+    a quilted image, see :func:`synthkit.methods.symtex.synth.seam_energy`."""
+    return {"seam_visibility": synth_mod.seam_visibility(image, sources),
+            "seam_energy": synth_mod.seam_energy(image, sources)}
 
 
 def _run_lens(opts: SymtexOptions, ctx, src: np.ndarray, source) -> dict:

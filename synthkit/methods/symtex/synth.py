@@ -10,6 +10,8 @@ candidate is closer (so the objective never rises: a steepest-descent walk). The
 are visited in batches whose blocks do not meet (every other tile, :func:`tile_batches`): each
 tile of a batch is scored against the same image, and the batch's improving tiles are accepted
 together when the exact objective of the result is lower, else one by one (:func:`_accept`).
+Among the candidates of a tile that gain at least 85% of the best one's (:data:`SEAM_SHARE`), it
+proposes the one whose patch border shows least (:func:`choose_candidate`, :func:`border_energy`).
 
 Candidates are evaluated incrementally: the change of the windowed autocorrelation caused by
 replacing one block is computed from the block and its surroundings only
@@ -31,11 +33,13 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
 from synthkit.core.autocorrelation import IncrementalAutocorrelation, one_blas_thread
+from synthkit.core.flow import NUMBA_CACHE
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 
@@ -187,10 +191,11 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
     batches = tile_batches(ys, xs, patch, (H, W))
     pool = _executor(workers) if workers > 1 else None
 
-    def evaluate(tile):
+    def evaluate(tile, value):
         i, j = tile
         y0, x0 = int(ys[i]), int(xs[j])
-        pos, keep, news = _candidate_blocks(src, canvas, matcher, ys, xs, (i, j), patch, candidates, seams)
+        pos, keep, news, border = _candidate_blocks(src, canvas, result.sources, matcher, ys, xs, (i, j), patch,
+                                                    candidates, seams)
         if states:
             ry, rx = q.region_indices(y0, x0, patch, (H, W))
             values = _incremental_values(states, targets, signals, canvas[np.ix_(ry, rx)], news, (y0, x0))
@@ -201,16 +206,16 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
                 trial = canvas.copy()
                 trial[np.ix_(ry, rx)] = news[c]
                 values[c] = full_value(trial)
-        best = int(np.argmin(values))
+        best = choose_candidate(values, value, border)
         return tile, float(values[best]), pos[best], keep[best], news[best], len(pos)
 
     for _ in range(sweeps):
         changed = 0
         for batch in progress(batches, total=len(batches), desc="guided walk") if progress else batches:
-            jobs = [pool.submit(evaluate, t) for t in batch] if pool is not None else []
+            jobs = [pool.submit(evaluate, t, value) for t in batch] if pool is not None else []
             for st, T in zip(states, targets, strict=False):  # while the pool builds the candidates
                 st.prepare_image(T, (patch, patch))
-            found = [job.result() for job in jobs] if jobs else [evaluate(t) for t in batch]
+            found = [job.result() for job in jobs] if jobs else [evaluate(t, value) for t in batch]
             result.iterations += len(batch)
             result.candidates_evaluated += sum(f[-1] for f in found)
             value, n = _accept(result, found, value, states, signals, current_value, grid, patch)
@@ -310,10 +315,11 @@ def tile_batches(ys: np.ndarray, xs: np.ndarray, patch: int, shape: tuple[int, i
     return batches
 
 
-def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):
+def _candidate_blocks(src, canvas, sources, matcher, ys, xs, tile, patch: int, candidates: int, seams: str):
     """The ``k`` overlap-consistent candidates of tile ``(i, j)`` of the toroidal grid, each cut
-    into place: source positions ``(k, 2)``, cut masks ``(k, B, B) bool`` and the blocks they
-    give ``(k, B, B[, C])``."""
+    into place: source positions ``(k, 2)``, cut masks ``(k, B, B) bool``, the blocks they give
+    ``(k, B, B[, C])`` and their :func:`border_energy` ``(k,)`` (``sources (H, W, 2)``: the
+    canvas's per-pixel source map)."""
     H, W = canvas.shape[:2]
     i, j = tile
     ry, rx = q.region_indices(int(ys[i]), int(xs[j]), patch, (H, W))
@@ -323,7 +329,101 @@ def _candidate_blocks(src, canvas, matcher, ys, xs, tile, patch: int, candidates
     patches = q.source_patches(src, pos, patch)
     keep = q.seam_masks(patches, region, np.ones((patch, patch), bool), overlaps=overlaps, method=seams)
     k = keep[..., None] if patches.ndim == 4 else keep
-    return pos, keep, np.where(k, patches, region[None])
+    ring = q.region_indices(int(ys[i]) - 1, int(xs[j]) - 1, patch + 2, (H, W))
+    border = border_energy(canvas[np.ix_(*ring)], sources[np.ix_(*ring)], patches, keep, pos)
+    return pos, keep, np.where(k, patches, region[None]), border
+
+
+def _lum(stack: np.ndarray) -> np.ndarray:
+    """Luminance ``(K, h, w) float64`` of images ``(K, h, w[, C])`` (seen as one ``(K h, w)`` image)."""
+    K, h, w = stack.shape[:3]
+    return sy.f_lum(stack.reshape(K * h, w, *stack.shape[3:])).astype(np.float64).reshape(K, h, w)
+
+
+def border_energy(ring: np.ndarray, ring_sources: np.ndarray, patches: np.ndarray, keep: np.ndarray,
+                  positions: np.ndarray) -> np.ndarray:
+    """Excess gradient energy ``(K,)`` across the patch borders of each candidate cut into place.
+
+    ``ring (B + 2, B + 2[, C])`` and ``ring_sources (B + 2, B + 2, 2)``: the canvas and its source
+    map around the tile (one pixel beyond each side); ``patches (K, B, B[, C])`` the candidates
+    at source ``positions (K, 2)``, each kept where ``keep (K, B, B)``. Over every step that
+    touches the block and joins pixels that are not source neighbours (a patch border) once the
+    candidate is in place, the squared luminance step less the mean squared step inside the
+    candidates (the texture's own) is summed: a border the eye cannot tell from the texture costs
+    about 0, a visible one its contrast times its length (:func:`_border_energy_kernel`).
+    """
+    K, B = keep.shape[:2]
+    lum_p = _lum(patches)
+    grid = np.stack(np.mgrid[-1 : B + 1, -1 : B + 1], axis=2)
+    implied = np.ascontiguousarray(ring_sources - grid, dtype=np.int64)  # origin each pixel continues
+    return _border_energy_kernel(_lum(ring[None])[0], implied, lum_p, np.ascontiguousarray(keep),
+                                 np.ascontiguousarray(positions, dtype=np.int64))
+
+
+@numba.njit(cache=NUMBA_CACHE, nogil=True)
+def _border_energy_kernel(ring, implied, lum_p, keep, pos):  # pragma: no cover - compiled
+    K, B = keep.shape[0], keep.shape[1]
+    inside, n_inside = 0.0, 0
+    for k in range(K):
+        for y in range(B):
+            for x in range(B):
+                if x + 1 < B:
+                    inside += (lum_p[k, y, x + 1] - lum_p[k, y, x]) ** 2
+                    n_inside += 1
+                if y + 1 < B:
+                    inside += (lum_p[k, y + 1, x] - lum_p[k, y, x]) ** 2
+                    n_inside += 1
+    inside /= max(n_inside, 1)
+    out = np.zeros(K)
+    n = B + 2
+    new = np.zeros((n, n), dtype=np.bool_)
+    val = np.empty((n, n))
+    for k in range(K):
+        for y in range(n):
+            for x in range(n):
+                kept = 0 < y <= B and 0 < x <= B and keep[k, y - 1, x - 1]
+                new[y, x] = kept or (implied[y, x, 0] == pos[k, 0] and implied[y, x, 1] == pos[k, 1])
+                val[y, x] = lum_p[k, y - 1, x - 1] if kept else ring[y, x]
+        total = 0.0
+        for y in range(n):
+            for x in range(n):
+                for dy, dx in ((0, 1), (1, 0)):
+                    y2, x2 = y + dy, x + dx
+                    if y2 >= n or x2 >= n:
+                        continue
+                    inner1 = 0 < y <= B and 0 < x <= B
+                    inner2 = 0 < y2 <= B and 0 < x2 <= B
+                    if not (inner1 or inner2):
+                        continue
+                    if new[y, x] and new[y2, x2]:
+                        continue
+                    if not new[y, x] and not new[y2, x2]:
+                        same = implied[y, x, 0] == implied[y2, x2, 0] and implied[y, x, 1] == implied[y2, x2, 1]
+                        if same:
+                            continue
+                    total += (val[y2, x2] - val[y, x]) ** 2 - inside
+        out[k] = total
+    return out
+
+
+SEAM_SHARE = 0.15
+"""Share of a tile's best E_L2 gain the walk may give up for a less visible patch border (see
+:func:`choose_candidate`; docs/findings/symmetry-texture.md, "Patch edges, third round")."""
+
+
+def choose_candidate(values: np.ndarray, value: float, border: np.ndarray, share: float | None = None) -> int:
+    """Index of the candidate the walk takes: among those whose objective ``values (k,)`` gains at
+    least ``1 - share`` of the best gain over the current ``value``, the one with the least
+    :func:`border_energy` ``border (k,)``; the best by ``values`` when no candidate gains (the walk
+    then keeps the tile; ``share`` defaults to :data:`SEAM_SHARE`; 0: the paper's choice, the best
+    by ``values``)."""
+    share = SEAM_SHARE if share is None else share
+    best = int(np.argmin(values))
+    gain = value - float(values[best])
+    if gain <= 0 or share <= 0 or border[best] <= 0:
+        return best
+    near = np.flatnonzero(value - values >= (1.0 - share) * gain)
+    return int(near[np.argmin(border[near])])
 
 
 def _incremental_values(states, targets, signals, region, news, corner) -> np.ndarray:
@@ -352,3 +452,25 @@ def seam_visibility(image: np.ndarray, sources: np.ndarray) -> float:
     from synthkit.methods.symtex.tile import seam_ratio
 
     return seam_ratio(image, seams=seam_masks(sources))
+
+
+def seam_energy(image: np.ndarray, sources: np.ndarray) -> float:
+    """Visible patch border of a quilted ``image (H, W[, C])`` per step of the image: the gradient
+    energy across patch borders in excess of what the same steps carry inside patches,
+    ``(sum_border d^2 - n_border m) / (n_steps m)`` with ``d`` the luminance step and ``m`` the
+    mean squared step inside patches (both directions, toroidal; borders from ``sources (H, W,
+    2)`` as in :func:`seam_visibility`).
+
+    Unlike :func:`seam_visibility` (a mean over border steps) it grows with the length of visible
+    border: an image cut into many small blocks whose edges show scores high even when most of its
+    borders are invisible; 0 when the borders carry no more than the inside (clipped there: borders
+    smoother than the texture are not seen either)."""
+    from synthkit.core.tiling import seam_masks
+
+    lum = sy.f_lum(np.asarray(image, dtype=np.float32)).astype(np.float64)
+    dx = (np.roll(lum, -1, axis=1) - lum) ** 2
+    dy = (np.roll(lum, -1, axis=0) - lum) ** 2
+    mx, my = seam_masks(sources)
+    inside = 0.5 * (dx[~mx].mean() + dy[~my].mean()) if (~mx).any() and (~my).any() else 0.0
+    excess = float(dx[mx].sum() + dy[my].sum()) - inside * float(mx.sum() + my.sum())
+    return max(excess, 0.0) / max(2 * lum.size * inside, 1e-20)

@@ -64,3 +64,21 @@ def write_results(area: str) -> Path:
     path = RESULTS_DIR / f"{area}.json"
     path.write_text(json.dumps(_FIGURES.get(area, {}), indent=2) + "\n")
     return path
+
+
+def base_synthkit(folder: Path, commit: str):
+    """Import ``synthkit`` as of ``commit`` under the name ``synthkit_base`` (its files
+    from ``git archive``, the package's own imports renamed), beside today's ``synthkit``."""
+    import importlib
+    import re
+    import subprocess
+
+    repo = Path(__file__).resolve().parents[1]
+    data = subprocess.run(["git", "-C", str(repo), "archive", commit, "synthkit"], capture_output=True, check=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=data.stdout, check=True)
+    (folder / "synthkit").rename(folder / "synthkit_base")
+    for f in (folder / "synthkit_base").rglob("*.py"):
+        f.write_text(re.sub(r"\bsynthkit\b(?=[. ])", "synthkit_base", f.read_text()))
+    sys.path.insert(0, str(folder))
+    return importlib.import_module("synthkit_base.runner")

@@ -34,8 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import print_table, record, write_results  # noqa: E402
-from benchmarks.symtex import base_synthkit  # noqa: E402
+from benchmarks._common import base_synthkit, print_table, record, write_results  # noqa: E402
 from synthkit.methods.surfacing.transfer import surface as surface_module  # noqa: E402
 from synthkit.methods.surfacing.transfer import synth as synth_module  # noqa: E402
 from synthkit.methods.surfacing.transfer.extract import corner_values, vertex_values  # noqa: E402

@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import RESULTS_DIR, median_time, print_table, record, write_results  # noqa: E402
+from benchmarks._common import RESULTS_DIR, base_synthkit, median_time, print_table, record, write_results  # noqa: E402
 from synthkit.core import quilting as q  # noqa: E402
 from synthkit.core import symmetry as sy  # noqa: E402
 from synthkit.core.autocorrelation import IncrementalAutocorrelation  # noqa: E402
@@ -399,24 +399,6 @@ BASE_COMMIT = "bcd5d3c2754bd82710fba4cc42f0fa0ef07883f6"
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "textures"
 
 
-def base_synthkit(folder: Path, commit: str = BASE_COMMIT):
-    """Import ``synthkit`` as of ``commit`` (default :data:`BASE_COMMIT`) under the name ``synthkit_base`` (its files
-    from ``git archive``, the package's own imports renamed), beside today's ``synthkit``."""
-    import importlib
-    import re
-    import subprocess
-
-    repo = Path(__file__).resolve().parents[1]
-    data = subprocess.run(["git", "-C", str(repo), "archive", commit, "synthkit"], capture_output=True, check=True)
-    folder.mkdir(parents=True, exist_ok=True)
-    subprocess.run(["tar", "-x", "-C", str(folder)], input=data.stdout, check=True)
-    (folder / "synthkit").rename(folder / "synthkit_base")
-    for f in (folder / "synthkit_base").rglob("*.py"):
-        f.write_text(re.sub(r"\bsynthkit\b(?=[. ])", "synthkit_base", f.read_text()))
-    sys.path.insert(0, str(folder))
-    return importlib.import_module("synthkit_base.runner")
-
-
 def _photo(name: str, shape: tuple[int, int], fallback) -> np.ndarray:
     """``shape`` (H, W) area-resized shared photo ``name``, or ``fallback(max(shape))`` cropped when absent."""
     import cv2
@@ -428,7 +410,7 @@ def _photo(name: str, shape: tuple[int, int], fallback) -> np.ndarray:
     return fallback(max(shape))[: shape[0], : shape[1]]
 
 
-def bench_issue24(modes=None, base: str = BASE_COMMIT) -> None:
+def bench_issue24(modes=None, base: str = BASE_COMMIT, seeds: int = 1) -> None:
     """Issue 24's speed goals, each through the runner with the config's defaults, today's code
     against :data:`BASE_COMMIT`'s in the same process (new first, then old; one run each: the
     machine is shared, so the ratio is the figure; the process's CPU time, which other processes'
@@ -437,7 +419,9 @@ def bench_issue24(modes=None, base: str = BASE_COMMIT) -> None:
     ``symmetrize`` 256x256 (a warped dot lattice; goal 5 s), ``tile`` of a 640x480 photo
     (texture_bricks; goal 10 s). Also the symmetrize result's E_symm, and which tile each returns.
     ``modes``: only the runs of these modes (``--issue24-modes``; default all); ``base``: the commit
-    compared with (``--base``; default :data:`BASE_COMMIT`)."""
+    compared with (``--base``; default :data:`BASE_COMMIT`); ``seeds``: the transfer runs with seeds 0 to
+    ``seeds - 1`` (``--seeds``), its E_L2 and seam energy also recorded as means over them (the walk's
+    end varies 10-20% between seeds)."""
     import tempfile
 
     import yaml
@@ -473,26 +457,44 @@ def bench_issue24(modes=None, base: str = BASE_COMMIT) -> None:
         for name, (cfg, goal) in runs.items():
             if modes and cfg["mode"] not in modes:
                 continue
-            path = folder / f"{name.split()[0]}.yaml"
-            path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
-            out = {}
-            for which, fn in (("new", run_config), ("old", old_runner.run_config)):
-                start, cpu = time.perf_counter(), time.process_time()
-                report = fn(path, out_dir=folder / f"{name.split()[0]}-{which}", show_progress=False)
-                out[which] = (time.perf_counter() - start, report["metrics"], time.process_time() - cpu)
-            new, old = out["new"], out["old"]
+            n_seeds = seeds if cfg["mode"] == "transfer" else 1
+            outs = [_issue24_pair(folder, name, {**cfg, "seed": seed}, old_runner) for seed in range(n_seeds)]
+            new, old = outs[0]["new"], outs[0]["old"]
             record(AREA, f"issue 24: {name}, defaults (vs {base[:7]})", new[0], "s", goal=goal, baseline=old[0])
             record(AREA, f"  {name} CPU time, all threads (vs {base[:7]})", new[2], "s", baseline=old[2])
             for key in FIGURES[cfg["mode"]]:
                 if key in new[1] and key in old[1]:
                     record(AREA, f"  {cfg['mode']} {key} (vs {base[:7]})", new[1][key], "", baseline=old[1][key])
+            if n_seeds > 1:
+                for key in ("objective_end", "seam_energy"):
+                    means = [np.mean([o[w][1].get(key, np.nan) for o in outs]) for w in ("new", "old")]
+                    record(AREA, f"  {cfg['mode']} {key}, mean of seeds 0-{n_seeds - 1} (vs {base[:7]})",
+                           float(means[0]), "", baseline=float(means[1]) if np.isfinite(means[1]) else None)
             if cfg["mode"] == "tile":
                 print(f"tile returned: {new[1]['tile_choice']} (before: {old[1]['tile_choice']})")
 
 
+def _issue24_pair(folder: Path, name: str, cfg: dict, old_runner) -> dict:
+    """Run ``cfg`` with today's code and then with ``old_runner``'s: per version (wall seconds,
+    metrics, CPU seconds of the process)."""
+    import yaml
+
+    from synthkit.runner import run_config
+
+    stem = f"{name.split()[0]}-{cfg.get('seed', 0)}"
+    path = folder / f"{stem}.yaml"
+    path.write_text(yaml.safe_dump({"method": "symmetry-texture", **cfg}))
+    out = {}
+    for which, fn in (("new", run_config), ("old", old_runner.run_config)):
+        start, cpu = time.perf_counter(), time.process_time()
+        report = fn(path, out_dir=folder / f"{stem}-{which}", show_progress=False)
+        out[which] = (time.perf_counter() - start, report["metrics"], time.process_time() - cpu)
+    return out
+
+
 FIGURES = {
     "quilt": [],
-    "transfer": ["objective_end", "seam_visibility", "baseline_seam_visibility"],
+    "transfer": ["objective_end", "seam_visibility", "baseline_seam_visibility", "seam_energy", "baseline_seam_energy"],
     "symmetrize": ["objective_end", "baseline_objective", "max_displacement_gradient"],
     "tile": ["seam_ratio", "objective_end"],
 }
@@ -518,6 +520,7 @@ def main() -> None:
         help="the issue24 part runs only these modes",
     )
     ap.add_argument("--base", default=BASE_COMMIT, help="commit the issue24 part compares with")
+    ap.add_argument("--seeds", type=int, default=1, help="the issue24 transfer runs seeds 0 to N-1 (means recorded)")
     args = ap.parse_args()
     parts = args.only or PARTS
     if args.only and (RESULTS_DIR / f"{AREA}.json").exists():
@@ -533,7 +536,7 @@ def main() -> None:
     if "symmetrize" in parts:
         bench_symmetrize(args.quick)
     if "issue24" in parts:
-        bench_issue24(args.issue24_modes, args.base)
+        bench_issue24(args.issue24_modes, args.base, args.seeds)
     if "transfer" in parts:
         bench_transfer(args.quick)
         if not args.quick:

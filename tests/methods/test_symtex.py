@@ -662,3 +662,12 @@ def test_choose_candidate_trades_a_share_of_the_gain_for_a_quieter_border():
     assert synth.choose_candidate(values, 0.6, border, share=0.5) == 3
     # the best's border is no more visible than the texture: nothing to trade its gain for
     assert synth.choose_candidate(values, 1.0, np.array([0.0, 1.0, 0.5, -0.1]), share=0.5) == 3
+
+
+def test_seam_share_default_is_the_walks():
+    """The config's ``synth.seam_share`` default is the library's (:data:`synth.SEAM_SHARE`), and
+    the walk polishes once by default."""
+    from synthkit.methods.symtex.config import SynthSection
+
+    assert SynthSection().seam_share == synth.SEAM_SHARE
+    assert SynthSection().polish_sweeps == 1

@@ -410,10 +410,10 @@ def test_symmetrize_never_returns_a_worse_image(tmp_path, write_config, name, ne
 # issue 24: guided transfer without visible patch edges (aerial_rocks guided toward each lattice)
 
 
-def _rocks_toward(name: str, share: float | None):
+def _rocks_toward(name: str, share: float | None, polish: int = 0):
     """aerial_rocks (256 px) guided toward photo ``name`` at 192x192 with the defaults (patch 32,
-    overlap 12, 24 candidates, 4 sweeps, seed 0), the walk's ``synth.SEAM_SHARE`` set to ``share``
-    (None: the default): its E_L2 and seam energy, and unguided quilting's seam energy."""
+    overlap 12, 24 candidates, 4 sweeps, seed 0), the walk's ``seam_share`` ``share`` (None: the
+    default) and ``polish`` polish sweeps: its E_L2 and seam energy, and unguided quilting's."""
     from synthkit.core import quilting as q
     from synthkit.methods.symtex import synth
     from synthkit.methods.symtex.objective import st_window
@@ -425,11 +425,8 @@ def _rocks_toward(name: str, share: float | None):
     base_rng, walk_rng = np.random.default_rng(0).spawn(2)
     base = q.quilt(src, (192, 192), patch=32, overlap=12, rng=base_rng)
     init = synth.random_init(src, (192, 192), patch=32, overlap=12, rng=walk_rng)
-    with pytest.MonkeyPatch.context() as mp:
-        if share is not None:
-            mp.setattr(synth, "SEAM_SHARE", share)
-        walk = synth.guided_walk(src, init, signals=["lum"], targets=[T], window=window, patch=32, candidates=24,
-                                 sweeps=4)
+    walk = synth.guided_walk(src, init, signals=["lum"], targets=[T], window=window, patch=32, candidates=24,
+                             sweeps=4, seam_share=share, polish_sweeps=polish)
     e_l2 = float(sy.e_l2(sy.translational(sy.f_lum(walk.image), window=window), T))
     return e_l2, synth.seam_energy(walk.image, walk.sources), synth.seam_energy(base.image, base.sources)
 
@@ -450,10 +447,24 @@ def test_guided_transfer_shows_less_patch_border():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 24's goal not met: guided seam_energy is 6.2-11x unguided "
-                   "quilting's (docs/findings/symmetry-texture.md, 'Patch edges, third round')")
+def test_polish_sweep_lowers_border_and_objective():
+    """The default polish sweep (``synth.polish_sweeps: 1``: among the candidates that still lower
+    E_L2, the quietest border) after the walk lowers the visible border by a quarter or more over
+    the four lattice photos and does not raise E_L2 on any (means of seeds 0-1: seam energy
+    0.202 -> 0.129 summed, E_L2 0.79-0.97x per photo)."""
+    walked = [_rocks_toward(name, None) for name in LATTICES]
+    polished = [_rocks_toward(name, None, polish=1) for name in LATTICES]
+    assert sum(p[1] for p in polished) <= 0.75 * sum(w[1] for w in walked)
+    for p, w in zip(polished, walked, strict=True):
+        assert p[0] <= w[0] * (1 + 1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's goal not met: with the polish sweep guided seam_energy is "
+                   "2.6-5x unguided quilting's (docs/findings/symmetry-texture.md, 'Patch edges, third round')")
 @pytest.mark.parametrize("name", LATTICES)
 def test_guided_transfer_seam_energy_within_issue_goal(name):
-    """Issue 24's check: guided transfer's visible border at most 1.2x unguided quilting's."""
-    _, seams, unguided = _rocks_toward(name, None)
+    """Issue 24's check: guided transfer's visible border (the defaults: one polish sweep) at most
+    1.2x unguided quilting's."""
+    _, seams, unguided = _rocks_toward(name, None, polish=1)
     assert seams <= 1.2 * unguided

@@ -107,6 +107,24 @@ class SynthSection(StrictModel):
         "incremental",
         description="Candidate evaluation: incremental dS_T of the changed block, or a full S_T per candidate.",
     )
+    seam_share: float = Field(
+        0.15,
+        ge=0.0,
+        le=1.0,
+        description=(
+            "Guided walk: share of a tile's best E_L2 gain it may give up for a candidate whose patch "
+            "border shows less (0: the paper's choice, the best E_L2)."
+        ),
+    )
+    polish_sweeps: int = Field(
+        1,
+        ge=0,
+        le=100,
+        description=(
+            "Guided walk: passes after `sweeps` in which a tile takes, among the candidates that still "
+            "lower E_L2, the one whose patch border shows least."
+        ),
+    )
 
 
 class DeformSection(StrictModel):

@@ -54,6 +54,8 @@ class SynthOptions:
     init: str
     seams: str
     evaluation: str
+    seam_share: float
+    polish_sweeps: int
 
 
 @dataclass(frozen=True)

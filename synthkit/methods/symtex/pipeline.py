@@ -187,7 +187,7 @@ def _run_synth(opts: SymtexOptions, ctx, src: np.ndarray, tgt: np.ndarray | None
             walk = synth_mod.guided_walk(
                 src, init, signals=objective.signals, targets=targets, window=objective.window, patch=sc.patch,
                 candidates=sc.candidates, sweeps=sc.sweeps, evaluation=sc.evaluation, seams=sc.seams,
-                progress=ctx.progress)
+                seam_share=sc.seam_share, polish_sweeps=sc.polish_sweeps, progress=ctx.progress)
         image = walk.image
         start, end = walk.history[0], objective.value(image)
         iterations = walk.iterations

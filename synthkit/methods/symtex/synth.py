@@ -121,6 +121,8 @@ def guided_walk(
     sweeps: int,
     evaluation: str = "incremental",
     seams: str = "dp",
+    seam_share: float | None = None,
+    polish_sweeps: int = 0,
     progress: Callable | None = None,
     workers: int | None = None,
 ) -> WalkResult:
@@ -137,6 +139,10 @@ def guided_walk(
     evaluation : "incremental" (block update of S_T) or "full" (S_T of the whole image per candidate).
         Blocks larger than half the output force "full".
     seams : "dp" (minimum-error boundary cuts) or "graphcut" (graph-cut seams) for every candidate.
+    seam_share : share of a tile's best gain the walk may give up for a quieter patch border
+        (:func:`choose_candidate`; default :data:`SEAM_SHARE`, 0: the paper's choice).
+    polish_sweeps : passes after ``sweeps`` in which a tile takes, among the candidates that lower
+        the objective at all, the one whose border shows least (``seam_share`` 1).
     progress : optional wrapper ``progress(iterable, total=, desc=)`` for a progress bar.
     workers : threads sharing the tiles of a batch (default ``min(2, os.cpu_count())``); each
         tile is built and scored in one thread, so the result is the same for any ``workers``.
@@ -171,27 +177,28 @@ def guided_walk(
     matcher = q.PatchMatcher(src, patch)
     with one_blas_thread() if states else nullcontext():
         _walk(result, value, src, matcher, (ys, xs), states, targets, full_value, current_value, signals=signals,
-              patch=patch, candidates=candidates, sweeps=sweeps, seams=seams, progress=progress, workers=workers)
+              patch=patch, candidates=candidates, seams=seams, progress=progress, workers=workers,
+              shares=[seam_share] * sweeps + [1.0] * polish_sweeps)
     return result
 
 
 def _walk(result, value, src, matcher, grid, states, targets, full_value, current_value, *, signals, patch,
-          candidates, sweeps, seams, progress, workers) -> None:
+          candidates, seams, progress, workers, shares) -> None:
     """The sweeps of :func:`guided_walk` over the batches of ``grid`` (ys, xs) (:func:`tile_batches`),
     updating ``result`` in place.
 
     Every tile of a batch is evaluated against the same image (the spectrum and fields of the
     current image serve the whole batch, computed in this thread while ``workers`` threads build
-    and score its tiles); the tiles whose
-    best candidate lowers the objective are then accepted together when the exact objective of
-    the result is lower (:func:`_accept`)."""
+    and score its tiles); the tiles whose chosen candidate lowers the objective are then accepted
+    together when the exact objective of the result is lower (:func:`_accept`). ``shares``: per
+    sweep, the share of :func:`choose_candidate`."""
     canvas = result.image
     H, W = canvas.shape[:2]
     ys, xs = grid
     batches = tile_batches(ys, xs, patch, (H, W))
     pool = _executor(workers) if workers > 1 else None
 
-    def evaluate(tile, value):
+    def evaluate(tile, value, share):
         i, j = tile
         y0, x0 = int(ys[i]), int(xs[j])
         pos, keep, news, border = _candidate_blocks(src, canvas, result.sources, matcher, ys, xs, (i, j), patch,
@@ -206,16 +213,16 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
                 trial = canvas.copy()
                 trial[np.ix_(ry, rx)] = news[c]
                 values[c] = full_value(trial)
-        best = choose_candidate(values, value, border)
+        best = choose_candidate(values, value, border, share)
         return tile, float(values[best]), pos[best], keep[best], news[best], len(pos)
 
-    for _ in range(sweeps):
+    for share in shares:
         changed = 0
         for batch in progress(batches, total=len(batches), desc="guided walk") if progress else batches:
-            jobs = [pool.submit(evaluate, t, value) for t in batch] if pool is not None else []
+            jobs = [pool.submit(evaluate, t, value, share) for t in batch] if pool is not None else []
             for st, T in zip(states, targets, strict=False):  # while the pool builds the candidates
                 st.prepare_image(T, (patch, patch))
-            found = [job.result() for job in jobs] if jobs else [evaluate(t, value) for t in batch]
+            found = [job.result() for job in jobs] if jobs else [evaluate(t, value, share) for t in batch]
             result.iterations += len(batch)
             result.candidates_evaluated += sum(f[-1] for f in found)
             value, n = _accept(result, found, value, states, signals, current_value, grid, patch)

@@ -87,8 +87,26 @@ def _refuse_writes(monkeypatch: pytest.MonkeyPatch, folder: Path) -> None:
             for writer in WRITERS:
                 if hasattr(module, writer):
                     monkeypatch.setattr(module, writer, refuse)
-    monkeypatch.setattr(os, "replace", refuse)
+    real_replace = os.replace
+
+    def replace_only_compiled_code(src, dst, *args, **kwargs):
+        # numba saves a kernel compiled for the first time into __pycache__ (or its cache folder)
+        # by os.replace: compiled code, not an output of the run
+        if _compile_cache(dst):
+            return real_replace(src, dst, *args, **kwargs)
+        return refuse(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace_only_compiled_code)
     monkeypatch.setattr(np, "save", refuse)
+
+
+def _compile_cache(path) -> bool:
+    """Whether ``path`` lies in a ``__pycache__`` folder or numba's cache folder."""
+    import numba
+
+    path = Path(os.fspath(path)).resolve()
+    cache_dir = getattr(numba.config, "CACHE_DIR", "") or ""
+    return "__pycache__" in path.parts or (bool(cache_dir) and path.is_relative_to(Path(cache_dir).resolve()))
 
 
 @pytest.fixture(scope="session")

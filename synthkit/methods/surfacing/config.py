@@ -232,6 +232,10 @@ class SynthesisSection(StrictModel):
                          "(paper: 1.5 to 3, 2 by default); at least 1.")
     matching: Literal["fans", "random"] = Field("fans", description="fans = geodesic-fan matching (4.2); random = "
                                                 "random source face and rotation (the paper's other option).")
+    parameterization: Literal["exp_map", "vector_heat"] = Field(
+        "exp_map", description="Log maps the patches are laid out by (4.3): exp_map = the discrete exponential map "
+        "(Schmidt et al. 2006) over the vertices a patch reaches only; vector_heat = potpourri3d's vector heat log map "
+        "of the whole surface (one factorization per surface, then two solves per map).")
     trimming: Literal["graphcut", "none"] = Field("graphcut", description="graphcut = dual-graph min cut with seam "
                                                   "nodes (4.4); none = a patch overwrites all it covers.")
     orientation: Literal["free", "up"] = Field(

@@ -73,12 +73,45 @@ def _step(V, N, E1, E2, p, q):  # pragma: no cover
     return np.array([t @ E1[p], t @ E2[p]]), length
 
 
+def vertex_faces(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Faces around each of ``n`` vertices of ``F (#F, 3)`` in CSR form ``(indptr (n + 1,), faces (3 #F,))``."""
+    order = np.argsort(F.ravel(), kind="stable")
+    indptr = np.zeros(n + 1, np.int64)
+    np.add.at(indptr, F.ravel() + 1, 1)
+    return np.cumsum(indptr), (order // 3).astype(np.int64)
+
+
+@numba.njit(cache=NUMBA_CACHE)
+def _unfolded(V, F, U, done, f, q):  # pragma: no cover
+    """Domain position of ``q`` from face ``f`` laid rigidly on its other two corners' domain positions
+    (midpoint of the edge kept, the face's winding kept counter-clockwise), and whether both were final."""
+    k = 0
+    while F[f, k] != q:
+        k += 1
+    a, b = F[f, (k + 1) % 3], F[f, (k + 2) % 3]  # q, a, b counter-clockwise: q left of a -> b
+    if not (done[a] and done[b]):
+        return np.zeros(2), False
+    e = V[b] - V[a]
+    length = max(np.sqrt(e @ e), 1e-300)
+    w = V[q] - V[a]
+    x = (w @ e) / length
+    h = w - x * e / length
+    y = np.sqrt(h @ h)
+    d = U[b] - U[a]
+    u = d / max(np.sqrt(d @ d), 1e-300)
+    m = 0.5 * (U[a] + U[b])
+    return m + (x - 0.5 * length) * u + y * np.array([-u[1], u[0]]), True
+
+
 @numba.njit(cache=NUMBA_CACHE)
 def exp_map(V: np.ndarray, indptr: np.ndarray, indices: np.ndarray, N: np.ndarray, seed: int,
-            e1: np.ndarray, e2: np.ndarray, stop: float) -> np.ndarray:  # pragma: no cover
+            e1: np.ndarray, e2: np.ndarray, stop: float, F: np.ndarray, fptr: np.ndarray,
+            faces: np.ndarray, unfold: bool) -> np.ndarray:  # pragma: no cover
     """Discrete exponential map ``(#V, 2)`` from ``seed`` in the tangent frame ``(e1, e2)`` (unit,
     orthogonal to ``N[seed]``) over the vertex graph ``(indptr, indices)`` of ``V (#V, 3)`` with unit
-    vertex normals ``N (#V, 3)``; vertices farther than ``stop`` (estimated) are NaN."""
+    vertex normals ``N (#V, 3)``; vertices farther than ``stop`` (estimated) are NaN. ``unfold``: a
+    vertex with faces whose two other corners are final is placed by unfolding those faces
+    (``F (#F, 3)``, faces around each vertex ``(fptr, faces)`` in CSR form) instead of by projected edges."""
     n = len(V)
     U = np.full((n, 2), np.nan)
     dist = np.full(n, np.inf)
@@ -103,7 +136,13 @@ def exp_map(V: np.ndarray, indptr: np.ndarray, indices: np.ndarray, N: np.ndarra
             E1[q], E2[q] = a, np.cross(N[q], a)
             acc = np.zeros(2)
             wsum = 0.0
-            for j in range(indptr[q], indptr[q + 1]):
+            if unfold:
+                for j in range(fptr[q], fptr[q + 1]):
+                    c, ok = _unfolded(V, F, U, done, faces[j], q)
+                    if ok:
+                        acc += c
+                        wsum += 1.0
+            for j in range(indptr[q], indptr[q + 1] if wsum == 0.0 else indptr[q]):
                 r = indices[j]
                 if done[r]:
                     t, length = _step(V, N, E1, E2, r, q)

@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
-from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_graph, vertex_normals
+from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_faces, vertex_graph, vertex_normals
 
 __all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
 
@@ -174,13 +174,13 @@ class Surface:
         if self._graph is None:
             Vs, Fs = self._support_mesh if self._support_index is not None else (self.V, self.F)
             indptr, indices = vertex_graph(Fs, len(Vs))
-            self._graph = (Vs, indptr, indices, vertex_normals(Vs, Fs))
-        Vs, indptr, indices, N = self._graph
+            self._graph = (Vs, indptr, indices, vertex_normals(Vs, Fs), Fs) + vertex_faces(Fs, len(Vs))
+        Vs, indptr, indices, N, Fs, fptr, vf = self._graph
         v = int(vertex)
         s = v if self._support_index is None else int(self._support_index[v])
         e1 = self.vertex_frames[v, 0] - (self.vertex_frames[v, 0] @ N[s]) * N[s]
         e1 /= max(float(np.linalg.norm(e1)), 1e-300)
-        U = exp_map(Vs, indptr, indices, N, s, e1, np.cross(N[s], e1), float(stop))
+        U = exp_map(Vs, indptr, indices, N, s, e1, np.cross(N[s], e1), float(stop), Fs, fptr, vf, True)
         return U if self._support_index is None else U[self._support_index]
 
     def log_map(self, vertex: int) -> np.ndarray:

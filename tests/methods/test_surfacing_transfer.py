@@ -409,6 +409,68 @@ def test_nonmanifold_region_is_cut_for_the_log_maps():
     assert len(s.F) == 5 and s.log_map(0).shape == (len(s.V), 2)
 
 
+def test_local_log_map_is_exact_on_a_bent_sheet_and_stops_at_its_reach():
+    """The local log map (discrete exponential map, faces unfolded) on a developable polyhedron (a grid
+    rolled onto a prism: its columns on a circle, rows jittered along them, so every cell stays
+    planar) equals its unrolled coordinates up to a rotation within 2e-4 (0.03% of the 0.6 reach),
+    and reaches exactly the vertices within the stop distance (NaN beyond)."""
+    V, F = sample.grid(30)
+    V[:, 1] += np.random.default_rng(3).uniform(-0.02, 0.02, len(V))
+    angle = V[:, 0] / 0.5
+    rolled = np.c_[0.5 * np.sin(angle), V[:, 1], 0.5 * np.cos(angle)]
+    chord = 2 * 0.5 * np.sin(np.diff(np.unique(angle))[0] / 2)
+    flat = np.c_[np.round(V[:, 0] * 15) * chord, V[:, 1]]  # columns 2/30 apart on the grid
+    s = make_surface(rolled, F, np.arange(len(F)), None)
+    seed = int(np.argmin(np.linalg.norm(flat - 1.0, axis=1)))
+    U = s.local_log_map(seed, 0.6)
+    d = np.linalg.norm(flat - flat[seed], axis=1)
+    reached = np.isfinite(U[:, 0])
+    assert reached[d < 0.59].all() and not reached[d > 0.61].any()
+    D = (flat - flat[seed])[reached]
+    R, *_ = np.linalg.lstsq(D, U[reached], rcond=None)  # the frames differ by a turn (or a flip, x -> -x)
+    # exact but for the seed's first ring, placed by projected edges before any of its faces is final
+    np.testing.assert_allclose(np.abs(np.linalg.det(R)), 1.0, atol=2e-4)
+    np.testing.assert_allclose(D @ R, U[reached], atol=2e-4)
+
+
+def test_local_log_map_matches_geodesic_polar_coordinates_on_a_sphere():
+    """On the unit icosphere the local map's radii are within 1% of the great-circle distances and its
+    angles within 2 degrees of the initial directions, out to 0.6 (the vector heat map: 0.5%, 0.1
+    degrees; see benchmarks/surfacing_transfer.py --only accuracy)."""
+    S, G = sample.sphere(4)
+    s = make_surface(S, G, np.arange(len(G)), None, largest=False)
+    v = 17
+    U = s.local_log_map(v, 0.6)
+    P = s.V / np.linalg.norm(s.V, axis=1, keepdims=True)
+    r = np.arccos(np.clip(P @ P[v], -1, 1))
+    e1, e2, n = s.vertex_frames[v]
+    t = P - np.outer(P @ n, n)
+    ok = (r > 0.05) & (r < 0.55)
+    assert np.isfinite(U[ok]).all()
+    np.testing.assert_allclose(np.linalg.norm(U[ok], axis=1), r[ok], rtol=0.01)
+    turn = np.angle(np.exp(1j * (np.arctan2(U[ok, 1], U[ok, 0]) - np.arctan2(t[ok] @ e2, t[ok] @ e1))))
+    assert np.degrees(np.abs(turn)).max() < 2.0
+
+
+def test_both_log_maps_give_patches_of_a_sphere():
+    """``synthesis.parameterization``: exp_map (default) and vector_heat patches of the same seed
+    are within the distortion bound and overlap on most of their faces."""
+    from synthkit.methods.surfacing.config import SynthesisSection
+    from synthkit.methods.surfacing.transfer.param import mutual_patch
+
+    assert SynthesisSection().parameterization == "exp_map"
+    S, G = sample.sphere(3)
+    V, F = sample.grid(30)
+    src = make_surface(V, F, np.arange(len(F)), Signal("attribute", values=np.zeros((len(F), 3, 1))))
+    got = {}
+    for method in ("exp_map", "vector_heat"):
+        tgt = make_surface(S, G, np.arange(len(G)), None, largest=False)
+        got[method] = mutual_patch(tgt, 5, src, 400, 0.0, radius=0.5, bound=2.0, scale=1.0, method=method)
+        assert got[method] is not None and got[method].distortion.max() <= 2.0
+    a, b = set(got["exp_map"].faces.tolist()), set(got["vector_heat"].faces.tolist())
+    assert len(a & b) > 0.9 * max(len(a), len(b)) > 40
+
+
 def test_poisson_blend_hides_a_seam_and_keeps_the_detail():
     """Two patches of one field, the right one offset by 0.4: the kernel blend keeps the jump one ring
     wide, Poisson blending spreads it and keeps each patch's gradient."""

@@ -453,12 +453,12 @@ def test_local_log_map_matches_geodesic_polar_coordinates_on_a_sphere():
 
 
 def test_both_log_maps_give_patches_of_a_sphere():
-    """``synthesis.parameterization``: exp_map (default) and vector_heat patches of the same seed
+    """``synthesis.parameterization``: vector_heat (default) and exp_map patches of the same seed
     are within the distortion bound and overlap on most of their faces."""
     from synthkit.methods.surfacing.config import SynthesisSection
     from synthkit.methods.surfacing.transfer.param import mutual_patch
 
-    assert SynthesisSection().parameterization == "exp_map"
+    assert SynthesisSection().parameterization == "vector_heat"
     S, G = sample.sphere(3)
     V, F = sample.grid(30)
     src = make_surface(V, F, np.arange(len(F)), Signal("attribute", values=np.zeros((len(F), 3, 1))))

@@ -228,7 +228,7 @@ class Patch:
 
 
 def centred_log_map(surface: Surface, face: int, *, radius: float, bound: float,
-                    method: str = "exp_map") -> np.ndarray:
+                    method: str = "vector_heat") -> np.ndarray:
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
     the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
@@ -398,7 +398,7 @@ def _level(surface: Surface, U: np.ndarray, face: int) -> np.ndarray:
 
 
 def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, theta: float, *,
-                 radius: float, bound: float, scale: float, method: str = "exp_map") -> Patch | None:
+                 radius: float, bound: float, scale: float, method: str = "vector_heat") -> Patch | None:
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
     the seed face itself cannot be placed within the bound inside the source patch. ``method``:

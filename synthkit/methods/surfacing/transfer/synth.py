@@ -40,7 +40,7 @@ class Options:
     scale: float = 1.0
     bound: float = 2.0
     matching: str = "fans"
-    parameterization: str = "exp_map"
+    parameterization: str = "vector_heat"
     trimming: str = "graphcut"
     spokes: int = 8
     steps: int = 4

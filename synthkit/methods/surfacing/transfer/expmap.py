@@ -108,6 +108,17 @@ def _unfolded(V, F, U, done, f, q):  # pragma: no cover
 
 
 @numba.njit(cache=NUMBA_CACHE)
+def _at_least(u: np.ndarray, chord: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """``u (2,)`` lengthened to the chord ``|chord (3,)|`` where it is shorter: no geodesic is shorter
+    than the straight segment, and an estimate that is has folded back (a front gone round a bump),
+    which would otherwise pull the vertices after it towards the seed and past the stop."""
+    lu, lc = np.sqrt(u @ u), np.sqrt(chord @ chord)
+    if lu >= lc or lu < 1e-300:
+        return u
+    return u * (lc / lu)
+
+
+@numba.njit(cache=NUMBA_CACHE)
 def exp_map(V: np.ndarray, indptr: np.ndarray, indices: np.ndarray, N: np.ndarray, seed: int,
             e1: np.ndarray, e2: np.ndarray, stop: float, F: np.ndarray, fptr: np.ndarray,
             faces: np.ndarray, unfold: bool) -> np.ndarray:  # pragma: no cover
@@ -153,7 +164,7 @@ def exp_map(V: np.ndarray, indptr: np.ndarray, indices: np.ndarray, N: np.ndarra
                     w = 1.0 / max(length * length, 1e-300)
                     acc += w * (U[r] + t)
                     wsum += w
-            U[q] = acc / wsum
+            U[q] = _at_least(acc / wsum, V[q] - V[seed])
         else:
             U[q] = 0.0
         done[q] = True
@@ -162,7 +173,7 @@ def exp_map(V: np.ndarray, indptr: np.ndarray, indices: np.ndarray, N: np.ndarra
             if done[r]:
                 continue
             t, _ = _step(V, N, E1, E2, q, r)
-            u = U[q] + t
+            u = _at_least(U[q] + t, V[r] - V[seed])
             du = np.sqrt(u @ u)
             if du < dist[r]:
                 dist[r] = du

@@ -13,9 +13,9 @@ following the mesh's edge directions); where faces around ``q`` have both other 
 ``q`` is instead the mean of those faces unfolded rigidly onto their corners' coordinates (an
 intrinsic placement, without the tangent-plane projection: spot's radial error p95 0.030 of a
 0.15 sqrt(area) reach against 0.077 by projected edges; docs/findings/surface-by-numbers.md).
-The walk stops at the first vertex farther than
-``stop``: the cost is that of the disc the patch needs, not of the whole surface, and nothing is
-factored. Vertices not reached are NaN.
+No estimate is nearer the seed than the vertex's chord to it (:func:`_at_least`). The walk stops
+at the first vertex farther than ``stop``: the cost is that of the disc the patch needs, not of
+the whole surface, and nothing is factored. Vertices not reached are NaN.
 """
 
 from __future__ import annotations

@@ -14,14 +14,16 @@ the smaller area: 0.6 units). Measured in one process:
   or ``--base COMMIT``) against today's with ``parameterization: vector_heat`` (potpourri3d's log
   maps, the code path of commit e8c0275) and today's default ``exp_map`` (the local discrete
   exponential map), the same transfer alternated three times in this process: wall seconds of the
-  step and CPU seconds spent in ``mutual_patch`` (``--only parameterize`` runs this alone).
+  step and CPU seconds spent in ``mutual_patch`` (``--only parameterize`` runs this alone);
+- with ``--only accuracy`` only: both log maps against exact geodesic polar coordinates on the
+  sphere, the bundled cylinder's side and spot (:func:`accuracy`).
 
 The paper's figure: "usually a few minutes" offline on a 1.5 GHz PC, dominated by the
 parameterization, then by patch finding. Goals on this machine: the whole transfer <= 60 s,
 fan precomputation <= 10 s.
 
 Run: ``.venv/bin/python benchmarks/surfacing_transfer.py`` (writes bench-results/surfacing_transfer.json), or with
-``--only parameterize`` (the parameterization timing alone), ``--base COMMIT``.
+``--only parameterize`` (the parameterization timing alone), ``--only accuracy``, ``--base COMMIT``.
 """
 
 from __future__ import annotations

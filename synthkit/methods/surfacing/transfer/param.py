@@ -233,16 +233,18 @@ def centred_log_map(surface: Surface, face: int, *, radius: float, bound: float,
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
     the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
     planar surface (an image's grid) the log map is the plane's coordinates in the face's frame,
-    exact, without a solve. ``method``: ``exp_map`` = the local discrete exponential map, over the
-    vertices within ``radius`` plus the face's longest edge of the corner (every vertex within
-    ``radius`` of the centroid; NaN beyond), ``vector_heat`` = potpourri3d's map of the whole surface."""
+    exact, without a solve. ``method``: ``exp_map`` = the local discrete exponential map in the
+    face's plane, over the vertices within ``radius`` plus the face's longest edge of the corner
+    (every vertex within ``radius`` of the centroid; NaN beyond), ``vector_heat`` = potpourri3d's
+    map of the whole surface."""
     if surface.planar:
         c = surface.V[surface.F[face]].mean(axis=0)
         return (surface.V - c) @ np.stack([surface.X[face], surface.Y[face]], axis=1)
     v = surface.F[face, 0]
     if method == "exp_map":
         P = surface.V[surface.F[face]]
-        L = surface.local_log_map(v, radius + float(np.linalg.norm(P - np.roll(P, 1, axis=0), axis=1).max()))
+        L = surface.local_log_map(v, radius + float(np.linalg.norm(P - np.roll(P, 1, axis=0), axis=1).max()),
+                                  surface.N[face])
     else:
         L = surface.log_map(v)
     bx, by = surface.vertex_frames[v, 0], surface.vertex_frames[v, 1]

@@ -167,10 +167,12 @@ class Surface:
     def area(self) -> float:
         return float(self.areas.sum())
 
-    def local_log_map(self, vertex: int, stop: float) -> np.ndarray:
+    def local_log_map(self, vertex: int, stop: float, normal: np.ndarray | None = None) -> np.ndarray:
         """Log map ``(#V, 2)`` of the surface from ``vertex`` in its potpourri3d tangent frame by the
         discrete exponential map (:func:`.expmap.exp_map`) over the support mesh, NaN beyond ``stop``
-        (estimated geodesic distance): only the vertices within ``stop`` are visited."""
+        (estimated geodesic distance): only the vertices within ``stop`` are visited. ``normal (3,)``:
+        the seed's tangent plane instead of its vertex normal's (the seed face's, so its first ring
+        is laid in that face's plane, not in the average of two walls at a corner)."""
         if self._graph is None:
             Vs, Fs = self._support_mesh if self._support_index is not None else (self.V, self.F)
             indptr, indices = vertex_graph(Fs, len(Vs))
@@ -178,6 +180,9 @@ class Surface:
         Vs, indptr, indices, N, Fs, fptr, vf = self._graph
         v = int(vertex)
         s = v if self._support_index is None else int(self._support_index[v])
+        if normal is not None:
+            N = N.copy()
+            N[s] = normal
         e1 = self.vertex_frames[v, 0] - (self.vertex_frames[v, 0] @ N[s]) * N[s]
         e1 /= max(float(np.linalg.norm(e1)), 1e-300)
         U = exp_map(Vs, indptr, indices, N, s, e1, np.cross(N[s], e1), float(stop), Fs, fptr, vf, True)

@@ -236,8 +236,8 @@ class SynthesisSection(StrictModel):
         "vector_heat", description="Log maps the patches are laid out by (4.3): vector_heat = potpourri3d's "
         "vector heat log map of the whole surface (one factorization per surface, then two solves per map); "
         "exp_map = the discrete exponential map (Schmidt et al. 2006, faces unfolded) over the vertices a patch "
-        "reaches only: 2.1x less CPU on a 10k-vertex target, but higher seam costs on curved targets and "
-        "more tilt on house walls (findings).")
+        "reaches only: 2.3x less CPU on a 10k-vertex target, but higher seam costs on curved targets "
+        "(findings).")
     trimming: Literal["graphcut", "none"] = Field("graphcut", description="graphcut = dual-graph min cut with seam "
                                                   "nodes (4.4); none = a patch overwrites all it covers.")
     orientation: Literal["free", "up"] = Field(

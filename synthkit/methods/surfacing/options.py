@@ -30,6 +30,7 @@ def synthesis_options(cfg, k: int, radius: float) -> synth.Options:
     the patch ``radius`` the pipeline chose."""
     syn, pair = cfg.transfer.synthesis, cfg.transfer.pairs[k]
     return synth.Options(patch_radius=radius, scale=pair.scale, bound=syn.bound, matching=syn.matching,
+                         parameterization=syn.parameterization,
                          trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
                          tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
                          patience=syn.patience, fixed_orientation=syn.orientation == "up")

@@ -227,17 +227,26 @@ class Patch:
         return self.src_faces[tri], bary, inside
 
 
-def centred_log_map(surface: Surface, face: int, *, radius: float, bound: float) -> np.ndarray:
+def centred_log_map(surface: Surface, face: int, *, radius: float, bound: float,
+                    method: str = "vector_heat") -> np.ndarray:
     """Log map from the face's first corner, moved so the face's centroid is the origin; where the
     log map fails on the face itself (distortion above ``bound``: tiny or isolated pieces, which
     the vector heat method resolves badly), the faces are unfolded instead (:func:`unfold`). On a
     planar surface (an image's grid) the log map is the plane's coordinates in the face's frame,
-    exact, without a solve."""
+    exact, without a solve. ``method``: ``exp_map`` = the local discrete exponential map in the
+    face's plane, over the vertices within ``radius`` plus the face's longest edge of the corner
+    (every vertex within ``radius`` of the centroid; NaN beyond), ``vector_heat`` = potpourri3d's
+    map of the whole surface."""
     if surface.planar:
         c = surface.V[surface.F[face]].mean(axis=0)
         return (surface.V - c) @ np.stack([surface.X[face], surface.Y[face]], axis=1)
     v = surface.F[face, 0]
-    L = surface.log_map(v)
+    if method == "exp_map":
+        P = surface.V[surface.F[face]]
+        L = surface.local_log_map(v, radius + float(np.linalg.norm(P - np.roll(P, 1, axis=0), axis=1).max()),
+                                  surface.N[face])
+    else:
+        L = surface.log_map(v)
     bx, by = surface.vertex_frames[v, 0], surface.vertex_frames[v, 1]
     angle = np.arctan2(surface.X[face] @ by, surface.X[face] @ bx)  # the face frame in the vertex's basis
     L = (L - L[surface.F[face]].mean(axis=0)) @ rotation(-angle).T
@@ -391,12 +400,14 @@ def _level(surface: Surface, U: np.ndarray, face: int) -> np.ndarray:
 
 
 def mutual_patch(target: Surface, seed: int, source: Surface, source_face: int, theta: float, *,
-                 radius: float, bound: float, scale: float) -> Patch | None:
+                 radius: float, bound: float, scale: float, method: str = "vector_heat") -> Patch | None:
     """The mutual parameterization of the target patch around face ``seed`` and the source patch
     around ``source_face``, source directions turned by ``theta`` from target directions; None when
-    the seed face itself cannot be placed within the bound inside the source patch."""
-    Ut = _level(target, centred_log_map(target, seed, radius=radius, bound=bound), seed)
-    Us = _level(source, centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound), source_face)
+    the seed face itself cannot be placed within the bound inside the source patch. ``method``:
+    the log map (:func:`centred_log_map`)."""
+    Ut = _level(target, centred_log_map(target, seed, radius=radius, bound=bound, method=method), seed)
+    Us = _level(source, centred_log_map(source, source_face, radius=1.5 * radius / scale, bound=bound, method=method),
+                source_face)
     Us = scale * (Us @ rotation(-theta).T)
     src_faces, src_dist = _accept(source, Us, source_face, 1.5 * radius, bound, scale)
     if not len(src_faces):

@@ -5,7 +5,8 @@ welding: ``values (#F, 3, C)`` (vertex colours, PLY attributes, displacement vec
 barycentrically, or ``uv (#F, 3, 2)`` into ``texture (H, W, C)`` read bilinearly (v up).
 A :class:`Surface` is the region's submesh (``V (#V, 3)``, ``F (#F, 3)`` with vertices welded),
 its signal, per-face tangent frames taken from potpourri3d's vertex frames (the frames its log map
-is expressed in) and a cached :class:`potpourri3d.MeshVectorHeatSolver` for log maps.
+is expressed in), a cached :class:`potpourri3d.MeshVectorHeatSolver` for vector-heat log maps and
+the support mesh's vertex graph for local ones (:mod:`.expmap`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
+from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_faces, vertex_graph, vertex_normals
 
 __all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
 
@@ -107,6 +109,8 @@ class Surface:
     _neighbours: tuple | None = field(default=None, repr=False)
     _plane_tree: cKDTree | None = field(default=None, repr=False)
     _log_maps: dict = field(default_factory=dict, repr=False)
+    _support_mesh: tuple | None = field(default=None, repr=False)
+    _graph: tuple | None = field(default=None, repr=False)
 
     @property
     def plane_coordinates(self) -> np.ndarray:
@@ -163,6 +167,27 @@ class Surface:
     def area(self) -> float:
         return float(self.areas.sum())
 
+    def local_log_map(self, vertex: int, stop: float, normal: np.ndarray | None = None) -> np.ndarray:
+        """Log map ``(#V, 2)`` of the surface from ``vertex`` in its potpourri3d tangent frame by the
+        discrete exponential map (:func:`.expmap.exp_map`) over the support mesh, NaN beyond ``stop``
+        (estimated geodesic distance): only the vertices within ``stop`` are visited. ``normal (3,)``:
+        the seed's tangent plane instead of its vertex normal's (the seed face's, so its first ring
+        is laid in that face's plane, not in the average of two walls at a corner)."""
+        if self._graph is None:
+            Vs, Fs = self._support_mesh if self._support_index is not None else (self.V, self.F)
+            indptr, indices = vertex_graph(Fs, len(Vs))
+            self._graph = (Vs, indptr, indices, vertex_normals(Vs, Fs), Fs) + vertex_faces(Fs, len(Vs))
+        Vs, indptr, indices, N, Fs, fptr, vf = self._graph
+        v = int(vertex)
+        s = v if self._support_index is None else int(self._support_index[v])
+        if normal is not None:
+            N = N.copy()
+            N[s] = normal
+        e1 = self.vertex_frames[v, 0] - (self.vertex_frames[v, 0] @ N[s]) * N[s]
+        e1 /= max(float(np.linalg.norm(e1)), 1e-300)
+        U = exp_map(Vs, indptr, indices, N, s, e1, np.cross(N[s], e1), float(stop), Fs, fptr, vf, True)
+        return U if self._support_index is None else U[self._support_index]
+
     def log_map(self, vertex: int) -> np.ndarray:
         """Log map ``(#V, 2)`` (read-only) of the surface from ``vertex``, in its potpourri3d tangent
         frame (computed over the support mesh, so the region's own border does not bend it). The
@@ -206,12 +231,12 @@ def _support(V, F, faces, region_vertices, margin: float):
 
 
 def _solver_over(V, F, faces, vertex_ids, support):
-    """potpourri3d vector heat solver over the support faces and the index of each surface vertex
-    in it (None without a support)."""
+    """potpourri3d vector heat solver over the support faces, the index of each surface vertex in it
+    and the support mesh ``(Vs, Fs)`` (all None without a support)."""
     import potpourri3d as pp3d
 
     if support is None:
-        return None, None
+        return None, None, None
     Vs, Fs, old = remove_unreferenced(V, F[support])
     ok = (Fs[:, 0] != Fs[:, 1]) & (Fs[:, 1] != Fs[:, 2]) & (Fs[:, 0] != Fs[:, 2]) & (face_areas(Vs, Fs) > 0)
     Vs, Fs, old2 = remove_unreferenced(Vs, Fs[ok])
@@ -219,8 +244,8 @@ def _solver_over(V, F, faces, vertex_ids, support):
     pos[old[old2]] = np.arange(len(old2))
     index = pos[vertex_ids]
     if (index < 0).any():
-        return None, None
-    return pp3d.MeshVectorHeatSolver(Vs, Fs), index
+        return None, None, None
+    return pp3d.MeshVectorHeatSolver(Vs, Fs), index, (Vs, Fs)
 
 
 def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, largest: bool = True,
@@ -254,9 +279,9 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     V0, F0 = np.asarray(V, np.float64), np.asarray(F, np.int64)
     support = _support(V0, F0, faces, vertex_ids, margin) if weld_tol == 0 else None
     try:
-        big, index = _solver_over(V0, F0, faces, vertex_ids, support)
+        big, index, mesh = _solver_over(V0, F0, faces, vertex_ids, support)
     except RuntimeError:  # geometry-central refuses non-manifold support: log maps over the region alone
-        big, index = None, None
+        big, index, mesh = None, None, None
     if big is not None:
         solver = big
     else:
@@ -274,7 +299,7 @@ def make_surface(V, F, faces, signal: Signal | None, *, weld_tol: float = 0.0, l
     X, Y, N = _face_frames(V3, F3, frames)
     sig = None if signal is None else signal.subset(faces[sel])
     return Surface(V3, F3, faces[sel], vertex_ids, sig, pairs, edges, X, Y, N, face_areas(V3, F3), frames, solver,
-                   index)
+                   index, _support_mesh=mesh)
 
 
 def split_nonmanifold(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

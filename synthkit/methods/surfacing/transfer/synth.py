@@ -40,6 +40,7 @@ class Options:
     scale: float = 1.0
     bound: float = 2.0
     matching: str = "fans"
+    parameterization: str = "vector_heat"
     trimming: str = "graphcut"
     spokes: int = 8
     steps: int = 4
@@ -183,7 +184,7 @@ class Synthesis:
             t1 = time.perf_counter()
             self.timings["match"] += t1 - t
             patch = mutual_patch(self.t, seed, self.s, face, theta, radius=o.patch_radius, bound=o.bound,
-                                 scale=o.scale)
+                                 scale=o.scale, method=o.parameterization)
             self.timings["parameterize"] += time.perf_counter() - t1
             if patch is not None:
                 return patch

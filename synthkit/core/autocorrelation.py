@@ -64,6 +64,14 @@ def _executor(threads: int) -> ThreadPoolExecutor:
     return _EXECUTORS[threads]
 
 
+def _run_chunks(chunk, jobs: list[tuple[int, int]], threads: int) -> None:
+    """``chunk(lo, hi)`` for every ``(lo, hi)`` of ``jobs``, shared by ``threads`` threads (in
+    order in this thread when ``threads`` is 1)."""
+    if threads > 1:
+        list(_executor(threads).map(lambda job: chunk(*job), jobs))
+    else:
+        for job in jobs:
+            chunk(*job)
 
 
 class IncrementalAutocorrelation:
@@ -451,12 +459,7 @@ class IncrementalAutocorrelation:
         # same bytes for a given number of threads
         threads = max(1, min(int(workers or 1), K))
         bounds = [round(i * K / threads) for i in range(threads + 1)]
-        jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
-        if threads > 1:
-            list(_executor(threads).map(lambda job: chunk(*job), jobs))
-        else:
-            for job in jobs:
-                chunk(*job)
+        _run_chunks(chunk, list(zip(bounds[:-1], bounds[1:], strict=True)), threads)
         return lin, quad, sums
 
     def _window_sums(self, st: dict, weights: np.ndarray, sq: np.ndarray) -> tuple[float, float, float]:
@@ -661,12 +664,7 @@ class IncrementalAutocorrelation:
 
         bounds = list(range(0, K, _CHUNK)) + [K]
         jobs = list(zip(bounds[:-1], bounds[1:], strict=True))
-        threads = max(1, min(int(workers or 1), len(jobs)))
-        if threads > 1:
-            list(_executor(threads).map(lambda job: chunk(*job), jobs))
-        else:
-            for job in jobs:
-                chunk(*job)
+        _run_chunks(chunk, jobs, max(1, min(int(workers or 1), len(jobs))))
         return lin, quad, half
 
     def l2_of_changes(self, y0: int, x0: int, deltas: np.ndarray, target: np.ndarray, *, workers: int | None = None):

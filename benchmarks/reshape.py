@@ -38,10 +38,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import median_time, print_table, record, write_results  # noqa: E402
 from synthkit.core.lsq import have_cholespy  # noqa: E402
-from synthkit.io.textured import load_textured  # noqa: E402
 from synthkit.methods.reshape.config import ReshapeConfig  # noqa: E402
 from synthkit.methods.reshape.graph import build_graph  # noqa: E402
-from synthkit.methods.reshape.pipeline import build_system  # noqa: E402
+from synthkit.methods.reshape.pipeline import (
+    build_system,  # noqa: E402
+    load_textured,  # noqa: E402
+)
 from synthkit.methods.reshape.solver import ReshapeSolver, floating_anchors, known_columns  # noqa: E402
 
 AREA = "reshape"

@@ -169,7 +169,7 @@ def bench_real(quick: bool) -> None:
 
     import yaml
 
-    from synthkit.io.textured import load_textured
+    from synthkit.methods.reshape.pipeline import load_textured
     from synthkit.runner import run_config
     from tests.methods.test_reshape_texture import HOUSE_ATLAS, HOUSES, door_window_rows, house_motion
 

@@ -2,7 +2,7 @@
 
 ``synthkit.retarget``, ``synthkit.segment``, ``synthkit.transfer``, ``synthkit.reshape``,
 ``synthkit.petri_synth`` and ``synthkit.symmetry_texture`` take their inputs as objects
-(``trimesh.Trimesh``, ``(V, F)`` arrays, :class:`~synthkit.io.assets.Asset`, image arrays; paths
+(``trimesh.Trimesh``, ``(V, F)`` arrays, :class:`~synthkit.asset.Asset`, image arrays; paths
 are read as from a config) and the config's keys as keyword arguments, validated by the method's
 config schema with the command line's messages (a section is a ``dict``:
 ``segment(mesh, regions=[...], boundary={"eta": 2.0})``). They run the same pipeline as the

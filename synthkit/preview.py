@@ -106,7 +106,7 @@ class Appearance:
 
     @classmethod
     def of(cls, asset, corner_uv=None, face_material=None, corner_color=None, *, like_input: bool = False):
-        """The appearance of faces that use ``asset``'s materials (an :class:`~synthkit.io.assets.Asset`):
+        """The appearance of faces that use ``asset``'s materials (an :class:`~synthkit.asset.Asset`):
         with ``like_input`` the asset's own faces, else faces given by ``corner_uv (#F, 3, 2)``,
         ``face_material (#F,)`` and ``corner_color (#F, 3, 4) uint8``."""
         if like_input:

@@ -8,8 +8,9 @@ import pytest
 import trimesh
 
 from synthkit.api import prepare, run_in_memory
+from synthkit.asset import Asset, Material
 from synthkit.errors import ConfigError, InputError
-from synthkit.io.assets import Asset, Material, asset_from_trimesh
+from synthkit.io.assets import asset_from_trimesh
 from synthkit.io.images import load_image, save_image
 from synthkit.io.inputs import Inputs, image_from_array, memory_name
 

@@ -12,7 +12,7 @@ Objects taken in memory, and what each reader makes of them:
   scene is merged, as :func:`~synthkit.io.meshes.load_mesh` merges a file's scene);
   :meth:`Inputs.asset` reads its UVs, colours and materials (:func:`~synthkit.io.assets.asset_from_trimesh`);
 - a ``(V, F)`` pair of arrays: ``V (#V, 3)`` positions and ``F (#F, 3)`` triangles, no appearance;
-- an :class:`~synthkit.io.assets.Asset`: used as it is by :meth:`Inputs.asset`, its geometry by
+- an :class:`~synthkit.asset.Asset`: used as it is by :meth:`Inputs.asset`, its geometry by
   :meth:`Inputs.mesh`;
 - an image array ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``, ``uint8``, ``uint16`` or float in
   [0, 1]: converted as :func:`~synthkit.io.images.load_image` converts a file's pixels (alpha over
@@ -31,8 +31,9 @@ from typing import Literal
 import numpy as np
 import trimesh
 
+from synthkit.asset import Asset
 from synthkit.errors import InputError
-from synthkit.io.assets import Asset, asset_from_trimesh, load_asset
+from synthkit.io.assets import asset_from_trimesh, load_asset
 from synthkit.io.images import load_image
 from synthkit.io.meshes import check_mesh, load_face_labels, load_mesh
 

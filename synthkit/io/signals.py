@@ -12,12 +12,11 @@ import numpy as np
 import trimesh
 
 from synthkit.errors import InputError
-from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
+from synthkit.io.atomic import write_bytes_atomic
 from synthkit.io.ply import ply_bytes, read_face_property
 
 __all__ = [
     "vertex_colors", "vertex_attribute", "texture_of", "image_grid", "write_signal_ply", "read_face_labels",
-    "write_textured_obj",
 ]
 
 
@@ -106,30 +105,3 @@ def read_face_labels(path, n_faces: int) -> np.ndarray:
     if len(labels) != n_faces:
         raise InputError(f"{path}: {len(labels)} labels for {n_faces} faces")
     return labels
-
-
-def write_textured_obj(path, V, F, corner_uv, face_material, materials) -> None:
-    """OBJ ``path`` with ``mtllib`` beside it (same stem, ``.mtl``): ``V (#V, 3)``, ``F (#F, 3)``,
-    one ``vt`` per corner from ``corner_uv (#F, 3, 2)``, faces grouped by ``face_material (#F,)``
-    into ``materials``, a list of ``(name, texture file name or None)``."""
-    path = Path(path)
-    mtl = path.with_suffix(".mtl")
-    lines = [f"mtllib {mtl.name}\n"]
-    lines += [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in np.asarray(V, np.float64).tolist()]
-    uv = np.nan_to_num(np.asarray(corner_uv, np.float64)).reshape(-1, 2)
-    lines += [f"vt {u:.9g} {v:.9g}\n" for u, v in uv.tolist()]
-    F = np.asarray(F, np.int64)
-    for m, (name, _) in enumerate(materials):
-        faces = np.flatnonzero(np.asarray(face_material) == m)
-        if not len(faces):
-            continue
-        lines.append(f"usemtl {name}\n")
-        for f in faces.tolist():
-            a, b, c = (F[f] + 1).tolist()
-            t = 3 * f + 1
-            lines.append(f"f {a}/{t} {b}/{t + 1} {c}/{t + 2}\n")
-    mlines = []
-    for name, texture in materials:
-        mlines.append(f"newmtl {name}\nKd 1 1 1\n" + (f"map_Kd {texture}\n" if texture else ""))
-    for target, text in ((path, "".join(lines)), (mtl, "\n".join(mlines))):
-        write_text_atomic(target, text)

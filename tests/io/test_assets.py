@@ -97,7 +97,7 @@ def test_texture_that_is_not_an_image_is_an_input_error(tmp_path):
     (model / "wall.mtl").write_text(f"newmtl bricks\nmap_Kd {tmp_path / 'notes.txt'}\n")
     obj = model / "wall.obj"
     obj.write_text(QUAD_OBJ.format(mtl="wall.mtl"))
-    with pytest.raises(InputError, match=r"notes.txt: cannot read image"):
+    with pytest.raises(InputError, match=r"wall.mtl: texture .*notes.txt is not an image file"):
         load_asset(obj)
 
 
@@ -134,7 +134,7 @@ def test_glb_keeps_pbr_material_texture_uvs_and_name(tmp_path):
     again = load_asset(out)
     assert again.name == "crate"
     assert again.materials[0].name == "paint"
-    assert again.materials[0].pbr.roughnessFactor == pytest.approx(0.5)
+    assert again.gltf.materials[0]["pbrMetallicRoughness"]["roughnessFactor"] == pytest.approx(0.5)
     assert np.array_equal(again.materials[0].image[..., :3], texture)
     assert np.allclose(again.corner_uv, asset.corner_uv, atol=1e-6)
 
@@ -208,6 +208,6 @@ def test_kenney_palette_survives_a_round_trip(tmp_path, suffix):
                                         ("map_Kd -s 1 1 1 -clamp on ../t/b.jpg", "../t/b.jpg"),
                                         ("map_Kd -mm 0 1 c.png", "c.png")])
 def test_map_file_name(line, name):
-    from synthkit.io.assets import map_file_name
+    from synthkit.io.obj import map_file_name
 
     assert map_file_name(line) == name

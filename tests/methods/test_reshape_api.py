@@ -122,7 +122,7 @@ def test_save_writes_what_synthkit_run_writes(tmp_path):
     result = synthkit.reshape(SAMPLES / "reshape-wall.obj", stiffness={"l_min": 2.5}, scale={"x": 2.0})
     report = result.save(tmp_path / "saved")
     assert report["config_file"] is None and report["status"] == "ok"
-    for name in ("reshape-wall.obj", "reshape-wall.retex.mtl", "reshape-samples.mtl", "bricks_tiled.png",
+    for name in ("reshape-wall.obj", "reshape-wall.mtl", "reshape-wall_bricks_tiled.png",
                  "after.png", "comparison.png", "before_after.png"):
         assert (tmp_path / "saved" / name).read_bytes() == (tmp_path / "run" / name).read_bytes(), name
 
@@ -160,9 +160,8 @@ def test_docstring_example_runs():
 def test_textured_from_asset_render_vertices_and_back():
     """A UV seam splits a position into two render vertices; faces without a material get ``""``;
     reshaped_asset moves the positions and gives a retextured face its UVs and material."""
-    from synthkit.io.assets import Asset, Material
-    from synthkit.io.textured import Retexture
-    from synthkit.methods.reshape.memory import reshaped_asset, textured_from_asset
+    from synthkit.asset import Asset, Material
+    from synthkit.methods.reshape.textured import Retexture, reshaped_asset, textured_from_asset
 
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     F = np.array([[0, 1, 2], [0, 2, 3]])

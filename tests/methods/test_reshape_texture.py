@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from synthkit.cli.main import cli
 from synthkit.io.images import load_image
-from synthkit.io.textured import load_textured
+from synthkit.methods.reshape.pipeline import load_textured
 from synthkit.methods.reshape.texture import autosim, bake, detail
 from synthkit.methods.reshape.texture.atlas import PAD
 from synthkit.methods.reshape.texture.grid import BOUNDARY, CORNER, INTERIOR, build_grid, dda_crossings

@@ -621,7 +621,7 @@ def test_local_log_map_on_spot_reaches_only_the_disc_it_needs():
 
 
 def obj_faces_uv(path: Path):
-    from synthkit.io.textured import load_textured
+    from synthkit.methods.reshape.pipeline import load_textured
 
     t = load_textured(path)
     return t, t.UV[t.F]

@@ -19,7 +19,7 @@ def petri_synth(example, /, *, progress: bool = False, **keys) -> PetriResult:
     ----------
     example : trimesh.Trimesh, trimesh.Scene, (V, F) arrays, Asset or path
         The example model: ``V (#V, 3)`` positions and ``F (#F, 3)`` triangles. A textured or
-        coloured mesh (trimesh visuals, an :class:`~synthkit.io.assets.Asset`, a file) carries its
+        coloured mesh (trimesh visuals, an :class:`~synthkit.asset.Asset`, a file) carries its
         UVs, colours and materials into the result.
     progress : bool
         Show the stage lines and progress bars on a terminal.

@@ -1,6 +1,6 @@
 """The example's look carried through petri-synth: per-corner UVs and colours, per-face materials.
 
-Arrays in the form of :class:`synthkit.io.assets.Asset`: ``corner_uv (m, 3, 2) float64``,
+Arrays in the form of :class:`synthkit.asset.Asset`: ``corner_uv (m, 3, 2) float64``,
 ``corner_color (m, 3, 4) float64`` (kept as floats while interpolated, rounded to uint8 when
 written), ``face_material (m,) int64``. A face cut out of an example face takes, at each corner, the
 example face's values interpolated at that corner (barycentric coordinates in the source triangle),

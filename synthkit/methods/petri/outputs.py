@@ -11,7 +11,8 @@ import trimesh
 
 from synthkit import preview
 from synthkit.api import Result
-from synthkit.io.assets import Asset, save_asset
+from synthkit.asset import Asset
+from synthkit.io.assets import save_asset
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.meshes import save_mesh
 from synthkit.methods.petri.appearance import Look

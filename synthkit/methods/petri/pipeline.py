@@ -14,9 +14,9 @@ import numpy as np
 import trimesh
 
 from synthkit.api import result_fields
+from synthkit.asset import Asset
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError, KeyedError
-from synthkit.io.assets import Asset
 from synthkit.io.inputs import Inputs
 from synthkit.methods.petri import analysis
 from synthkit.methods.petri.appearance import example_look

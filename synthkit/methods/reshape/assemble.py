@@ -1,6 +1,6 @@
 """A scene of pieces: portals found, each later piece placed at its join, all concatenated.
 
-A piece is a :class:`~synthkit.io.textured.TexturedMesh` at its file's coordinates;
+A piece is a :class:`~synthkit.methods.reshape.textured.TexturedMesh` at its file's coordinates;
 :func:`place_pieces` gives each a world offset so that the portals its ``chain`` joins meet
 (section 5), :func:`assemble` concatenates them (``V (#V, 3)``, ``F (#F, 3)``, materials, piece
 ranges) and :func:`snap_joined` makes the joined portal vertices coincide; :func:`frozen_nodes`
@@ -13,9 +13,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from synthkit.errors import KeyedError
-from synthkit.io.textured import TexturedMesh
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.portals import align_portals, boundary_portals, detect_portals, portal_positions
+from synthkit.methods.reshape.textured import TexturedMesh
 
 __all__ = ["piece_portals", "place_pieces", "portal_gaps", "snap_joined", "assemble", "frozen_nodes"]
 

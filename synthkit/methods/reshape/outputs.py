@@ -2,7 +2,7 @@
 
 Files: each piece in its input's format (an OBJ with its MTL and textures copied beside it, or a
 GLB; a piece given in memory as an OBJ with a new MTL), with UVs and materials unchanged except
-the reshaped surfaces' (``<piece>.retex.mtl`` and their PNGs); ``before.png``, ``after.png``
+the reshaped surfaces' (new materials in the piece's MTL, their PNGs beside it); ``before.png``, ``after.png``
 (elongated edges blue, compressed red, handles green), ``baseline.png``, ``comparison.png``, the
 textured ``before_after.png`` of a single piece and the texture previews of Figs. 7-8 under
 ``texture/``.
@@ -17,12 +17,12 @@ import numpy as np
 import trimesh
 
 from synthkit.api import Result
-from synthkit.io.assets import Asset, load_asset, save_asset
+from synthkit.asset import Asset
+from synthkit.io.assets import load_asset, save_asset
 from synthkit.io.images import save_image
-from synthkit.io.textured import Retexture, TexturedMesh, companion_files, save_textured
 from synthkit.methods.reshape import previews as P
-from synthkit.methods.reshape.memory import MemoryMesh, reshaped_asset
 from synthkit.methods.reshape.retexture import safe_name
+from synthkit.methods.reshape.textured import Retexture, TexturedMesh, reshaped_asset
 from synthkit.preview import Appearance, before_after_png, montage_png
 
 __all__ = ["ReshapeResult", "PreviewData", "reshaped", "write_piece", "write_previews", "write_texture_previews",
@@ -52,9 +52,9 @@ class ReshapeResult(Result):
     ----------
     meshes : piece name -> the reshaped ``trimesh.Trimesh`` (the input's positions ``(#P, 3)``
         moved, faces ``(#F, 3)`` over them; geometry only)
-    textured : piece name -> the reshaped :class:`~synthkit.io.textured.TexturedMesh` (render
+    textured : piece name -> the reshaped :class:`~synthkit.methods.reshape.textured.TexturedMesh` (render
         vertices ``V (#V, 3)`` and file ``positions (#P, 3)`` moved; UVs and materials as read)
-    retexture : piece name -> the reshaped surfaces' :class:`~synthkit.io.textured.Retexture`
+    retexture : piece name -> the reshaped surfaces' :class:`~synthkit.methods.reshape.textured.Retexture`
         entries (faces, new UVs ``(#V, 2)``, material, baked ``image (H, W, 3) float32``); empty
         lists with ``texture: stretch``
     X : ``(n, 3)`` node positions of the constraint graph after the reshape
@@ -78,12 +78,12 @@ class ReshapeResult(Result):
         return {e.image_name: e.image for entries in self.retexture.values() for e in entries}
 
     def asset(self, name: str | None = None) -> Asset | None:
-        """The reshaped piece ``name`` (default the first) as an :class:`~synthkit.io.assets.Asset`
+        """The reshaped piece ``name`` (default the first) as an :class:`~synthkit.asset.Asset`
         with its new materials, for a piece given in memory; None for a piece read from a file
         (its written file is the asset)."""
         name = next(iter(self.textured)) if name is None else name
         mesh = self.textured[name]
-        if not isinstance(mesh, MemoryMesh):
+        if not mesh.in_memory:
             return None
         return reshaped_asset(mesh, mesh.positions, self.retexture[name])
 
@@ -106,24 +106,16 @@ def reshaped(mesh: TexturedMesh, positions: np.ndarray) -> TexturedMesh:
 
 
 def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture]) -> None:
-    """One piece in its input's format, with its companion files and, with ``entries``, its
-    reshaped surfaces' MTL and textures (a piece given in memory: an OBJ, :func:`reshaped_asset`)."""
-    if isinstance(mesh, MemoryMesh):
-        asset = reshaped_asset(mesh, mesh.positions, entries)
-        target = ctx.path(f"mesh_{name}", f"{name}.obj")
-        for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
-                                face_material=asset.face_material, corner_color=asset.corner_color)[1:]:
-            ctx.path(f"file_{extra}", extra)
-        return
-    target = ctx.path(f"mesh_{name}", f"{name}{mesh.source.suffix.lower()}")
-    for extra in companion_files(mesh, entries):
-        if f"file_{extra}" not in ctx.outputs:
-            ctx.path(f"file_{extra}", extra)
-    if entries:
-        ctx.path(f"mtl_{name}", f"{name}.retex.mtl")
-        for e in entries:
-            ctx.path(f"texture_{e.material}", e.image_name)
-    save_textured(mesh, mesh.positions, target, retexture=entries)
+    """One piece in its input's format (a glTF as a GLB; a piece given in memory as an OBJ), with
+    its MTL and textures beside an OBJ and, with ``entries``, its reshaped surfaces' materials and
+    textures (:func:`reshaped_asset`)."""
+    asset = reshaped_asset(mesh, mesh.positions, entries)
+    suffix = ".obj" if mesh.in_memory else {".gltf": ".glb"}.get(mesh.source.suffix.lower(), mesh.source.suffix.lower())
+    target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
+    for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
+                            face_material=asset.face_material, corner_color=asset.corner_color,
+                            face_polygon=asset.face_polygon, face_group=asset.face_group)[1:]:
+        ctx.path(f"file_{extra}", extra)
 
 
 def write_textured_summary(ctx, cfg, meshes: dict[str, TexturedMesh]) -> bool:
@@ -133,7 +125,7 @@ def write_textured_summary(ctx, cfg, meshes: dict[str, TexturedMesh]) -> bool:
     if len(meshes) != 1 or not ctx.wants_preview("summary"):
         return False
     (name, mesh), = meshes.items()
-    before = mesh.asset if isinstance(mesh, MemoryMesh) else load_asset(mesh.source)
+    before = mesh.asset
     if not before.textured and before.corner_color is None:
         return False
     after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{name}"])

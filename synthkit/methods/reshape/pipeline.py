@@ -31,14 +31,13 @@ import trimesh
 from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError, KeyedError
+from synthkit.io.assets import load_asset
 from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs
-from synthkit.io.textured import TexturedMesh, load_textured, material_textures
 from synthkit.methods.reshape import retexture as RT
 from synthkit.methods.reshape.assemble import assemble, frozen_nodes, place_pieces, portal_gaps, snap_joined
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
 from synthkit.methods.reshape.handles import PieceRange, resolve_fixed, resolve_handles, resolve_links
-from synthkit.methods.reshape.memory import MemoryMesh, textured_from_asset
 from synthkit.methods.reshape.options import Options, options_of
 from synthkit.methods.reshape.outputs import PreviewData, ReshapeResult, reshaped
 from synthkit.methods.reshape.parts import mesh_parts, part_distances
@@ -50,8 +49,9 @@ from synthkit.methods.reshape.system import (
     quality_figures,
     strict_residuals,
 )
+from synthkit.methods.reshape.textured import TexturedMesh, material_textures, textured_from_asset
 
-__all__ = ["compute", "run", "Scene", "MEMORY_PIECE"]
+__all__ = ["compute", "run", "load_textured", "Scene", "MEMORY_PIECE"]
 
 log = logging.getLogger("synthkit")
 
@@ -65,6 +65,9 @@ motions are refused (ConfigError): the strict residuals grow with the motion (do
 _BYTES_PER_TEXEL = 160.0
 """Memory per texel of the texture stage (maps, base and detail, distortion map, bake, naive)."""
 
+
+TEXTURED_SUFFIXES = (".obj", ".glb", ".gltf")
+"""The mesh formats reshape reads (with their UVs and materials)."""
 
 MEMORY_PIECE = "mesh"
 """The piece name (and output file stem) of an ``input`` mesh given in memory."""
@@ -190,8 +193,17 @@ def _mapped(exc: KeyedError) -> ConfigError | InputError:
     return ConfigError(str(exc)) if exc.key else InputError(exc.message)
 
 
+def load_textured(path: Path | str) -> TexturedMesh:
+    """The textured mesh of the OBJ or glTF file ``path``. Raises InputError naming the file for
+    another format and whatever :func:`~synthkit.io.assets.load_asset` refuses."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in TEXTURED_SUFFIXES:
+        raise InputError(f"{path}: unsupported textured mesh format {suffix!r} (use {', '.join(TEXTURED_SUFFIXES)})")
+    return textured_from_asset(load_asset(path))
+
+
 def _read(inputs: Inputs, path) -> TexturedMesh:
-    """The textured mesh at ``path``, or given in memory for it (:mod:`memory`)."""
+    """The textured mesh at ``path``, or given in memory for it."""
     if not inputs.is_memory(path):
         return load_textured(path)
     asset = inputs.asset(path)
@@ -294,7 +306,7 @@ def _texture_sources(sc: Scene) -> tuple[list[dict | None], dict, dict]:
     stretch: a note per such piece); and the stand-in path -> texture of meshes given in memory."""
     textures, notes, given = [], {}, {}
     for mesh, r in zip(sc.meshes, sc.ranges, strict=True):
-        if isinstance(mesh, MemoryMesh):
+        if mesh.in_memory:
             found = {m: Path(str(mesh.source), m) for m in mesh.textures}
             given.update({found[m]: img for m, img in mesh.textures.items()})
         elif mesh.source.suffix.lower() == ".obj":

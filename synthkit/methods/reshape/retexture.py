@@ -30,12 +30,12 @@ import cv2
 import numpy as np
 
 from synthkit.errors import KeyedError
-from synthkit.io.textured import Retexture, TexturedMesh
 from synthkit.methods.reshape.handles import PieceRange
 from synthkit.methods.reshape.options import TextureOptions
 from synthkit.methods.reshape.texture.atlas import pack_atlas, to_atlas
 from synthkit.methods.reshape.texture.extend import extend_surface, extend_tiled, patch_mask
 from synthkit.methods.reshape.texture.surface import analyse_texture, reshape_surface
+from synthkit.methods.reshape.textured import Retexture, TexturedMesh
 
 __all__ = ["SurfaceJob", "surface_jobs", "reshape_jobs", "atlas_entries", "texture_metrics",
            "check_uv", "safe_name", "UNCHANGED_TOL", "WORST"]

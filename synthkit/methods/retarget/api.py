@@ -19,7 +19,7 @@ def retarget(mesh, /, *, progress: bool = False, **keys: Any) -> RetargetResult:
     ----------
     mesh : trimesh.Trimesh, trimesh.Scene, (V, F) arrays, Asset or path
         The input: ``V (#V, 3)`` float positions and ``F (#F, 3)`` int triangles; a
-        ``trimesh.Trimesh`` or :class:`~synthkit.io.assets.Asset` keeps its UVs, vertex colours,
+        ``trimesh.Trimesh`` or :class:`~synthkit.asset.Asset` keeps its UVs, vertex colours,
         materials and textures on every retargeted face; a path is read as from a config.
     progress : bool
         Show stage lines and progress bars on a terminal's stderr.
@@ -33,7 +33,7 @@ def retarget(mesh, /, *, progress: bool = False, **keys: Any) -> RetargetResult:
     -------
     RetargetResult
         ``mesh`` (``trimesh.Trimesh``, ``process=False``) and ``asset``
-        (:class:`~synthkit.io.assets.Asset` with ``corner_uv (#F, 3, 2)``, ``face_material (#F,)``,
+        (:class:`~synthkit.asset.Asset` with ``corner_uv (#F, 3, 2)``, ``face_material (#F,)``,
         ``corner_color (#F, 3, 4)`` and the input's materials): the retargeted mesh in the input's
         units, None with ``analyze_only``; ``retargeted`` and ``baseline``
         (:class:`~synthkit.methods.retarget.outputs.RetargetedMesh`: also ``label_volume (X, Y, Z)

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from synthkit.asset import Asset
 from synthkit.core.mesh import weld
 from synthkit.core.quality import WELD_REL_TOL, degenerate_faces, mesh_quality
-from synthkit.io.assets import Asset
 from synthkit.methods.retarget.analysis import Analysis
 from synthkit.methods.retarget.corners import unpack
 from synthkit.methods.retarget.seams import Retargeted

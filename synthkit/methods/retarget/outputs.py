@@ -18,7 +18,8 @@ import numpy as np
 import trimesh
 
 from synthkit.api import Result
-from synthkit.io.assets import Asset, save_asset
+from synthkit.asset import Asset
+from synthkit.io.assets import save_asset
 from synthkit.io.meshes import save_mesh
 from synthkit.methods.retarget.analysis import Analysis
 from synthkit.preview import (
@@ -51,7 +52,7 @@ class RetargetedMesh:
 
     Attributes
     ----------
-    asset : :class:`~synthkit.io.assets.Asset` as written: ``V (#V, 3)``, ``F (#F, 3)`` (no degenerate
+    asset : :class:`~synthkit.asset.Asset` as written: ``V (#V, 3)``, ``F (#F, 3)`` (no degenerate
         face), ``face_material (#F,)`` into the input's ``materials``, ``corner_uv (#F, 3, 2)`` and
         ``corner_color (#F, 3, 4) uint8`` when the input has them.
     mesh : ``trimesh.Trimesh`` of ``asset.V``, ``asset.F`` (``process=False``).

@@ -29,9 +29,9 @@ import numpy as np
 import trimesh
 
 from synthkit.api import result_fields
+from synthkit.asset import Asset
 from synthkit.core.mesh import normalize_unit
 from synthkit.errors import ConfigError, InputError, KeyedError
-from synthkit.io.assets import Asset
 from synthkit.io.inputs import Inputs
 from synthkit.methods.retarget.analysis import Analysis, analyze
 from synthkit.methods.retarget.corners import pack

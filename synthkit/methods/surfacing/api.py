@@ -19,7 +19,7 @@ def segment(mesh, /, *, progress: bool = False, **keys) -> SegmentResult:
     Parameters
     ----------
     mesh : trimesh.Trimesh, trimesh.Scene, ``(V, F)`` arrays (``V (#V, 3)`` float, ``F (#F, 3)`` int),
-        :class:`~synthkit.io.assets.Asset` or a path to a mesh file
+        :class:`~synthkit.asset.Asset` or a path to a mesh file
     progress : show stage lines and progress bars on a terminal's stderr
     **keys : the config's keys (docs/surface-by-numbers.md), a section as a dict:
         ``regions=[{"name": "body", "vertices": [730]}, ...]`` (at least two regions, each with
@@ -78,7 +78,7 @@ def transfer(mesh, /, *, progress: bool = False, **keys) -> TransferResult:
     Parameters
     ----------
     mesh : the target: trimesh.Trimesh (its vertex colours or texture are kept outside the target
-        regions), trimesh.Scene, ``(V, F)`` arrays, :class:`~synthkit.io.assets.Asset` or a path
+        regions), trimesh.Scene, ``(V, F)`` arrays, :class:`~synthkit.asset.Asset` or a path
     progress : show stage lines and progress bars on a terminal's stderr
     **keys : the config's keys (docs/surface-by-numbers.md), sections as dicts:
         ``transfer={"pairs": [{"target": ..., "source": ..., "signal": "color"}], "synthesis": {...},
@@ -92,7 +92,7 @@ def transfer(mesh, /, *, progress: bool = False, **keys) -> TransferResult:
     -------
     TransferResult
         ``mesh`` (trimesh.Trimesh with the transferred vertex colours and displaced positions),
-        ``asset`` (:class:`~synthkit.io.assets.Asset` with corner UVs into ``textures`` for texture
+        ``asset`` (:class:`~synthkit.asset.Asset` with corner UVs into ``textures`` for texture
         pairs), ``positions (#V, 3)``, ``faces (#F, 3)``, ``colors (#V, 3)`` in [0, 1],
         ``attributes`` (name -> ``(#V, C)``), ``patch_ids (#F,)`` (-1 outside the targets),
         ``corner_uv (#F, 3, 2)`` and ``face_material (#F,)`` or None, ``textures`` (the images the

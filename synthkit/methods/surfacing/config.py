@@ -275,7 +275,8 @@ class ExtractionSection(StrictModel):
         "over about 10 edge lengths (Poisson blending); kernel = area-weighted average of the corners at each vertex "
         "(across patch seams); none = one corner's value. poisson and kernel average the region's border with the "
         "target's own colours. Textures through UVs: poisson and kernel level the texture to these vertex values, "
-        "feather it across seams and bake it into an atlas (transfer_<k>.png); none keeps UVs into the source image."
+        "feather it across seams and bake it into an atlas (transferred_transfer_<k>.png); none keeps UVs into the "
+        "source image."
     )
     feather: float = Field(
         0.2, ge=0, le=1, description="Textures (blend poisson or kernel): each patch's texture fades out over this "

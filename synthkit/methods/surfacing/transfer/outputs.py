@@ -3,9 +3,10 @@
 Outputs: ``transferred.ply`` (the target mesh with vertex colours, displaced positions and, for
 ``signal: attribute``, the transferred property), ``transferred<suffix>`` in the input's format
 for displacement when the input is not PLY, ``transferred.obj`` + ``.mtl`` for texture signals
-(the target's material, with ``original.png`` when it has a texture, and one material per
-texture pair whose faces have UVs into ``source_<k>.png``, the source image, with ``blend: none``,
-or else into ``transfer_<k>.png``, the blended texture baked into an atlas), ``patches.ply``
+(the target's material ``original`` with ``transferred_original.png`` when it has a texture, no
+material where it has none, and one material ``transfer_<k>`` per texture pair whose faces have
+UVs into ``transferred_transfer_<k>.png``: the source image with ``blend: none``, else the blended
+texture baked into an atlas), ``patches.ply``
 (int32 ``label`` = patch id per face, -1 outside every target region; ids count on over the
 pairs), and the previews ``transfer.png`` (before and after from three views: the summary),
 ``patches.png``, ``seams.png`` (seam cost per edge on its faces) and ``params.png`` (the first
@@ -23,10 +24,10 @@ import trimesh
 
 from synthkit import preview
 from synthkit.api import Result
-from synthkit.io.assets import Asset, Material
-from synthkit.io.images import save_image
+from synthkit.asset import Asset, Material
+from synthkit.io.assets import save_asset
 from synthkit.io.meshes import save_mesh
-from synthkit.io.signals import write_signal_ply, write_textured_obj
+from synthkit.io.signals import write_signal_ply
 
 __all__ = ["TransferResult", "transferred_asset", "PALETTE"]
 
@@ -39,10 +40,11 @@ def _u8(values: np.ndarray) -> np.ndarray:
 
 
 def transferred_asset(V, F, colors, corner_uv, face_material, textures) -> Asset:
-    """The transferred mesh as an :class:`~synthkit.io.assets.Asset`: ``V (#V, 3)``, ``F (#F, 3)``,
+    """The transferred mesh as an :class:`~synthkit.asset.Asset`: ``V (#V, 3)``, ``F (#F, 3)``,
     corner colours from ``colors (#V, 3)`` in [0, 1]; with ``corner_uv (#F, 3, 2)``, the materials
-    ``original`` (the target's own texture, ``textures[0]``) and ``transfer_<k>`` (``textures[k + 1]``)
-    chosen by ``face_material (#F,)``."""
+    ``original`` (the target's own texture, ``textures[0]``; left out, and its faces without a
+    material, when the target has none) and ``transfer_<k>`` (``textures[k + 1]``) chosen by
+    ``face_material (#F,)``."""
     F = np.asarray(F, np.int64)
     rgba = np.concatenate([_u8(colors), np.full((len(colors), 1), 255, np.uint8)], axis=1)[F]
     if corner_uv is None:
@@ -51,8 +53,11 @@ def transferred_asset(V, F, colors, corner_uv, face_material, textures) -> Asset
     names = ["original"] + [f"transfer_{k}" for k in range(len(textures) - 1)]
     materials = [Material(name, image=None if img is None else _u8(np.asarray(img)[..., :3]))
                  for name, img in zip(names, textures, strict=True)]
-    return Asset(np.asarray(V, np.float64), F, np.asarray(corner_uv, np.float64), rgba,
-                 np.asarray(face_material, np.int64), materials, "transferred", Path("transferred.obj"))
+    fm = np.asarray(face_material, np.int64)
+    if textures[0] is None:  # the target had no texture: its faces keep no material, none is invented
+        materials, fm = materials[1:], fm - 1
+    return Asset(np.asarray(V, np.float64), F, np.asarray(corner_uv, np.float64), rgba, fm, materials,
+                 "transferred", Path("transferred.obj"))
 
 
 @dataclass(kw_only=True)
@@ -70,8 +75,7 @@ class TransferResult(Result):
     corner_uv : (#F, 3, 2) float64 texture coordinates per face corner, or None (no texture anywhere)
     face_material : (#F,) int64 0 = the target's own material, k + 1 = pair k's source texture; or None
     textures : the (H, W, 3) float images of those materials (None: no texture): ``textures[0]`` the
-        target's own, ``textures[k + 1]`` pair k's source image (``original.png``, ``source_<k>.png``), or
-        its baked atlas when pair k is in ``baked`` (``transfer_<k>.png``)
+        target's own, ``textures[k + 1]`` pair k's source image, or its baked atlas when pair k is in ``baked``
     baked : the texture pairs whose blended texture was baked into an atlas (``blend`` not ``none``)
     seam_field : (#F,) float64 seam cost per face (half of each incident seam; NaN outside the regions)
     patch_domains : the source and target domains ``(n, 3, 2)`` of the first patches (Fig. 4)
@@ -97,7 +101,7 @@ class TransferResult(Result):
 
     @property
     def asset(self) -> Asset:
-        """The textured result as an :class:`~synthkit.io.assets.Asset` (``transferred.obj``: corner UVs
+        """The textured result as an :class:`~synthkit.asset.Asset` (``transferred.obj``: corner UVs
         into ``textures`` by ``face_material``; the vertex colours per corner)."""
         return transferred_asset(self.positions, self.faces, self.colors, self.corner_uv, self.face_material,
                                  self.textures)
@@ -115,22 +119,14 @@ class TransferResult(Result):
             self._previews(ctx)
 
     def _export_obj(self, ctx) -> None:
-        """``transferred.obj`` + ``.mtl``: the target's own material (its texture as ``original.png``
-        when it has one) and one material per texture pair with its source texture (``source_<k>.png``)
-        or, blended, its baked atlas (``transfer_<k>.png``)."""
-        materials = [("original", None)]
-        if self.textures[0] is not None:
-            save_image(ctx.path("texture_original", "original.png"), self.textures[0])
-            materials[0] = ("original", "original.png")
-        for k, tex in enumerate(self.textures[1:]):
-            kind = "transfer" if k in self.baked else "source"
-            name = f"{kind}_{k}.png"
-            if tex is not None:
-                save_image(ctx.path(f"texture_{kind}_{k}", name), tex)
-            materials.append((f"transfer_{k}", name if tex is not None else None))
-        ctx.path("transferred_mtl", "transferred.mtl")
-        write_textured_obj(ctx.path("transferred_obj", "transferred.obj"), self.positions, self.faces, self.corner_uv,
-                           self.face_material, materials)
+        """``transferred.obj`` + ``.mtl`` (:attr:`asset`): the target's own material where it has a
+        texture, and one material per texture pair with its source texture or, blended, its baked
+        atlas; the textures beside it as ``transferred_<material>.png``."""
+        asset = self.asset
+        target = ctx.path("transferred_obj", "transferred.obj")
+        for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
+                                face_material=asset.face_material)[1:]:
+            ctx.path(f"file_{extra}", extra)
 
     def _export(self, ctx) -> None:
         F = self.faces

@@ -23,7 +23,8 @@ WELD_REL_TOL = 1e-6
 DEGENERATE_REL_TOL = 1e-9
 """An edge or a height shorter than this fraction of the bounding-box diagonal makes a face degenerate."""
 
-QUALITY_FIGURES = ("faces", "open_edges", "nonmanifold_edges", "degenerate_faces", "duplicate_faces", "components")
+QUALITY_FIGURES = ("faces", "open_edges", "nonmanifold_edges", "degenerate_faces", "duplicate_faces", "components",
+                   "loose_vertices")
 """The figures :func:`mesh_quality` returns, in report order."""
 
 
@@ -65,13 +66,15 @@ def mesh_quality(V, F, *, weld_tol: float | None = None) -> dict:
     - ``degenerate_faces``: :func:`degenerate_faces` (collapsed by the weld included);
     - ``duplicate_faces``: faces beyond the first over the same welded vertices in the same
       orientation (a surface stored twice; back-to-back faces of double-sided walls are not);
-    - ``components``: connected components of the welded faces (sharing a vertex).
+    - ``components``: connected components of the welded faces (sharing a vertex);
+    - ``loose_vertices``: vertices of ``V`` no face uses (a DCC keeps them as stray points).
 
     ``weld_tol`` defaults to :data:`WELD_REL_TOL` times the bounding-box diagonal.
     """
     V, F = as_mesh_arrays(V, F)
     figures = dict.fromkeys(QUALITY_FIGURES, 0)
     figures["faces"] = int(len(F))
+    figures["loose_vertices"] = int(len(V) - len(np.unique(F)))
     if len(F) == 0:
         return figures
     diag = _diagonal(V)

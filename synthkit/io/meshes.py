@@ -75,7 +75,15 @@ def load_mesh(path: Path | str, *, process: bool = False) -> trimesh.Trimesh:
     else:
         raise InputError(f"{path}: file holds a {type(loaded).__name__}, not a triangle mesh")
     check_mesh(mesh.vertices, mesh.faces, source=path)
+    if path.suffix.lower() == ".obj" and mesh.visual.kind == "texture" and not _names_material(path):
+        mesh.visual.material.image = None  # trimesh's 2x2 stand-in: the file has UVs but no material
     return mesh
+
+
+def _names_material(obj: Path) -> bool:
+    """Whether some line of the OBJ ``obj`` is a ``usemtl`` statement."""
+    with obj.open("rb") as f:
+        return any(line.lstrip().startswith(b"usemtl") for line in f)
 
 
 def trimesh_load(path: Path, *, process: bool = False):
@@ -206,10 +214,12 @@ def save_mesh(
                 raise ValueError(f"face_colors has shape {colors.shape}, expected ({len(mesh.faces)}, 3)")
             colors = colors.astype(np.uint8)
         data = _ply_with_face_labels(mesh, labels.astype(np.int32), colors)
-    elif suffix == ".obj":  # an OBJ's material and texture files go beside it, as trimesh writes them
-        data, companions = trimesh.exchange.obj.export_obj(mesh, return_texture=True, write_texture=False)
-        for name, content in companions.items():
-            write_bytes_atomic(path.parent / name, content)
+    elif suffix == ".obj":  # geometry only; meshes with their appearance go through io.assets
+        from synthkit.io.obj import obj_text
+
+        corners = np.full((len(mesh.faces), 3, 3), -1, np.int64)
+        corners[..., 0] = mesh.faces
+        data = obj_text(mesh.vertices, corners, header="written by synthkit")
     else:
         data = mesh.export(file_type=suffix.lstrip("."))
     write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)

@@ -360,15 +360,14 @@ def generate(out_dir: Path) -> list[Path]:
     """
     import trimesh
 
-    from synthkit.io.meshes import save_mesh
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, (builder, suffix) in SAMPLES.items():
         V, F, truth = builder()
         mesh_path = out_dir / f"retarget-{name}{suffix}"
-        save_mesh(trimesh.Trimesh(V, F, process=False), mesh_path)
+        data = trimesh.Trimesh(V, F, process=False).export(file_type=suffix[1:])  # input files, as trimesh writes them
+        mesh_path.write_bytes(data.encode() if isinstance(data, str) else data)
         truth = dict(truth, mesh=mesh_path.name, n_faces=int(len(F)), units="model")
         truth_path = out_dir / f"retarget-{name}.truth.json"
         truth_path.write_text(json.dumps(truth, indent=2) + "\n")

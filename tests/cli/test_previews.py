@@ -20,7 +20,7 @@ def _run(runner, tmp_path, config, level):
 
 def _previews(folder: Path) -> set[str]:
     """Top-level preview PNGs of an output folder, and its preview folders as ``name/``."""
-    names = {p.name for p in folder.glob("*.png") if p.name != "bricks_wall.png" and "_retex" not in p.name}
+    names = {p.name for p in folder.glob("*.png") if not p.name.endswith("bricks_wall.png") and "_retex" not in p.name}
     return names | {f"{p.name}/" for p in folder.iterdir() if p.is_dir() and any(p.glob("*.png"))}
 
 

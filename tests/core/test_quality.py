@@ -12,8 +12,13 @@ TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 def test_closed_tetrahedron_is_clean():
     q = mesh_quality(TETRA_V, TETRA_F)
     assert q == {"faces": 4, "open_edges": 0, "nonmanifold_edges": 0, "degenerate_faces": 0,
-                 "duplicate_faces": 0, "components": 1}
+                 "duplicate_faces": 0, "components": 1, "loose_vertices": 0}
     assert tuple(q) == QUALITY_FIGURES
+
+
+def test_loose_vertices_are_counted():
+    V = np.vstack([TETRA_V, [[5.0, 5, 5], [6.0, 5, 5]]])
+    assert mesh_quality(V, TETRA_F)["loose_vertices"] == 2
 
 
 def test_open_square_and_two_components():

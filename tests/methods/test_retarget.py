@@ -852,11 +852,12 @@ def _one_line_error(result, code, mesh, *needles):
     [
         # vertices and no faces at all: trimesh reads it as a point cloud
         ("vertices_only", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", ["mesh has no faces (3 vertices, no triangles)"]),
-        ("two_corner_faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 2 3\n", ["mesh has no faces"]),
+        ("two_corner_faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 2 3\n",
+         ["line 4: malformed OBJ statement: 'f' needs 3 corners"]),
         ("zero_area", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n",
          ["every triangle has zero area (2 faces)"]),
         ("one_point", "v 0.5 0.5 0.5\nv 0.5 0.5 0.5\nv 0.5 0.5 0.5\nf 1 2 3\n", ["every triangle has zero area"]),
-        ("nan", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", ["1 vertices have NaN"]),
+        ("nan", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", ["line 2: malformed OBJ statement: 'v' has a NaN"]),
     ],
 )
 def test_cli_bad_meshes_exit_3_one_line(tmp_path, name, text, needles):

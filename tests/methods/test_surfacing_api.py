@@ -193,8 +193,9 @@ def test_transfer_texture_from_an_image_array():
     np.testing.assert_allclose(result.textures[1], img / 255.0, atol=1e-6)
     assert result.textures[0] is None
     asset = result.asset
-    assert [m.name for m in asset.materials] == ["original", "transfer_0"]
-    np.testing.assert_array_equal(asset.materials[1].image, img)
+    assert [m.name for m in asset.materials] == ["transfer_0"]  # the cylinder had no material: none is invented
+    np.testing.assert_array_equal(asset.face_material, np.where(side, 0, -1))
+    np.testing.assert_array_equal(asset.materials[0].image, img)
     assert asset.corner_uv.shape == (len(F), 3, 2)
 
 
@@ -234,7 +235,8 @@ def test_textured_trimesh_target_keeps_its_texture_and_saves_the_cli_bytes(tmp_p
     np.testing.assert_allclose(result.textures[0], tex, atol=1 / 255)
     assert [m.name for m in result.asset.materials] == ["original", "transfer_0"]
     result.save(tmp_path / "api", previews="summary")
-    for name in ("transferred.obj", "transferred.mtl", "original.png", "transfer_0.png", "transferred.ply",
+    for name in ("transferred.obj", "transferred.mtl", "transferred_original.png", "transferred_transfer_0.png",
+                 "transferred.ply",
                  "patches.ply", "transfer.png"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
 

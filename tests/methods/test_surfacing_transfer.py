@@ -353,7 +353,7 @@ def test_subdivide_keeps_the_targets_texture(tmp_path):
     own = obj.face_material == obj.materials.index("original")
     assert own.sum() == 4 * (~region).sum()
     np.testing.assert_allclose(uv[own], obj.V[obj.F[own]][..., :2], atol=1e-6)  # this plane's UVs are (x, y)
-    assert (tmp_path / "out" / "original.png").is_file()
+    assert (tmp_path / "out" / "transferred_original.png").is_file()
 
 
 def test_planar_surface_maps_by_its_own_coordinates():
@@ -696,7 +696,7 @@ def test_real_bricks_photo_onto_the_body_of_spot(tmp_path):
     region = obj.face_material == obj.materials.index("transfer_0")
     assert 0.5 * len(obj.F) < region.sum() < len(obj.F)  # the body, not the head
     photo = load_image(DATA / "textures/texture_bricks.jpg")
-    atlas = load_image(tmp_path / "out" / "transfer_0.png")  # blended (feathered, Poisson-levelled), baked
+    atlas = load_image(tmp_path / "out" / "transferred_transfer_0.png")  # blended (feathered, Poisson-levelled), baked
     centres = uv[region].mean(axis=1)
     assert ((centres >= 0) & (centres <= 1)).all()
     got = bilinear(atlas, centres)
@@ -796,7 +796,7 @@ def test_real_subdivided_tudor_keeps_its_own_texture_outside_the_region(tmp_path
     near, dist, tri = trimesh.proximity.closest_point(trimesh.Trimesh(mesh.vertices, F, process=False), centres)
     bary = trimesh.triangles.points_to_barycentric(np.asarray(mesh.vertices)[F[tri]], near)
     want = bilinear(img, np.einsum("nk,nkc->nc", bary, uv0[F[tri]]))
-    got = bilinear(load_image(tmp_path / "out" / "original.png"), uv[own].mean(axis=1))
+    got = bilinear(load_image(tmp_path / "out" / "transferred_original.png"), uv[own].mean(axis=1))
     assert dist.max() < 1e-6 * np.ptp(mesh.vertices, axis=0).max()
     assert np.percentile(np.abs(got - want).max(axis=1), 95) < 0.02
 

@@ -295,6 +295,7 @@ def _textures(opt: Options, ctx, sc, graph, X) -> tuple[dict, dict]:
         except KeyedError as exc:
             raise _mapped(exc) from None
         entries, boxes = RT.atlas_entries(sc.meshes, results, images)
+        boxes = {name: (box, f"{sc.names[results[name][0].piece]}_{file}") for name, (box, file) in boxes.items()}
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))
         ctx.metrics["texture_images"] = sum(len(e) for e in entries.values())
     return entries, results

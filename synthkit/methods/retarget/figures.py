@@ -72,8 +72,10 @@ def output_quality(res: Retargeted, F_written, center, scale, Vn, F, input_quali
     vin = float(np.prod(np.maximum(np.ptp(Vn[used], axis=0), 1e-12)))
     vout = float(np.prod(np.maximum(np.ptp(res.V, axis=0), 1e-12))) if len(res.V) else 0.0
     ratio = vout / vin
-    q = mesh_quality(res.V * scale + center, F_written)
+    written = np.unique(F_written)  # the writer leaves out the vertices no written face uses
+    q = mesh_quality((res.V * scale + center)[written], np.searchsorted(written, F_written))
     limits = {
+        "loose_vertices": 0,
         "open_edges": int(input_quality["open_edges"] * copies),
         "nonmanifold_edges": int(input_quality["nonmanifold_edges"] * copies),
         "degenerate_faces": 0,

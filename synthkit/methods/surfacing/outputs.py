@@ -12,24 +12,22 @@ in grey, Fig. 3); with ``views.render`` (``--render-views``) or ``mode: views``,
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar
 
 import cv2
 import numpy as np
 import trimesh
-from trimesh.exchange.obj import export_obj
 
 from synthkit import preview
 from synthkit.api import Result
-from synthkit.io.atomic import write_text_atomic
+from synthkit.io.assets import asset_from_trimesh, save_asset
 from synthkit.io.images import save_image
-from synthkit.io.meshes import save_mesh
 from synthkit.io.segmentation import write_labels_ply, write_point_polylines_obj, write_polylines_obj, write_seg
 from synthkit.methods.surfacing.views import Camera
 
-__all__ = ["SegmentResult", "legend", "write_obj_without_material", "REGION_SUFFIXES"]
+__all__ = ["SegmentResult", "legend", "write_region", "REGION_SUFFIXES"]
 
 REGION_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb")
 """Formats a region mesh is written in (the input's; others, and a mesh given in memory: PLY)."""
@@ -114,10 +112,8 @@ class SegmentResult(Result):
             if part is None:
                 continue
             path = ctx.path(f"region_{name}", f"regions/{name}{self.region_suffix}")
-            if self.bare_obj:
-                write_obj_without_material(part, path)
-            else:
-                save_mesh(part, path)
+            for extra in write_region(part, path, name, bare=self.bare_obj)[1:]:
+                ctx.path(f"file_regions/{extra}", f"regions/{extra}")
         if self.cut_curves is not None:
             write_point_polylines_obj(ctx.path("cut_smooth", "cut_smooth.obj"), self.cut_curves)
 
@@ -177,8 +173,11 @@ def legend(names: list[str], colors: np.ndarray, width: int) -> np.ndarray:
     return band.astype(np.float32) / 255.0
 
 
-def write_obj_without_material(part: trimesh.Trimesh, path: Path) -> None:
-    """Write ``part`` as OBJ with its UVs but no ``mtllib``/``usemtl`` and no material files."""
-    text, _ = export_obj(part, include_texture=True, return_texture=True, write_texture=False)
-    lines = [line for line in text.splitlines() if not line.startswith(("mtllib ", "usemtl "))]
-    write_text_atomic(path, "\n".join(lines) + "\n")
+def write_region(part: trimesh.Trimesh, path: Path, name: str, *, bare: bool) -> list[str]:
+    """Write the region mesh ``part`` named ``name`` with its appearance (:func:`save_asset`; with
+    ``bare``, its UVs but no material: the input had none); returns the files written."""
+    asset = asset_from_trimesh(part, name)
+    if bare:
+        asset = replace(asset, materials=[], face_material=np.full(len(asset.F), -1, np.int64))
+    return save_asset(path, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
+                      face_material=asset.face_material, corner_color=asset.corner_color)

@@ -70,10 +70,16 @@ def textured_from_asset(asset: Asset, key: str) -> MemoryMesh:
                       asset=asset, textures=textures)
 
 
-def reshaped_asset(mesh: MemoryMesh, positions: np.ndarray, entries: list[Retexture] = ()) -> Asset:
+def reshaped_asset(mesh: TexturedMesh, positions: np.ndarray, entries: list[Retexture] = (),
+                   asset: Asset | None = None) -> Asset:
     """``mesh``'s asset at the new ``positions (#P, 3)``; each :class:`Retexture` entry's faces get
-    its UVs and a new material holding its baked image (8-bit, as it is written)."""
-    asset = mesh.asset
+    its UVs and a new material holding its baked image (8-bit, as it is written). ``asset`` is
+    ``mesh``'s: by default ``mesh.asset`` (a :class:`MemoryMesh`), for a file the file read by
+    :func:`~synthkit.io.assets.load_asset`, whose faces over positions must be ``mesh``'s row for row
+    (ValueError otherwise)."""
+    asset = mesh.asset if asset is None else asset
+    if not np.array_equal(asset.F, mesh.position_index[mesh.F]):
+        raise ValueError(f"{mesh.source}: the asset's faces are not the textured mesh's")
     corner_uv = asset.corner_uv
     fm = np.asarray(asset.face_material, np.int64)
     materials = list(asset.materials)

@@ -1,7 +1,8 @@
 """What ``synthkit reshape`` gives back (:class:`ReshapeResult`) and the files it writes.
 
 Files: each piece in its input's format (an OBJ with its MTL and textures copied beside it, or a
-GLB; a piece given in memory as an OBJ with a new MTL), with UVs and materials unchanged except
+GLB; a piece given in memory as an OBJ with a new MTL) or, with ``output.mesh_format`` usd/usda, as
+``<piece>.usdc``/``.usda`` with its textures beside it, with UVs and materials unchanged except
 the reshaped surfaces' (``<piece>.retex.mtl`` and their PNGs); ``before.png``, ``after.png``
 (elongated edges blue, compressed red, handles green), ``baseline.png``, ``comparison.png``, the
 textured ``before_after.png`` of a single piece and the texture previews of Figs. 7-8 under
@@ -20,6 +21,7 @@ from synthkit.api import Result
 from synthkit.io.assets import Asset, load_asset, save_asset
 from synthkit.io.images import save_image
 from synthkit.io.textured import Retexture, TexturedMesh, companion_files, save_textured
+from synthkit.io.usd import USD_SUFFIXES, load_usd, mesh_suffix, save_asset_usd
 from synthkit.methods.reshape import previews as P
 from synthkit.methods.reshape.memory import MemoryMesh, reshaped_asset
 from synthkit.methods.reshape.retexture import safe_name
@@ -95,7 +97,7 @@ class ReshapeResult(Result):
                 write_texture_previews(ctx, cfg, self.previews.surfaces)
         with ctx.stage("outputs"):
             for name, mesh in self.textured.items():
-                write_piece(ctx, name, mesh, self.retexture[name])
+                write_piece(ctx, name, mesh, self.retexture[name], mesh_format=cfg.output.mesh_format)
             textured = write_textured_summary(ctx, cfg, self.textured)
             write_previews(ctx, cfg, self.previews, level="all" if textured else "summary")
 
@@ -105,14 +107,18 @@ def reshaped(mesh: TexturedMesh, positions: np.ndarray) -> TexturedMesh:
     return replace(mesh, V=positions[mesh.position_index], positions=positions)
 
 
-def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture]) -> None:
-    """One piece in its input's format, with its companion files and, with ``entries``, its
-    reshaped surfaces' MTL and textures (a piece given in memory: an OBJ, :func:`reshaped_asset`)."""
-    if isinstance(mesh, MemoryMesh):
-        asset = reshaped_asset(mesh, mesh.positions, entries)
-        target = ctx.path(f"mesh_{name}", f"{name}.obj")
-        for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
-                                face_material=asset.face_material, corner_color=asset.corner_color)[1:]:
+def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture], *, mesh_format: str = "input") -> None:
+    """One piece in its input's format (``mesh_format`` input) or as USD, with its companion files
+    and, with ``entries``, its reshaped surfaces' MTL and textures (a piece given in memory: an OBJ,
+    :func:`reshaped_asset`)."""
+    if isinstance(mesh, MemoryMesh) or mesh_format != "input":
+        asset = reshaped_asset(mesh, mesh.positions, entries,
+                               asset=None if isinstance(mesh, MemoryMesh) else load_asset(mesh.source))
+        suffix = ".obj" if mesh_format == "input" else mesh_suffix(mesh_format)
+        target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
+        save = save_asset_usd if suffix in USD_SUFFIXES else save_asset
+        for extra in save(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
+                          face_material=asset.face_material, corner_color=asset.corner_color)[1:]:
             ctx.path(f"file_{extra}", extra)
         return
     target = ctx.path(f"mesh_{name}", f"{name}{mesh.source.suffix.lower()}")
@@ -136,7 +142,8 @@ def write_textured_summary(ctx, cfg, meshes: dict[str, TexturedMesh]) -> bool:
     before = mesh.asset if isinstance(mesh, MemoryMesh) else load_asset(mesh.source)
     if not before.textured and before.corner_color is None:
         return False
-    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{name}"])
+    written = ctx.out_dir / ctx.outputs[f"mesh_{name}"]
+    after = (load_usd if written.suffix in USD_SUFFIXES else load_asset)(written)
     before_after_png(ctx.path("before_after", "before_after.png"),
                      *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
                      size=cfg.preview_size)

@@ -20,6 +20,7 @@ import trimesh
 from synthkit.api import Result
 from synthkit.io.assets import Asset, save_asset
 from synthkit.io.meshes import save_mesh
+from synthkit.io.usd import USD_SUFFIXES, save_asset_usd
 from synthkit.methods.retarget.analysis import Analysis
 from synthkit.preview import (
     Appearance,
@@ -214,8 +215,9 @@ def write_mesh(res: RetargetedMesh, like: Asset, suffix: str, cfg, ctx, *, prefi
     the labelled PLY and the renders of one result; return the label render (None when previews
     are off)."""
     a = res.asset
-    names = save_asset(ctx.path(f"{prefix}mesh", f"{prefix}retargeted{suffix}"), a.V, a.F, like=like,
-                       corner_uv=a.corner_uv, face_material=a.face_material, corner_color=a.corner_color)
+    save = save_asset_usd if suffix in USD_SUFFIXES else save_asset
+    names = save(ctx.path(f"{prefix}mesh", f"{prefix}retargeted{suffix}"), a.V, a.F, like=like,
+                 corner_uv=a.corner_uv, face_material=a.face_material, corner_color=a.corner_color)
     for k, extra in enumerate(names[1:]):
         ctx.outputs[f"{prefix}mesh_file_{k}"] = extra
     np.save(ctx.path(f"{prefix}labels_volume", f"{prefix}labels.npy"), res.label_volume)

@@ -131,7 +131,7 @@ def _write_mesh(stage, root: str, name: str, V, F, corner_uv, corner_normals, co
     """The Mesh prim of ``V (#V, 3)``, ``F (#F, 3)`` and its per-corner arrays (module docstring)."""
     from pxr import Sdf, UsdGeom, Vt
 
-    used, F = np.unique(F, return_inverse=True)
+    used, F = np.unique(F.reshape(-1), return_inverse=True)
     points = np.ascontiguousarray(V[used], np.float32)
     mesh = UsdGeom.Mesh(_define(stage, root, "Mesh", name, taken))
     mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
@@ -274,8 +274,7 @@ def write_usd(path: Path | str, V, F, *, corner_uv=None, corner_normals=None, co
     Usd.ModelAPI(root).SetKind("component")
     stage.SetDefaultPrim(root)
     children: set[str] = set()
-    mesh = _write_mesh(stage, str(root.GetPath()), name, V, F.reshape(-1), corner_uv, corner_normals,
-                       corner_color, children)
+    mesh = _write_mesh(stage, str(root.GetPath()), name, V, F, corner_uv, corner_normals, corner_color, children)
     written, files, prims = [path.name], {}, [None] * len(materials)
     used = np.unique(face_material[face_material >= 0])
     if len(used):
@@ -291,7 +290,8 @@ def write_usd(path: Path | str, V, F, *, corner_uv=None, corner_normals=None, co
         _bind(mesh, prims, face_material)
         written += sorted(set(files.values()))
     with replacing_atomically(path) as tmp:
-        stage.GetRootLayer().Export(str(tmp))
+        if not stage.GetRootLayer().Export(str(tmp)):
+            raise OSError(f"{path}: usd-core could not write the stage")
     return written
 
 

@@ -13,7 +13,8 @@ from synthkit.errors import ConfigError
 from synthkit.io import usd
 from synthkit.io.assets import Asset, Material, load_asset
 from synthkit.io.images import save_image
-from synthkit.io.usd import UsdMaterial, load_usd, save_asset_usd, write_usd
+from synthkit.io.usd import UsdMaterial, write_usd
+from synthkit.io.usd_asset import load_usd, save_asset_usd
 from synthkit.methods.petri.config import PetriConfig
 
 pxr = pytest.importorskip("pxr", reason="usd-core is not installed (pip install 'synthkit[usd]')")

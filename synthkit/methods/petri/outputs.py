@@ -14,7 +14,8 @@ from synthkit.api import Result
 from synthkit.io.assets import Asset, save_asset
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.meshes import save_mesh
-from synthkit.io.usd import USD_SUFFIXES, mesh_suffix, save_asset_usd
+from synthkit.io.usd import USD_SUFFIXES, mesh_suffix
+from synthkit.io.usd_asset import save_asset_usd
 from synthkit.methods.petri.appearance import Look
 from synthkit.methods.petri.assembly import PieceLibrary, assemble, label_colors, preview_library, reorder_library
 from synthkit.methods.petri.net import ColouredPetriNet, to_dot, to_pnml

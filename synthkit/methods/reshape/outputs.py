@@ -21,7 +21,8 @@ from synthkit.api import Result
 from synthkit.io.assets import Asset, load_asset, save_asset
 from synthkit.io.images import save_image
 from synthkit.io.textured import Retexture, TexturedMesh, companion_files, save_textured
-from synthkit.io.usd import USD_SUFFIXES, load_usd, mesh_suffix, save_asset_usd
+from synthkit.io.usd import USD_SUFFIXES, mesh_suffix
+from synthkit.io.usd_asset import load_usd, save_asset_usd
 from synthkit.methods.reshape import previews as P
 from synthkit.methods.reshape.memory import MemoryMesh, reshaped_asset
 from synthkit.methods.reshape.retexture import safe_name

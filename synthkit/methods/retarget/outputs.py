@@ -20,7 +20,8 @@ import trimesh
 from synthkit.api import Result
 from synthkit.io.assets import Asset, save_asset
 from synthkit.io.meshes import save_mesh
-from synthkit.io.usd import USD_SUFFIXES, save_asset_usd
+from synthkit.io.usd import USD_SUFFIXES
+from synthkit.io.usd_asset import save_asset_usd
 from synthkit.methods.retarget.analysis import Analysis
 from synthkit.preview import (
     Appearance,

@@ -29,7 +29,8 @@ from synthkit.io.assets import Asset, Material
 from synthkit.io.images import save_image
 from synthkit.io.meshes import save_mesh
 from synthkit.io.signals import write_signal_ply, write_textured_obj
-from synthkit.io.usd import mesh_suffix, save_asset_usd
+from synthkit.io.usd import mesh_suffix
+from synthkit.io.usd_asset import save_asset_usd
 
 __all__ = ["TransferResult", "transferred_asset", "PALETTE"]
 

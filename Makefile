@@ -13,7 +13,7 @@ help: ## List the targets
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev,dist]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev,dist,usd]'
 	$(BIN)/python -c 'from synthkit.core.graphcut import compile_kernels; compile_kernels()'
 	touch $(STAMP)
 
@@ -25,7 +25,7 @@ install: $(STAMP) ## Create .venv and install synthkit with its test tools
 
 constraints: $(STAMP) ## Rewrite constraints.txt from the installed .venv (after a deliberate upgrade)
 	{ echo "# Exact versions synthkit's tests passed with (Python 3.11, $$(date +%F)); make install uses them:"; \
-	  echo "#   pip install -c constraints.txt -e '.[dev,dist]'"; \
+	  echo "#   pip install -c constraints.txt -e '.[dev,dist,usd]'"; \
 	  echo "# Regenerate after a deliberate upgrade with: make constraints"; \
 	  $(BIN)/python -m pip list --format=freeze --disable-pip-version-check | \
 	  grep -viE '^(synthkit|pip|setuptools|wheel)==' | sort -f; } > constraints.txt

@@ -75,6 +75,21 @@ InputFile = Annotated[Path, AfterValidator(_resolve_input_file)]
 """A path to an existing input file, relative to the config file's folder."""
 
 
+def _usd_installed(value: str) -> str:
+    """``value``, a mesh format, refused when it is ``usd`` or ``usda`` and usd-core (the ``usd``
+    extra) is not installed: the run stops at once, not after its synthesis."""
+    if value in ("usd", "usda"):
+        from synthkit.io.usd import USD_MISSING, usd_installed
+
+        if not usd_installed():
+            raise ValueError(USD_MISSING)
+    return value
+
+
+USD_NEEDS_EXTRA = AfterValidator(_usd_installed)
+"""Annotate a ``mesh_format`` field with this (``Annotated[Literal[..., "usd", "usda"], USD_NEEDS_EXTRA]``)."""
+
+
 class RunConfig(StrictModel):
     """Keys every method config has."""
 

@@ -22,14 +22,14 @@ def _pins() -> dict[str, str]:
     return pins
 
 
-def _requirements(groups=("dev", "dist")):
+def _requirements(groups=("dev", "dist", "usd")):
     reqs = list(PROJECT["dependencies"])
     for group in groups:
         reqs += PROJECT["optional-dependencies"][group]
     return [packaging.Requirement(r) for r in reqs]
 
 
-@pytest.mark.parametrize("req", _requirements(("dev", "dist", "bench")), ids=str)
+@pytest.mark.parametrize("req", _requirements(("dev", "dist", "usd", "bench")), ids=str)
 def test_every_requirement_has_a_major_upper_bound(req):
     assert any(spec.operator == "<" for spec in req.specifier), f"{req} has no upper bound"
 

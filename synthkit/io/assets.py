@@ -19,6 +19,8 @@ Formats (:func:`load_asset`, :func:`save_asset`):
   its UVs and material or vertex colours; written GLBs keep the input's scene, node, mesh,
   material, texture, sampler and image objects and names, with normals (and tangents where the
   input had them).
+- **USD** (``.usdc``, ``.usda``; :mod:`synthkit.io.usd`, the ``usd`` extra): written with
+  UsdPreviewSurface materials and the textures beside the stage.
 - **PLY**: vertex (or face) colours as corner colours; written PLYs keep colours.
 - **OFF, STL**: geometry only (written without appearance; a warning says what was not kept).
 
@@ -41,6 +43,7 @@ from synthkit.io._capture import check_readable
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.gltf import glb_bytes, read_gltf_info
 from synthkit.io.meshes import check_mesh, trimesh_load
+from synthkit.io.usd import USD_SUFFIXES, usd_material, write_usd
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +51,7 @@ __all__ = ["load_asset", "asset_from_trimesh", "save_asset", "corner_normals", "
            "ASSET_SUFFIXES"]
 
 ASSET_SUFFIXES = (".obj", ".glb", ".gltf", ".ply", ".off", ".stl")
-WRITE_SUFFIXES = (".obj", ".glb", ".ply", ".off", ".stl")
+WRITE_SUFFIXES = (".obj", ".glb", ".ply", ".off", ".stl", *USD_SUFFIXES)
 CREASE_DEG = 30.0
 """Faces meeting at a vertex share its normal in a written mesh when their normals differ by less."""
 
@@ -326,6 +329,10 @@ def save_asset(path: Path | str, V, F, *, like: Asset, corner_uv=None, face_mate
     V, F, _ = _used_vertices(V, F)
     if suffix == ".obj":
         return _write_obj(path, V, F, corner_uv, face_material, corner_color, like, face_polygon, face_group)
+    if suffix in USD_SUFFIXES:
+        return write_usd(path, V, F, corner_uv=corner_uv, corner_normals=corner_normals(V, F),
+                         corner_color=corner_color, face_material=face_material,
+                         materials=[usd_material(m) for m in like.materials], name=like.name)
     if suffix == ".glb":
         normals = corner_normals(V, F)
         tangents = corner_tangents(V, F, corner_uv, normals) if like.gltf and like.gltf.tangents else None

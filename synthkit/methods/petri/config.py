@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
-from synthkit.config import InputFile, RunConfig, StrictModel
+from synthkit.config import USD_NEEDS_EXTRA, InputFile, RunConfig, StrictModel
 from synthkit.methods.petri.curves import polyline_problem
 
 COORDINATE_LIMIT = 1e9
@@ -219,8 +219,9 @@ class Inference(StrictModel):
 class Output(StrictModel):
     """What the run writes besides report.json and the previews."""
 
-    mesh_format: Literal["ply", "obj", "glb"] = Field(
-        "ply", description="Format of the assembled mesh (PLY also stores a per-face label)."
+    mesh_format: Annotated[Literal["ply", "obj", "glb", "usd", "usda"], USD_NEEDS_EXTRA] = Field(
+        "ply", description="Format of the assembled mesh (PLY also stores a per-face label; usd writes .usdc, "
+        "usda text .usda, with UsdPreviewSurface materials and their textures beside it: the usd extra)."
     )
     export_net: Literal["none", "pnml", "dot", "both"] = Field(
         "pnml", description="Export the target Petri net as PNML and/or Graphviz DOT."

@@ -15,6 +15,7 @@ from synthkit.asset import Asset
 from synthkit.io.assets import save_asset
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
 from synthkit.io.meshes import save_mesh
+from synthkit.io.usd import mesh_suffix
 from synthkit.methods.petri.appearance import Look
 from synthkit.methods.petri.assembly import PieceLibrary, assemble, label_colors, preview_library, reorder_library
 from synthkit.methods.petri.net import ColouredPetriNet, to_dot, to_pnml
@@ -109,11 +110,12 @@ def result_asset(example: Asset, V: np.ndarray, F: np.ndarray, look: Look | None
 
 def write_mesh(ctx, mesh_format: str, example: Asset, asset: Asset, face_label, look: Look | None) -> None:
     """Write the result mesh (``output.mesh_format``) with the example's appearance: GLB with its PBR
-    materials and textures, OBJ with an MTL and texture copies, PLY with colours; a PLY of an example
+    materials and textures, OBJ with an MTL and texture copies, USD with UsdPreviewSurface materials
+    and texture copies, PLY with colours; a PLY of an example
     without colours stores each face's label instead. An example with an appearance also gets
     ``before_after.png``: example above result, textured, from three views (the summary)."""
     V, F = asset.V, asset.F
-    out_mesh = ctx.path("mesh", f"result.{mesh_format}")
+    out_mesh = ctx.path("mesh", f"result{mesh_suffix(mesh_format)}")
     if mesh_format == "ply" and (look is None or look.corner_color is None):
         save_mesh(trimesh.Trimesh(V, F, process=False), out_mesh, face_labels=face_label)
         return

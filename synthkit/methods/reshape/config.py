@@ -6,11 +6,11 @@ diagonal). A config reshapes either one ``input`` or a chain of ``pieces`` joine
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from synthkit.config import InputFile, RunConfig, StrictModel
+from synthkit.config import USD_NEEDS_EXTRA, InputFile, RunConfig, StrictModel
 
 __all__ = ["CONFIG", "ReshapeConfig", "Box", "HalfSpace", "Selection", "Handle", "Link", "PieceSpec", "Join",
            "GraphSection", "StiffnessSection", "StrictSection", "ContactSection", "GroupSection", "SolverSection",
@@ -306,6 +306,16 @@ class TextureSection(StrictModel):
     previews: int = Field(4, ge=0, le=100, description="Surfaces (largest first) that get texture previews.")
 
 
+class OutputSection(StrictModel):
+    """How the reshaped pieces are written."""
+
+    mesh_format: Annotated[Literal["input", "usd", "usda"], USD_NEEDS_EXTRA] = Field(
+        "input", description="input = each piece in its input's format (OBJ with its MTL and textures, or GLB; a "
+        "piece given in memory as OBJ); usd writes <piece>.usdc, usda text .usda, with UsdPreviewSurface materials "
+        "and their textures (the reshaped surfaces' baked ones included) beside it (the usd extra).",
+    )
+
+
 class ReshapeConfig(RunConfig):
     """``synthkit reshape``: structure-preserving reshape of a textured mesh or a chain of pieces."""
 
@@ -341,6 +351,7 @@ class ReshapeConfig(RunConfig):
     texture_reshape: TextureSection = Field(default_factory=TextureSection)
     preview_size: int = Field(512, ge=64, le=2048, description="Side of the PNG previews in pixels.")
     view: Literal["front", "top", "side", "iso"] = Field("iso", description="View of the previews.")
+    output: OutputSection = Field(default_factory=OutputSection)
 
     @model_validator(mode="after")
     def _input_or_pieces(self):

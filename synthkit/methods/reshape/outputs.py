@@ -1,7 +1,8 @@
 """What ``synthkit reshape`` gives back (:class:`ReshapeResult`) and the files it writes.
 
 Files: each piece in its input's format (an OBJ with its MTL and textures copied beside it, or a
-GLB; a piece given in memory as an OBJ with a new MTL), with UVs and materials unchanged except
+GLB; a piece given in memory as an OBJ with a new MTL) or, with ``output.mesh_format`` usd/usda, as
+``<piece>.usdc``/``.usda`` with its textures beside it, with UVs and materials unchanged except
 the reshaped surfaces' (new materials in the piece's MTL, their PNGs beside it); ``before.png``, ``after.png``
 (elongated edges blue, compressed red, handles green), ``baseline.png``, ``comparison.png``, the
 textured ``before_after.png`` of a single piece and the texture previews of Figs. 7-8 under
@@ -20,6 +21,7 @@ from synthkit.api import Result
 from synthkit.asset import Asset
 from synthkit.io.assets import load_asset, save_asset
 from synthkit.io.images import save_image
+from synthkit.io.usd import USD_SUFFIXES, load_usd, mesh_suffix
 from synthkit.methods.reshape import previews as P
 from synthkit.methods.reshape.retexture import safe_name
 from synthkit.methods.reshape.textured import Retexture, TexturedMesh, reshaped_asset
@@ -95,7 +97,7 @@ class ReshapeResult(Result):
                 write_texture_previews(ctx, cfg, self.previews.surfaces)
         with ctx.stage("outputs"):
             for name, mesh in self.textured.items():
-                write_piece(ctx, name, mesh, self.retexture[name])
+                write_piece(ctx, name, mesh, self.retexture[name], mesh_format=cfg.output.mesh_format)
             textured = write_textured_summary(ctx, cfg, self.textured)
             write_previews(ctx, cfg, self.previews, level="all" if textured else "summary")
 
@@ -105,12 +107,14 @@ def reshaped(mesh: TexturedMesh, positions: np.ndarray) -> TexturedMesh:
     return replace(mesh, V=positions[mesh.position_index], positions=positions)
 
 
-def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture]) -> None:
-    """One piece in its input's format (a glTF as a GLB; a piece given in memory as an OBJ), with
-    its MTL and textures beside an OBJ and, with ``entries``, its reshaped surfaces' materials and
-    textures (:func:`reshaped_asset`)."""
+def write_piece(ctx, name: str, mesh: TexturedMesh, entries: list[Retexture], *, mesh_format: str = "input") -> None:
+    """One piece in its input's format (``mesh_format`` input: a glTF as a GLB, a piece given in
+    memory as an OBJ) or as USD, with its MTL and textures beside an OBJ and, with ``entries``, its
+    reshaped surfaces' materials and textures (:func:`reshaped_asset`)."""
     asset = reshaped_asset(mesh, mesh.positions, entries)
     suffix = ".obj" if mesh.in_memory else {".gltf": ".glb"}.get(mesh.source.suffix.lower(), mesh.source.suffix.lower())
+    if mesh_format != "input":
+        suffix = mesh_suffix(mesh_format)
     target = ctx.path(f"mesh_{name}", f"{name}{suffix}")
     for extra in save_asset(target, asset.V, asset.F, like=asset, corner_uv=asset.corner_uv,
                             face_material=asset.face_material, corner_color=asset.corner_color,
@@ -128,7 +132,8 @@ def write_textured_summary(ctx, cfg, meshes: dict[str, TexturedMesh]) -> bool:
     before = mesh.asset
     if not before.textured and before.corner_color is None:
         return False
-    after = load_asset(ctx.out_dir / ctx.outputs[f"mesh_{name}"])
+    written = ctx.out_dir / ctx.outputs[f"mesh_{name}"]
+    after = (load_usd if written.suffix in USD_SUFFIXES else load_asset)(written)
     before_after_png(ctx.path("before_after", "before_after.png"),
                      *[(a.V, a.F, Appearance.of(a, like_input=True)) for a in (before, after)],
                      size=cfg.preview_size)

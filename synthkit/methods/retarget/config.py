@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from synthkit.config import InputFile, RunConfig, StrictModel
+from synthkit.config import USD_NEEDS_EXTRA, InputFile, RunConfig, StrictModel
 
 __all__ = ["CONFIG", "RetargetConfig", "AnalysisSection", "TargetSection", "Pin"]
 
@@ -91,6 +91,16 @@ class Pin(StrictModel):
     shift: list[int] = Field(min_length=3, max_length=3, description="Label: integer shift per grid axis.")
 
 
+class OutputSection(StrictModel):
+    """How the retargeted mesh is written."""
+
+    mesh_format: Annotated[Literal["input", "obj", "glb", "ply", "usd", "usda"], USD_NEEDS_EXTRA] = Field(
+        "input", description="Format of the retargeted meshes: input = the input's (glTF as GLB, a mesh given in "
+        "memory as GLB when it has UVs or materials, else PLY); usd writes .usdc, usda text .usda, with "
+        "UsdPreviewSurface materials and their textures beside it (the usd extra).",
+    )
+
+
 class RetargetConfig(RunConfig):
     """``synthkit retarget``: resize a mesh along its principal offsets by a graph cut."""
 
@@ -120,6 +130,7 @@ class RetargetConfig(RunConfig):
         ),
     )
     preview_size: int = Field(256, ge=64, le=2048, description="Side of the PNG previews in pixels.")
+    output: OutputSection = Field(default_factory=OutputSection)
 
 
 CONFIG = RetargetConfig

@@ -33,6 +33,7 @@ from synthkit.asset import Asset
 from synthkit.core.mesh import normalize_unit
 from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.inputs import Inputs
+from synthkit.io.usd import mesh_suffix
 from synthkit.methods.retarget.analysis import Analysis, analyze
 from synthkit.methods.retarget.corners import pack
 from synthkit.methods.retarget.figures import (
@@ -106,7 +107,8 @@ class NoRepetition(InputError):
 
 def _load(cfg, inputs: Inputs, src: str, ctx):
     """Read the input with its appearance: ``(asset, Vn (#V, 3) normalised, center (3,), scale,
-    (Va, Fa) the mesh the analysis samples, normalised, suffix of the output mesh)``. A scene of
+    (Va, Fa) the mesh the analysis samples, normalised, suffix of the output mesh (``output.mesh_format``,
+    by default the input's))``. A scene of
     several meshes (a GLB/glTF scene) becomes one mesh (materials kept per face; the nodes are not:
     ``metrics.merged_meshes`` and one warning). An OBJ's material groups are one mesh already.
 
@@ -123,6 +125,8 @@ def _load(cfg, inputs: Inputs, src: str, ctx):
     ctx.metrics["merged_meshes"] = merged
     if merged > 1:
         log.warning("merged %d meshes of %s", merged, src)
+    if cfg.output.mesh_format != "input":
+        suffix = mesh_suffix(cfg.output.mesh_format)
     try:
         _, center, scale = normalize_unit(V[np.unique(F)])
     except ValueError as exc:

@@ -7,11 +7,11 @@ region, vertex or face indices and polylines in model units snapped to the surfa
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from synthkit.config import InputFile, RunConfig, StrictModel
+from synthkit.config import USD_NEEDS_EXTRA, InputFile, RunConfig, StrictModel
 
 __all__ = [
     "CONFIG", "SurfacingConfig", "Region", "ImageStrokes", "ViewsSection", "BoundarySection", "RegionTermSection",
@@ -306,6 +306,17 @@ class TransferSection(StrictModel):
                            "much as the run.")
 
 
+class OutputSection(StrictModel):
+    """How mode transfer writes the transferred mesh."""
+
+    mesh_format: Annotated[Literal["input", "usd", "usda"], USD_NEEDS_EXTRA] = Field(
+        "input", description="mode transfer: input = transferred.obj + .mtl for texture signals and, for "
+        "displacement, the displaced mesh in the input's format; usd writes transferred.usdc instead (usda: text "
+        ".usda), with its colours, UVs and UsdPreviewSurface materials, their textures beside it (the usd extra). "
+        "transferred.ply is written either way.",
+    )
+
+
 class SurfacingConfig(RunConfig):
     """``synthkit surface-by-numbers``: region-centric segmentation by graph cut (mode: segment)."""
 
@@ -339,6 +350,7 @@ class SurfacingConfig(RunConfig):
     )
     preview_size: int = Field(512, ge=64, le=4096, description="Side of the PNG previews in pixels.")
     transfer: TransferSection | None = Field(None, description="mode: transfer: the pairs and the synthesis settings.")
+    output: OutputSection = Field(default_factory=OutputSection)
 
     @model_validator(mode="after")
     def _unique_names(self):
@@ -350,6 +362,9 @@ class SurfacingConfig(RunConfig):
             raise ValueError(f"regions: mode segment needs at least two regions (got {len(names)})")
         if self.mode == "transfer":
             self._check_transfer(names)
+        elif self.output.mesh_format != "input":
+            raise ValueError(f"output.mesh_format: {self.output.mesh_format} applies to mode transfer (mode "
+                             f"{self.mode} writes its meshes in the input's format)")
         for k, item in enumerate(self.images):
             unknown = sorted(set(item.colors) - set(names))
             if unknown:

@@ -6,7 +6,8 @@ for displacement when the input is not PLY, ``transferred.obj`` + ``.mtl`` for t
 (the target's material ``original`` with ``transferred_original.png`` when it has a texture, no
 material where it has none, and one material ``transfer_<k>`` per texture pair whose faces have
 UVs into ``transferred_transfer_<k>.png``: the source image with ``blend: none``, else the blended
-texture baked into an atlas), ``patches.ply``
+texture baked into an atlas; with ``output.mesh_format`` usd/usda,
+``transferred.usdc``/``.usda`` and its textures instead of both), ``patches.ply``
 (int32 ``label`` = patch id per face, -1 outside every target region; ids count on over the
 pairs), and the previews ``transfer.png`` (before and after from three views: the summary),
 ``patches.png``, ``seams.png`` (seam cost per edge on its faces) and ``params.png`` (the first
@@ -28,6 +29,7 @@ from synthkit.asset import Asset, Material
 from synthkit.io.assets import save_asset
 from synthkit.io.meshes import save_mesh
 from synthkit.io.signals import write_signal_ply
+from synthkit.io.usd import mesh_suffix
 
 __all__ = ["TransferResult", "transferred_asset", "PALETTE"]
 
@@ -128,17 +130,29 @@ class TransferResult(Result):
                                 face_material=asset.face_material)[1:]:
             ctx.path(f"file_{extra}", extra)
 
+    def _export_usd(self, ctx) -> None:
+        """``transferred.usdc`` (``.usda``): :attr:`asset` (displaced positions, colours, UVs and the
+        materials of ``transferred.obj``) with its textures beside it."""
+        a = self.asset
+        target = ctx.path("transferred_usd", f"transferred{mesh_suffix(self.config.output.mesh_format)}")
+        for extra in save_asset(target, a.V, a.F, like=a, corner_uv=a.corner_uv, face_material=a.face_material,
+                                corner_color=a.corner_color)[1:]:
+            ctx.path(f"file_{extra}", extra)
+
     def _export(self, ctx) -> None:
         F = self.faces
         write_signal_ply(ctx.path("transferred", "transferred.ply"), self.positions, F, _u8(self.colors),
                          self.attributes)
         suffix = self.input_suffix
         textured_obj = self.corner_uv is not None and suffix == ".obj"  # that OBJ carries the displaced positions
-        if any(p.signal == "displacement" for p in self.config.transfer.pairs) and suffix in (".obj", ".off", ".stl") \
-                and not textured_obj:
+        usd = self.config.output.mesh_format != "input"
+        if usd:
+            self._export_usd(ctx)
+        elif any(p.signal == "displacement" for p in self.config.transfer.pairs) \
+                and suffix in (".obj", ".off", ".stl") and not textured_obj:
             displaced = trimesh.Trimesh(self.positions, F, process=False)
             save_mesh(displaced, ctx.path("transferred_mesh", f"transferred{suffix}"))
-        if self.corner_uv is not None:
+        if self.corner_uv is not None and not usd:
             self._export_obj(ctx)
         pal = np.vstack([PALETTE, [[90, 90, 90]]])
         fc = pal[np.where(self.patch_ids >= 0, self.patch_ids % len(PALETTE), len(PALETTE))]

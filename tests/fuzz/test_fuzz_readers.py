@@ -4,12 +4,14 @@ refuses the file with one line that names it (exit 2/3), within CASE_SECONDS, no
 
 from __future__ import annotations
 
+import functools
 import re
 import shutil
 import time
 
 import numpy as np
 import pytest
+import trimesh
 from hypothesis import example, given
 
 from synthkit.errors import InputError
@@ -20,6 +22,8 @@ from synthkit.io.probe import image_shape, mesh_face_count
 from synthkit.io.segmentation import read_seg
 from synthkit.io.signals import read_face_labels
 from synthkit.io.textured import load_textured
+from synthkit.methods.surfacing.prepare import ViewCache
+from synthkit.methods.surfacing.views import UNNAMED_COLORS_SHOWN, image_strokes
 
 from .conftest import CASE_SECONDS, RECIPES, SAMPLES
 
@@ -73,6 +77,30 @@ def _shape(result) -> None:
     assert result is None or (len(result) == 2 and min(result) >= 0)
 
 
+@functools.cache
+def _figure_front():
+    """``(V, F, camera, face-ID buffer, render)`` of the front view the bundled stroke PNG was painted on."""
+    mesh = trimesh.load(SAMPLES / "surfacing-figure.ply", process=False)
+    cam, face_at, rendered = ViewCache(mesh, 256)["front"]
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces), cam, face_at, rendered
+
+
+def _strokes(path):
+    """The strokes of a painted PNG of the figure's front view (its four region colours), as the
+    painted config reads them; an image of another size is refused as the pipeline refuses it."""
+    img = load_image(path)
+    V, F, cam, face_at, rendered = _figure_front()
+    if img.shape[:2] != face_at.shape:
+        return None
+    colors = np.array([[220, 40, 40], [40, 60, 220], [40, 180, 60], [160, 60, 170]]) / 255.0
+    return image_strokes(img, rendered, face_at, V, F, cam, colors, tolerance=0.1)
+
+
+def _stroke_sets(result) -> None:
+    sets, counts = result
+    assert len(sets) == 4 and counts["read"] >= 0 and len(counts["unnamed"]) <= UNNAMED_COLORS_SHOWN
+
+
 IMAGE_READERS = [*[(lambda p, m=m: load_image(p, mode=m), _image(m)) for m in ("rgb", "gray", "any")],
                  (image_shape, _shape)]
 
@@ -81,7 +109,7 @@ READERS = {
     "stl-ascii": MESH_READERS, "glb": MESH_READERS, "gltf": MESH_READERS,
     "label-ply": LABEL_PLY_READERS, "label-ply-ascii": LABEL_PLY_READERS, "seg": SEG_READERS,
     "png8": IMAGE_READERS, "png16": IMAGE_READERS, "png-alpha": IMAGE_READERS, "jpeg": IMAGE_READERS,
-    "tiff": IMAGE_READERS, "stroke-png": IMAGE_READERS,
+    "tiff": IMAGE_READERS, "stroke-png": [*IMAGE_READERS, (_strokes, _stroke_sets)],
 }
 
 

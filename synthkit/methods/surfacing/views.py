@@ -33,6 +33,7 @@ colour that names no region (:func:`unnamed_colors`)."""
 UNNAMED_COLORS_SHOWN = 5
 """Most colours that name no region :func:`unnamed_colors` tells apart (the rest only counted)."""
 
+
 def face_id_buffer(V, F, cam: Camera) -> np.ndarray:
     """``(size, size) int64``: the nearest face at each pixel, -1 where no face is seen."""
     F = np.asarray(F, np.int64)

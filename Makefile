@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-dev
 BENCH_STAMP := $(VENV)/.installed-bench
 
 .DEFAULT_GOAL := help
-.PHONY: help install browser constraints demo test test-fast bench pictures samples samples-check lint clean
+.PHONY: help install browser constraints demo test test-fast fuzz bench pictures samples samples-check lint clean
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -44,6 +44,9 @@ test: $(STAMP) browser ## Install, then run the whole test suite (what CI runs)
 
 test-fast: $(STAMP) ## Run the tests not marked slow
 	$(BIN)/python -m pytest -q -m "not slow"
+
+fuzz: $(STAMP) ## Fuzz every reader longer: SYNTHKIT_FUZZ_EXAMPLES cases per format (default 400; figures in docs/performance.md)
+	SYNTHKIT_FUZZ=1 $(BIN)/python -m pytest -q tests/fuzz -k "not command_line" --hypothesis-show-statistics
 
 bench: $(BENCH_STAMP) ## Run the benchmarks; figures go to bench-results/<area>.json
 	@set -e; for script in benchmarks/[a-z]*.py; do echo "== $$script"; $(BIN)/python $$script; done

@@ -89,7 +89,7 @@ class _Group(click.Group):
                    "work estimated beyond it is refused before it starts.")
 @click.option("--strict", is_flag=True,
               help="Exit 3 when an output mesh is over its method's quality limits (the run is written, "
-                   "its report says degraded).")
+                   "its report says degraded); exit 2 for a painted stroke colour that names no region.")
 @click.pass_context
 def cli(ctx: click.Context, verbose: int, quiet: bool, max_memory: float | None, strict: bool) -> None:
     """Example-based 3D model and texture synthesis, driven by YAML configs.

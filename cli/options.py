@@ -79,7 +79,8 @@ def global_options(command: Callable) -> Callable:
                      expose_value=False, callback=_set_root("max_memory", nan_refused),
                      help="Memory one run may plan to use, in GiB (also before the command)."),
         click.option("--strict", is_flag=True, expose_value=False, callback=_set_root("strict"),
-                     help="Exit 3 when an output is over its quality limits (also before the command)."),
+                     help="Exit 3 when an output is over its quality limits, 2 for a painted colour that names "
+                          "no region (also before the command)."),
     ]
     for option in reversed(options):
         command = option(command)

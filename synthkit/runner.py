@@ -64,6 +64,10 @@ class RunContext:
         linked once the pipeline is done.
     previews : str
         ``"all"``, ``"summary"`` or ``"none"`` (``--previews``); ask :meth:`wants_preview`.
+    strict : bool
+        ``--strict``: a pipeline refuses (exit 2) what it would otherwise only warn about where it
+        says so (surface-by-numbers: a painted colour that names no region); quality is judged by
+        :func:`run_config`.
     budget : Budget
         The run's memory budget; call ``ctx.budget.require(key, value, count, unit, bytes_each=...)``
         with each size estimate before allocating (see :mod:`synthkit.limits`).
@@ -77,8 +81,10 @@ class RunContext:
         show_progress: bool = True,
         budget: Budget | None = None,
         previews: str = "all",
+        strict: bool = False,
     ):
         self.out_dir = None if out_dir is None else Path(out_dir)
+        self.strict = strict
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
         self.show_progress = show_progress
@@ -300,7 +306,8 @@ def run_config(
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
     config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
     with staged_output(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite) as staging:
-        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews)
+        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews,
+                         strict=strict)
         name = Path(os.path.abspath(out_dir)).name
         ctx.label = f"{method} {name}"
         ctx.name_outputs_as = name if name_outputs else None

@@ -116,9 +116,9 @@ def _mtl_material(name: str, mtl: Path, lines: list[str]) -> Material:
         parts = line.split()
         key = parts[0].lower()
         if key == "kd" and len(parts) >= 4:
-            mat.color[:3] = np.clip([_float(x, mtl, line) for x in parts[1:4]], 0, 1)
+            mat.color[:3] = np.clip([float(x) for x in parts[1:4]], 0, 1)
         elif key == "d" and len(parts) >= 2:
-            mat.color[3] = float(np.clip(_float(parts[1], mtl, line), 0, 1))
+            mat.color[3] = float(np.clip(float(parts[1]), 0, 1))
         if not key.startswith(objfile.MAP_KEYS):
             mat.mtl_lines.append(line)
             continue
@@ -132,13 +132,6 @@ def _mtl_material(name: str, mtl: Path, lines: list[str]) -> Material:
         elif key == "map_kd":
             _read_base_color(mat, image, mtl, written)
     return mat
-
-
-def _float(token: str, mtl: Path, line: str) -> float:
-    try:
-        return float(token)
-    except ValueError:
-        raise InputError(f"{mtl}: malformed MTL statement {line!r}") from None
 
 
 def _read_base_color(mat: Material, image: Path, mtl: Path, written: str) -> None:

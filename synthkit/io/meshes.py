@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -88,14 +89,32 @@ def _names_material(obj: Path) -> bool:
 
 def trimesh_load(path: Path, *, process: bool = False):
     """``trimesh.load(path)`` with trimesh's log records held and reported in our words (module
-    docstring); a file trimesh cannot read is an InputError naming it."""
-    with _trimesh_records() as records:
+    docstring) and the Python warnings of its parsers (casts of NaN, overflow) at DEBUG level; a
+    file trimesh cannot read, or whose faces name vertices it does not hold, is an InputError
+    naming it."""
+    with _trimesh_records() as records, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         try:
             loaded = trimesh.load(path, process=process)
         except Exception as exc:  # trimesh raises many types for corrupt files
             raise InputError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    for warning in caught:
+        log.debug("%s: trimesh: %s", path, warning.message)
     _report_trimesh_records(records, path)
+    geoms = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
+    for geom in geoms:
+        if isinstance(geom, trimesh.Trimesh):
+            _check_face_indices(np.asarray(geom.faces), len(geom.vertices), path)
     return loaded
+
+
+def _check_face_indices(F: np.ndarray, n_vertices: int, source: Path | str) -> None:
+    """InputError naming the first face of ``F`` that names a vertex outside ``[0, n_vertices)``."""
+    bad = (F < 0) | (F >= n_vertices)
+    if F.size and bad.any():
+        k = int(np.flatnonzero(bad.any(axis=-1))[0])
+        raise InputError(f"{source}: face {k} names vertex {int(F[k][bad[k]][0])}, out of range "
+                         f"[0, {n_vertices}) ({int(bad.any(axis=-1).sum())} such faces)")
 
 
 class _Collect(logging.Handler):
@@ -167,17 +186,18 @@ def check_mesh(V: np.ndarray, F: np.ndarray, *, source: Path | str = "mesh") -> 
     if V.ndim != 2 or V.shape[1] != 3 or V.shape[0] == 0:
         raise InputError(f"{source}: mesh has no 3-D vertices")
     if not np.isfinite(V).all():
-        bad = int((~np.isfinite(V)).any(axis=1).sum())
-        raise InputError(f"{source}: {bad} vertices have NaN or infinite coordinates")
-    if F.min() < 0 or F.max() >= V.shape[0]:
-        raise InputError(f"{source}: face indices out of range [0, {V.shape[0]})")
+        bad = (~np.isfinite(V)).any(axis=1)
+        raise InputError(f"{source}: {int(bad.sum())} vertices have NaN or infinite coordinates "
+                         f"(first: vertex {int(np.flatnonzero(bad)[0])})")
+    _check_face_indices(F, V.shape[0], source)
     looped = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
     if looped.any():
         k = int(np.flatnonzero(looped)[0])
         raise InputError(f"{source}: {int(looped.sum())} of {len(F)} faces name one vertex twice "
                          f"(first: face {k}, vertices {F[k].tolist()})")
     T = V[F].astype(np.float64)
-    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: an infinite area is an area
+        area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
     if not (area > 0).any():
         raise InputError(f"{source}: every triangle has zero area ({len(F)} faces)")
 

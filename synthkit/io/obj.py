@@ -224,16 +224,28 @@ def mtl_files(names: list[str], folder: Path) -> list[Path]:
     return found
 
 
+_MTL_NUMBERS = {"ka": 3, "kd": 3, "ks": 3, "ke": 3, "tf": 3, "d": 1, "tr": 1, "ns": 1, "ni": 1}
+"""MTL statements of numbers and how many they take at least."""
+
+
 def read_mtl(path: Path) -> dict[str, list[str]]:
-    """Material name -> its MTL block's statements (stripped, ``newmtl`` left out), in file order."""
+    """Material name -> its MTL block's statements (stripped, ``newmtl`` left out), in file order.
+    A colour or factor statement whose values are not finite numbers is an InputError naming the
+    file and the line."""
     blocks: dict[str, list[str]] = {}
     current = None
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+    for number, line in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines(), start=1):
         tokens = line.split()
         if tokens and tokens[0] == "newmtl":
             current = line.strip()[len("newmtl"):].strip()
             blocks[current] = []
         elif tokens and not tokens[0].startswith("#") and current is not None:
+            key = tokens[0].lower()
+            if key in _MTL_NUMBERS:
+                try:
+                    _floats(tokens[1:], 1, _MTL_NUMBERS[key], tokens[0])
+                except ValueError as exc:
+                    raise InputError(f"{path}: line {number}: malformed MTL statement: {exc}") from None
             blocks[current].append(line.strip())
     return blocks
 

@@ -8,6 +8,7 @@ Property types are PLY's ``float`` (``<f4``), ``int`` (``<i4``) and ``uchar`` (`
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -71,14 +72,22 @@ def _header(path: Path) -> tuple[list[str], bytes]:
                 return lines, fh.read()
 
 
-def _elements(lines: list[str]) -> list[tuple[str, int, list[list[str]]]]:
-    """``(name, count, property lines split)`` of each element of a header."""
+def _elements(lines: list[str], path: Path) -> list[tuple[str, int, list[list[str]]]]:
+    """``(name, count, property lines split)`` of each element of a header; a malformed ``element``
+    or ``property`` line, or a property declared twice, is an InputError naming its line."""
     elements: list[tuple[str, int, list[list[str]]]] = []
-    for line in lines:
+    for number, line in enumerate(lines, start=2):  # line 1 is "ply"
         parts = line.split()
-        if parts[:1] == ["element"] and len(parts) == 3:
+        if parts[:1] == ["element"]:
+            if len(parts) != 3 or not (parts[2].isascii() and parts[2].isdigit()):
+                raise InputError(f"{path}: PLY header line {number}: expected 'element <name> <count>', got {line!r}")
             elements.append((parts[1], int(parts[2]), []))
         elif parts[:1] == ["property"] and elements:
+            if len(parts) != (5 if parts[1:2] == ["list"] else 3):
+                raise InputError(f"{path}: PLY header line {number}: malformed property line {line!r}")
+            if any(prop[-1] == parts[-1] for prop in elements[-1][2]):
+                raise InputError(f"{path}: PLY header line {number}: property '{parts[-1]}' of element "
+                                 f"'{elements[-1][0]}' is declared twice")
             elements[-1][2].append(parts[1:])
     return elements
 
@@ -87,6 +96,8 @@ def _fixed_dtype(props: list[list[str]]) -> np.dtype | None:
     """The record dtype of an element whose lists are triangles (``list uchar int``, read as 3),
     or None for a layout this reader does not take (other list types, unknown scalars)."""
     fields = []
+    if sum(prop[0] == "list" for prop in props) > 1:
+        return None
     for prop in props:
         if prop[0] == "list":
             if prop[1:3] not in (["uchar", "int"], ["uint8", "int32"]):
@@ -106,11 +117,20 @@ def read_face_property(path: Path | str, name: str) -> np.ndarray:
 
     Raises
     ------
-    InputError : not a PLY, truncated, no face property ``name``.
+    InputError : not a PLY, a malformed header line, truncated, no face property ``name``, a value
+        that is not one finite number per face.
     """
     path = Path(path)
+    values = _face_property(path, name)
+    if values.dtype.kind == "f" and not np.isfinite(values).all():
+        k = int(np.flatnonzero(~np.isfinite(values))[0])
+        raise InputError(f"{path}: PLY face {k} has {name} {values[k]}; expected a finite number")
+    return values
+
+
+def _face_property(path: Path, name: str) -> np.ndarray:
     lines, body = _header(path)
-    elements = _elements(lines)
+    elements = _elements(lines, path)
     face_props = next((props for element, _, props in elements if element == "face"), [])
     if not any(prop[-1] == name and prop[0] != "list" for prop in face_props):
         raise InputError(f"{path}: PLY has no per-face '{name}' property")
@@ -119,26 +139,40 @@ def read_face_property(path: Path | str, name: str) -> np.ndarray:
         return _read_with_trimesh(path, name)
     offset = 0
     for (element, count, _), dtype in zip(elements, dtypes, strict=True):
+        if count and not dtype.itemsize:
+            raise InputError(f"{path}: PLY element '{element}' has {count} records but no properties")
         if element == "face":
-            if len(body) < offset + count * dtype.itemsize:
-                raise InputError(f"{path}: truncated PLY ({len(body)} bytes of data, "
-                                 f"{offset + count * dtype.itemsize} expected)")
-            records = np.frombuffer(body, dtype=dtype, count=count, offset=offset)
-            if count and not (records["__count"] == 3).all():
-                return _read_with_trimesh(path, name)
-            return records[name].copy()
+            return _binary_faces(path, body, offset, count, dtype, name)
         offset += count * dtype.itemsize
     raise InputError(f"{path}: PLY has no faces")
+
+
+def _binary_faces(path: Path, body: bytes, offset: int, count: int, dtype: np.dtype, name: str) -> np.ndarray:
+    """Property ``name`` of the ``count`` face records of ``dtype`` at ``offset`` of a binary body."""
+    if "__count" not in dtype.names:
+        raise InputError(f"{path}: PLY element 'face' has no vertex_indices list")
+    if len(body) < offset + count * dtype.itemsize:
+        raise InputError(f"{path}: truncated PLY ({len(body)} bytes of data, "
+                         f"{offset + count * dtype.itemsize} expected)")
+    records = np.frombuffer(body, dtype=dtype, count=count, offset=offset)
+    if count and not (records["__count"] == 3).all():
+        return _read_with_trimesh(path, name)
+    return records[name].copy()
 
 
 def _read_with_trimesh(path: Path, name: str) -> np.ndarray:
     import trimesh
 
-    try:
-        loaded = trimesh.load(path, process=False)
-    except Exception as exc:  # trimesh raises many types for corrupt files
-        raise InputError(f"{path}: cannot read PLY: {type(exc).__name__}: {exc}".splitlines()[0]) from None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # trimesh casts NaN and huge numbers with a RuntimeWarning; checked below
+        try:
+            loaded = trimesh.load(path, process=False)
+        except Exception as exc:  # trimesh raises many types for corrupt files
+            raise InputError(f"{path}: cannot read PLY: {type(exc).__name__}: {exc}".splitlines()[0]) from None
     raw = getattr(loaded, "metadata", {}).get("_ply_raw", {}).get("face", {}).get("data", {})
     if not isinstance(raw, dict) or name not in raw:
         raise InputError(f"{path}: PLY has no per-face '{name}' property")
-    return np.asarray(raw[name]).reshape(-1)
+    values = np.asarray(raw[name])
+    if values.dtype == object or values.ndim != 2 or values.shape[1] != 1:
+        raise InputError(f"{path}: PLY face property '{name}' is not one number per face")
+    return values.reshape(-1)

@@ -57,8 +57,8 @@ def mesh_face_count(path: Path | str) -> int | None:
             return _glb_faces(path)
         if suffix == ".obj":
             return _obj_faces(path)
-    except (OSError, ValueError, struct.error, UnicodeDecodeError):
-        return None
+    except (OSError, ValueError, struct.error, UnicodeDecodeError, LookupError, TypeError, AttributeError):
+        return None  # a header this pass cannot read: the reader says what is wrong with the file
     return None
 
 

@@ -5,6 +5,7 @@ All writes are atomic (a temporary file beside the target, then renamed).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,8 @@ import numpy as np
 from synthkit.errors import InputError
 from synthkit.io.atomic import write_bytes_atomic
 from synthkit.io.ply import ply_bytes
+
+_LABEL = re.compile(rb"[-+]?[0-9]+")
 
 RGB = ("red", "green", "blue")
 """PLY's colour property names."""
@@ -38,15 +41,32 @@ def write_seg(path, face_labels) -> None:
 
 
 def read_seg(path, n_faces: int | None = None) -> np.ndarray:
-    """Face labels ``(#F,) int64`` of a ``.seg`` file; InputError when unreadable or of the wrong length."""
+    """Face labels ``(#F,) int64`` of a ``.seg`` file (one integer per line; blank lines and ``#``
+    comments skipped); InputError naming the file, and the line where one is at fault, when it is
+    unreadable, not text, holds something other than an int32 label, no label, or the wrong count."""
     path = Path(path)
     try:
-        labels = np.loadtxt(path, dtype=np.int64, ndmin=1)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read segmentation: {exc}".splitlines()[0]) from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read segmentation: {exc.strerror or exc}") from None
+    labels = [_seg_label(path, number, line) for number, line in enumerate(data.split(b"\n"), start=1)]
+    labels = [label for label in labels if label is not None]
+    if not labels:
+        raise InputError(f"{path}: segmentation holds no labels")
     if n_faces is not None and len(labels) != n_faces:
         raise InputError(f"{path}: {len(labels)} labels for {n_faces} faces")
-    return labels
+    return np.array(labels, np.int64)
+
+
+def _seg_label(path: Path, number: int, line: bytes) -> int | None:
+    """The label on line ``number`` of a ``.seg`` file, None for a blank or comment line."""
+    token = line.split(b"#", 1)[0].strip()
+    if not token:
+        return None
+    if not _LABEL.fullmatch(token) or not -(2**31) <= int(token) < 2**31:
+        shown = token[:24].decode("ascii", "backslashreplace")
+        raise InputError(f"{path}: line {number}: {shown!r} is not an integer face label")
+    return int(token)
 
 
 def write_polylines_obj(path, V, polylines) -> None:

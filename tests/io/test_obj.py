@@ -179,3 +179,10 @@ def test_glb_keeps_names_normals_tangents_sampler_and_image(tmp_path):
     again = load_asset(tmp_path / "out.glb")
     assert again.materials[0].image.shape == asset.materials[0].image.shape
     np.testing.assert_allclose(again.corner_uv, asset.corner_uv, atol=1e-6)
+
+
+def test_a_malformed_mtl_number_names_the_mtl_and_its_line(tmp_path):
+    (tmp_path / "a.mtl").write_text("newmtl red\nNs 10\nKd 1 x 0\n")
+    (tmp_path / "a.obj").write_text("mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n")
+    with pytest.raises(InputError, match=r"a.mtl: line 3: malformed MTL statement: could not convert string"):
+        load_asset(tmp_path / "a.obj")

@@ -544,7 +544,7 @@ def test_image_strokes_select_the_same_vertices_as_vertex_strokes(samples, tmp_p
     face_at = views.face_id_buffer(V, F, cam)
     sets, counts = views.image_strokes(load_image(png), views.render(V, F, face_at, cam), face_at, V, F, cam,
                                        np.array([[1.0, 0, 0], [0, 0, 1.0]]), tolerance=0.1)
-    assert counts == {"read": len(body) + len(head), "ignored": 0, "ignored_rgb": None}
+    assert counts == {"read": len(body) + len(head), "ignored": 0, "ignored_rgb": None, "unnamed": []}
     np.testing.assert_array_equal(sets[0], np.sort(body))
     np.testing.assert_array_equal(sets[1], np.sort(head))
     # the same through the CLI: painted strokes and vertex strokes give the same labels
@@ -628,12 +628,80 @@ def test_bundled_painted_config_reads_the_same_when_blurred_or_jpeg(tmp_path):
         cfg.write_text(text.replace("../../data-samples/surfacing-figure-front.png", str(image)) + "preview_size: 64\n")
         result = invoke(cfg, tmp_path / name)
         assert result.exit_code == 0, result.stderr
+        assert "names no region" not in result.stderr
         labels.append(np.loadtxt(tmp_path / name / "labels.seg"))
         report = json.loads((tmp_path / name / "report.json").read_text())
         assert report["metrics"]["painted_pixels"][0]["read"] > 100
         assert "reach only faces seen from view 'front'" in report["metrics"]["stroke_notes"][0]
     assert np.mean(labels[0] == labels[1]) >= 0.99 and np.mean(labels[0] == labels[2]) >= 0.99
     assert (tmp_path / "orig" / "regions.png").is_file()
+
+
+def _bundled_painted(tmp_path, img=None, name="paint.png"):
+    """The bundled painted config over ``img`` (default: the bundled painted PNG) saved as ``name``."""
+    from synthkit.io.images import load_image, save_image
+
+    root = Path(__file__).resolve().parents[2]
+    png = root / "data-samples" / "surfacing-figure-front.png"
+    image = tmp_path / name
+    save_image(image, load_image(png) if img is None else img)
+    text = (root / "configs" / "surface-by-numbers" / "painted.yaml").read_text()
+    text = text.replace("../../data-samples/surfacing-figure.ply", str(root / "data-samples" / "surfacing-figure.ply"))
+    cfg = tmp_path / "painted.yaml"
+    cfg.write_text(text.replace("../../data-samples/surfacing-figure-front.png", str(image)) + "preview_size: 64\n")
+    return cfg, image
+
+
+def _with_cyan_dab():
+    from synthkit.io.images import load_image
+
+    img = load_image(Path(__file__).resolve().parents[2] / "data-samples" / "surfacing-figure-front.png")
+    img[125:132, 125:132] = [0, 1, 1]  # 7x7 pixels over the body, between the four region dabs
+    return img
+
+
+def test_a_painted_colour_that_names_no_region_is_one_warning_or_exit_2_with_strict(tmp_path):
+    cfg, png = _bundled_painted(tmp_path, _with_cyan_dab())
+    said = (f"images[0].image: {png}: 49 pixels are painted in #00ffff (rgb [0, 255, 255]), a colour that names "
+            f"no region: farther than 0.3 from every colour of images[0].colors")
+    result = invoke(cfg, tmp_path / "out")
+    assert result.exit_code == 0, result.stderr
+    assert [line for line in result.stderr.splitlines() if "names no region" in line] == [
+        f"WARNING synthkit.methods.surfacing.prepare: {said}"]
+    assert "match no stroke colour" not in result.stderr  # the dab is said once, by its colour
+    strict = CliRunner().invoke(cli, ["--strict", "surface-by-numbers", str(cfg), "--out", str(tmp_path / "s"),
+                                      "--no-progress"])
+    assert strict.exit_code == 2
+    assert strict.stderr.strip().splitlines()[-1] == f"error: {cfg}: {said} (--strict)"
+
+
+def test_blurred_and_jpeg_strokes_name_no_unknown_colour():
+    """The measurement behind STROKE_COLOR_TOLERANCE, kept: the bundled painted PNG blurred, as a JPEG
+    of quality 75 and 50, and blurred then JPEG'd shows no colour that names no region; the cyan dab does."""
+    import io
+
+    from PIL import Image
+    from scipy.ndimage import gaussian_filter
+
+    from synthkit.io.images import load_image
+    from synthkit.methods.surfacing import prepare
+    from synthkit.methods.surfacing.views import unnamed_colors
+
+    root = Path(__file__).resolve().parents[2]
+    mesh = trimesh.load(root / "data-samples" / "surfacing-figure.ply", process=False)
+    _, _, rendered = prepare.ViewCache(mesh, 256)["front"]
+    img = load_image(root / "data-samples" / "surfacing-figure-front.png")
+    colors = np.array([[220, 40, 40], [40, 60, 220], [40, 180, 60], [160, 60, 170]]) / 255.0
+
+    def jpeg(a, quality):
+        buf = io.BytesIO()
+        Image.fromarray((np.clip(a, 0, 1) * 255).round().astype(np.uint8)).save(buf, "JPEG", quality=quality)
+        return np.asarray(Image.open(buf), np.float32) / 255.0
+
+    blurred = gaussian_filter(img, (1.2, 1.2, 0))
+    for degraded in (blurred, jpeg(img, 75), jpeg(img, 50), jpeg(blurred, 75), jpeg(blurred, 50)):
+        assert unnamed_colors(degraded, rendered, colors, tolerance=0.1) == []
+    assert unnamed_colors(_with_cyan_dab(), rendered, colors, tolerance=0.1) == [([0, 255, 255], 49)]
 
 
 def test_polyline_chords_are_traced_on_the_surface(samples):

@@ -107,13 +107,15 @@ def _strokes(cfg: SurfacingConfig, ctx, mesh, cache: prepare.ViewCache, inputs: 
     """Stroke owners; with painted images, their pixel counts and notes in the metrics and the log."""
     with ctx.stage("strokes"):
         notes: dict = {}
-        owners = prepare.stroke_owners(cfg, mesh, cache, inputs, notes)
+        owners = prepare.stroke_owners(cfg, mesh, cache, inputs, notes, strict=ctx.strict)
     if cfg.images:
         ctx.metrics.update(notes)
-        ignored = sum(c["ignored"] for c in notes["painted_pixels"])
+        counts = notes["painted_pixels"]
+        ignored = sum(max(c["ignored"] - sum(u["pixels"] for u in c["unnamed"]), 0) for c in counts)
         if ignored:
-            log.warning("%d painted pixels match no stroke colour and were ignored (report.json "
-                        "metrics.painted_pixels)", ignored)
+            other = "other " if any(c["unnamed"] for c in counts) else ""
+            log.warning("%d %spainted pixels match no stroke colour and were ignored (report.json "
+                        "metrics.painted_pixels)", ignored, other)
         for note in notes["stroke_notes"]:
             log.warning("%s", note)
     return owners

@@ -10,6 +10,8 @@ concerns; the two pipelines raise it as a ConfigError (exit 2).
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import trimesh
 
@@ -18,6 +20,8 @@ from synthkit.methods.surfacing import views
 from synthkit.methods.surfacing.options import segment_options, stroke_colors
 from synthkit.methods.surfacing.segment import Segmentation, segment
 from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
+
+log = logging.getLogger(__name__)
 
 __all__ = ["ViewCache", "mesh_colors", "stroke_owners", "segmentation", "BYTES_PER_NODE"]
 
@@ -85,6 +89,19 @@ def _no_strokes(key: str, region, counts: list[dict]) -> KeyedError:
                       f"images){hint}")
 
 
+def _say_unnamed_colors(cfg, counts: list[dict], strict: bool) -> None:
+    """One warning per painted colour that names no region (``counts[k]["unnamed"]``); with
+    ``strict``, the first is a KeyedError of its image."""
+    for k, c in enumerate(counts):
+        for color in c["unnamed"]:
+            line = (f"{cfg.images[k].image}: {color['pixels']} pixels are painted in {color['hex']} (rgb "
+                    f"{color['rgb']}), a colour that names no region: farther than {views.STROKE_COLOR_TOLERANCE} "
+                    f"from every colour of images[{k}].colors")
+            if strict:
+                raise KeyedError(f"images[{k}].image", line + " (--strict)")
+            log.warning("images[%d].image: %s", k, line)
+
+
 def _one_view_notes(cfg, seen: list[set], other: list[bool]) -> list[str]:
     """One note per view for the regions whose strokes all come from images of that view alone: the
     faces it does not see (their far side) hold none of their strokes, so there only the cut decides."""
@@ -105,10 +122,11 @@ def _keyed(key: str, call, *args, **kwargs):
 
 
 def stroke_owners(cfg, mesh: trimesh.Trimesh, cache: ViewCache, inputs,
-                  notes: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  notes: dict | None = None, *, strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Owners of stroked vertices ``(#V,)`` and faces ``(#F,)`` of ``cfg.regions`` and ``cfg.images``
     (painted PNGs read through ``inputs``). ``notes`` (when given) receives ``painted_pixels`` (per
-    image) and ``stroke_notes``."""
+    image) and ``stroke_notes``. A painted colour that names no region is a warning, or with
+    ``strict`` a KeyedError."""
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     from_images, seen, counts = _image_sets(cfg, cache, inputs)
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
@@ -126,6 +144,7 @@ def stroke_owners(cfg, mesh: trimesh.Trimesh, cache: ViewCache, inputs,
             raise _no_strokes(key, region, counts)
         vsets.append(v)
         fsets.append(f)
+    _say_unnamed_colors(cfg, counts, strict)
     if notes is not None:
         notes["painted_pixels"] = counts
         notes["stroke_notes"] = _one_view_notes(cfg, seen, other)

@@ -19,7 +19,20 @@ import numpy as np
 
 from synthkit.preview import VIEWS, Camera, camera, shaded_colors
 
-__all__ = ["VIEWS", "Camera", "camera", "face_id_buffer", "render", "paint_regions", "image_strokes"]
+__all__ = ["VIEWS", "Camera", "camera", "face_id_buffer", "render", "paint_regions", "image_strokes",
+           "unnamed_colors", "STROKE_COLOR_TOLERANCE"]
+
+STROKE_COLOR_TOLERANCE = 0.3
+"""Largest channel residual (0-1) a painted pixel may have from every stroke colour blended over the
+render, and from the render's own range around it, and still be paint of a stroke colour. Measured
+2026-12-03 on the bundled painted PNG (data-samples/surfacing-figure-front.png): its stroke pixels
+reach 0.001 blurred (Gaussian, sigma 1.2), 0.287 as a JPEG of quality 75, 0.291 at quality 50, 0.199
+blurred then quality 50; pure cyan over that figure's render reaches 0.466. A pixel farther is a
+colour that names no region (:func:`unnamed_colors`)."""
+
+UNNAMED_COLORS_SHOWN = 5
+"""Most colours that name no region :func:`unnamed_colors` tells apart (the rest only counted)."""
+
 
 def face_id_buffer(V, F, cam: Camera) -> np.ndarray:
     """``(size, size) int64``: the nearest face at each pixel, -1 where no face is seen."""
@@ -86,13 +99,47 @@ def paint_regions(img, rendered, colors, *, tolerance: float, opacity: float) ->
     for r, c in enumerate(np.asarray(colors, np.float64)):
         if np.isnan(c).any():
             continue
-        dc = c[None, :] - base
-        alpha = np.clip((delta * dc).sum(axis=1) / np.maximum((dc * dc).sum(axis=1), 1e-12), 0.0, 1.0)
-        resid = np.abs(delta - alpha[:, None] * dc).max(axis=1)
+        alpha, resid = _blend(delta, base, c)
         take = (alpha >= opacity) & (resid <= tolerance) & (resid < best)
         best[take], region[take] = resid[take], r
     out[painted] = region
     return out
+
+
+def _blend(delta: np.ndarray, base: np.ndarray, color: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares opacity ``(n,)`` in [0, 1] of paint ``color (3,)`` explaining each pixel's
+    difference ``delta (n, 3)`` from its render ``base (n, 3)``, and the largest channel residual."""
+    dc = color[None, :] - base
+    alpha = np.clip((delta * dc).sum(axis=1) / np.maximum((dc * dc).sum(axis=1), 1e-12), 0.0, 1.0)
+    return alpha, np.abs(delta - alpha[:, None] * dc).max(axis=1)
+
+
+def unnamed_colors(img, rendered, colors, *, tolerance: float) -> list[tuple[list[int], int]]:
+    """``(rgb 0-255, pixels)`` of each colour painted on ``img`` that names no region, most pixels
+    first (at most :data:`UNNAMED_COLORS_SHOWN`): painted pixels (differing from ``rendered`` by more
+    than ``tolerance``) farther than :data:`STROKE_COLOR_TOLERANCE` from every row of ``colors``
+    blended over the render at any opacity, and from the render's range in the 5x5 pixels around
+    them (blur and JPEG ringing at the model's outline). Each colour is the commonest of those
+    pixels left, with the pixels it explains blended over the render (its soft edges)."""
+    from scipy.ndimage import maximum_filter, minimum_filter
+
+    img, rendered = np.asarray(img, np.float64), np.asarray(rendered, np.float64)
+    outside = np.maximum(minimum_filter(rendered, size=(5, 5, 1)) - img,
+                         img - maximum_filter(rendered, size=(5, 5, 1))).max(axis=2)
+    far = (np.abs(img - rendered).max(axis=2) > tolerance) & (outside > STROKE_COLOR_TOLERANCE)
+    delta, base = (img - rendered)[far], rendered[far]
+    for c in np.asarray(colors, np.float64):
+        if len(delta) and not np.isnan(c).any():
+            keep = _blend(delta, base, c)[1] > STROKE_COLOR_TOLERANCE
+            delta, base = delta[keep], base[keep]
+    found = []
+    while len(delta) and len(found) < UNNAMED_COLORS_SHOWN:
+        rgb, counts = np.unique(np.round((base + delta) * 255).astype(np.int64), axis=0, return_counts=True)
+        color = rgb[np.argmax(counts)]
+        member = _blend(delta, base, color / 255.0)[1] <= STROKE_COLOR_TOLERANCE
+        found.append((color.tolist(), int(member.sum())))
+        delta, base = delta[~member], base[~member]
+    return found
 
 
 def image_strokes(img, rendered, face_at, V, F, cam: Camera, colors, *, tolerance: float,
@@ -104,7 +151,8 @@ def image_strokes(img, rendered, face_at, V, F, cam: Camera, colors, *, toleranc
     :func:`paint_regions`. A stroke pixel over a face strokes the face's corner nearest to the pixel
     centre (of corners on one line of sight, the nearer); over the background it is ignored. The
     counts: ``read`` (stroke pixels over the model), ``ignored`` (painted pixels near no stroke
-    colour) and ``ignored_rgb`` (the commonest such colour, 0-255, or None)."""
+    colour), ``ignored_rgb`` (the commonest such colour, 0-255, or None) and ``unnamed`` (the
+    colours that name no region, :func:`unnamed_colors`, as ``{"rgb", "hex", "pixels"}``)."""
     img = np.asarray(img, np.float64)
     if img.shape[:2] != face_at.shape:
         raise ValueError(f"image is {img.shape[1]}x{img.shape[0]} pixels, the view renders "
@@ -125,5 +173,7 @@ def image_strokes(img, rendered, face_at, V, F, cam: Camera, colors, *, toleranc
     if len(odd):
         rgb, counts = np.unique(odd, axis=0, return_counts=True)
         common = rgb[np.argmax(counts)].tolist()
-    counts = {"read": int(len(region)), "ignored": int(len(odd)), "ignored_rgb": common}
+    unnamed = [{"rgb": rgb, "hex": "#{:02x}{:02x}{:02x}".format(*rgb), "pixels": n}
+               for rgb, n in unnamed_colors(img, rendered, colors, tolerance=tolerance)]
+    counts = {"read": int(len(region)), "ignored": int(len(odd)), "ignored_rgb": common, "unnamed": unnamed}
     return [np.unique(nearest[region == r]) for r in range(len(colors))], counts

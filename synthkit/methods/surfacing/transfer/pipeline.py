@@ -79,7 +79,8 @@ class Prepared:
 def _segmentation(cfg, ctx, mesh, inputs: Inputs) -> np.ndarray:
     """Face labels of ``mesh`` segmented by ``cfg.regions`` (mode segment's stages)."""
     with ctx.stage("strokes"):
-        owners = prepare.stroke_owners(cfg, mesh, prepare.ViewCache(mesh, cfg.views.size), inputs)
+        owners = prepare.stroke_owners(cfg, mesh, prepare.ViewCache(mesh, cfg.views.size), inputs,
+                                       strict=ctx.strict)
     return prepare.segmentation(cfg, ctx, mesh, *owners).face_labels
 
 

@@ -4,9 +4,13 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-dev
 BENCH_STAMP := $(VENV)/.installed-bench
+BLENDER_VENV := .venv-blender
+BLENDER_STAMP := $(BLENDER_VENV)/.installed
+VALIDATOR := tools/gltf-validator
+VALIDATOR_STAMP := $(VALIDATOR)/node_modules/.installed
 
 .DEFAULT_GOAL := help
-.PHONY: help install browser constraints demo test test-fast fuzz bench pictures samples samples-check lint clean
+.PHONY: help install browser clients constraints demo test test-fast fuzz bench pictures samples samples-check lint clean
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -22,6 +26,21 @@ $(BENCH_STAMP): $(STAMP)
 	touch $(BENCH_STAMP)
 
 install: $(STAMP) ## Create .venv and install synthkit with its test tools
+
+# Blender and the validator are test clients: where one cannot be installed, its tests skip and
+# say why (a note here too), except under CI=true, where a failed install fails the target.
+CLIENT_FAILED = { [ "$$CI" = true ] && exit 1; echo "note: $(1) not installed; tests/clients will skip its tests"; }
+
+$(BLENDER_STAMP): constraints-blender.txt
+	@{ test -x $(BLENDER_VENV)/bin/python || $(PYTHON) -m venv $(BLENDER_VENV); } && \
+	  $(BLENDER_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -c constraints-blender.txt bpy && \
+	  touch $(BLENDER_STAMP) || $(call CLIENT_FAILED,Blender (bpy))
+
+$(VALIDATOR_STAMP): $(VALIDATOR)/package.json $(VALIDATOR)/package-lock.json
+	@( cd $(VALIDATOR) && npm ci --no-audit --no-fund --loglevel=error ) && \
+	  touch $(VALIDATOR_STAMP) || $(call CLIENT_FAILED,the glTF-Validator (npm))
+
+clients: $(BLENDER_STAMP) $(VALIDATOR_STAMP) ## Install Blender (bpy, in .venv-blender) and the Khronos glTF-Validator (npm) for tests/clients
 
 constraints: $(STAMP) ## Rewrite constraints.txt from the installed .venv (after a deliberate upgrade)
 	{ echo "# Exact versions synthkit's tests passed with (Python 3.11, $$(date +%F)); make install uses them:"; \
@@ -39,7 +58,7 @@ browser: ## Install Debian's chromium for the review page's browser test (as roo
 demo: $(STAMP) ## Install, then run every bundled config in configs/ into out/
 	$(BIN)/synthkit run configs/*/*.yaml --out-root out --overwrite --no-progress
 
-test: $(STAMP) browser ## Install, then run the whole test suite (what CI runs)
+test: $(STAMP) browser clients ## Install, then run the whole test suite (what CI runs)
 	$(BIN)/python -m pytest -q
 
 test-fast: $(STAMP) ## Run the tests not marked slow
@@ -63,6 +82,6 @@ samples-check: $(STAMP) ## Regenerate samples in a temporary folder and compare 
 lint: $(STAMP) ## Run ruff over the project
 	$(BIN)/ruff check .
 
-clean: ## Remove outputs, benchmark results and caches (keeps .venv)
+clean: ## Remove outputs, benchmark results and caches (keeps .venv, .venv-blender and the validator)
 	rm -rf out bench-results .pytest_cache .ruff_cache build *.egg-info
 	find . -name __pycache__ -not -path './.venv/*' -prune -exec rm -rf {} +

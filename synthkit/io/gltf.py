@@ -67,18 +67,21 @@ def _uri_bytes(uri: str, folder: Path) -> bytes:
 
 
 def _image_bytes(doc: dict, image: dict, binary: bytes, folder: Path) -> bytes:
+    """The file bytes of ``image``: from its buffer view (the GLB's binary chunk, or a buffer's URI)
+    or its own URI."""
     if "bufferView" in image:
         view = doc["bufferViews"][image["bufferView"]]
-        if view.get("buffer", 0) != 0 or not binary:
-            raise ValueError("image in an external buffer")
+        buffer = doc["buffers"][view.get("buffer", 0)]
+        data = binary if "uri" not in buffer else _uri_bytes(buffer["uri"], folder)
         start = view.get("byteOffset", 0)
-        return binary[start:start + view["byteLength"]]
+        return data[start:start + view["byteLength"]]
     return _uri_bytes(image["uri"], folder)
 
 
 def read_gltf_info(path: Path) -> GltfInfo:
     """The names and objects of the glTF file ``path`` (GLB or ``.gltf``) that a GLB written from
-    it keeps (module docstring). An image that cannot be read is left out with its bytes empty.
+    it keeps (module docstring). An image that cannot be read keeps empty bytes (a material using
+    it is written from its colour and decoded texture).
     Raises InputError naming the file when its JSON cannot be read."""
     try:
         data = path.read_bytes()
@@ -164,12 +167,29 @@ class _Materials:
         if k not in self.done:
             mat = self.like.materials[k]
             gltf = self.like.gltf
-            if gltf is not None and mat.gltf_index is not None and mat.gltf_index < len(gltf.materials):
+            if gltf is not None and mat.gltf_index is not None and self._readable(gltf.materials[mat.gltf_index]):
                 entry = self._remap(copy.deepcopy(gltf.materials[mat.gltf_index]))
             else:
                 entry = self._from_material(mat)
             self.done[k] = self.b.add("materials", entry)
         return self.done[k]
+
+    def _readable(self, node) -> bool:
+        """Whether every texture a material's JSON ``node`` references has an image whose bytes were
+        read (else the material is written from its colour and decoded texture)."""
+        gltf = self.like.gltf
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key.endswith("Texture") and isinstance(value, dict) and "index" in value:
+                    t = value["index"]
+                    source = gltf.textures[t].get("source") if t < len(gltf.textures) else None
+                    if source is None or source >= len(gltf.images) or not gltf.images[source][1]:
+                        return False
+                elif not self._readable(value):
+                    return False
+        elif isinstance(node, list):
+            return all(self._readable(v) for v in node)
+        return True
 
     def _remap(self, node):
         """``node`` (a material's JSON) with every texture reference's index renumbered."""

@@ -186,3 +186,22 @@ def test_a_malformed_mtl_number_names_the_mtl_and_its_line(tmp_path):
     (tmp_path / "a.obj").write_text("mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n")
     with pytest.raises(InputError, match=r"a.mtl: line 3: malformed MTL statement: could not convert string"):
         load_asset(tmp_path / "a.obj")
+
+
+def test_a_gltf_with_external_buffers_keeps_its_image_bytes(tmp_path):
+    import trimesh
+    from PIL import Image
+
+    texture = (np.arange(4 * 4 * 3) % 251).astype(np.uint8).reshape(4, 4, 3)
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(
+        uv=(box.vertices[:, :2] + 0.5) * 0.9,
+        material=trimesh.visual.material.PBRMaterial(name="paint", baseColorTexture=Image.fromarray(texture)))
+    for name, data in trimesh.Scene(box).export(file_type="gltf").items():
+        (tmp_path / name).write_bytes(data)
+    asset = load_asset(tmp_path / "model.gltf")
+    assert asset.materials[0].gltf_index == 0 and asset.gltf.images[0][1].startswith(b"\x89PNG")
+    save(tmp_path / "out.glb", asset)
+    out = _glb_json(tmp_path / "out.glb")
+    assert out["materials"][0]["name"] == "paint" and out["images"][0]["mimeType"] == "image/png"
+    np.testing.assert_array_equal(load_asset(tmp_path / "out.glb").materials[0].image[..., :3], texture)

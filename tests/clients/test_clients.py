@@ -10,6 +10,7 @@ import json
 import os
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,9 +18,7 @@ import pytest
 import yaml
 from scipy.spatial import cKDTree
 
-from synthkit.errors import SynthkitError
 from synthkit.io.assets import load_asset
-from synthkit.runner import run_config
 
 from ..conftest import SHARED_DATA
 
@@ -27,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 BLENDER = ROOT / ".venv-blender" / "bin" / "python"
 VALIDATOR = ROOT / "tools" / "gltf-validator"
 PROBE = Path(__file__).with_name("blender_probe.py")
+SYNTHKIT = [sys.executable, "-c", "from synthkit.cli.main import main; main()"]
 MESH_SUFFIXES = (".obj", ".glb", ".ply", ".usdc", ".usda")
 CORNER_TOL = 1e-5
 """Largest distance between a Blender corner (position, UV; float32) and the nearest corner our reader sees."""
@@ -78,20 +78,20 @@ def _real_config(folder: Path, name: str, spec: dict) -> Path:
 @pytest.fixture(scope="session")
 def runs(tmp_path_factory) -> dict[str, Path]:
     """Run name -> output folder: every bundled config of a method that writes meshes, and the
-    real assets (where ../shared/data is present)."""
+    real assets (where ../shared/data is present); ``synthkit run`` with two workers, as a batch
+    job runs them. A refused run writes no mesh (nothing for a client to open) and is left out."""
     root = tmp_path_factory.mktemp("clients")
-    configs = {p.stem: p for m in METHODS_WITH_MESHES for p in sorted((ROOT / "configs" / m).glob("*.yaml"))}
+    configs = [p for m in METHODS_WITH_MESHES for p in sorted((ROOT / "configs" / m).glob("*.yaml"))]
     if SHARED_DATA.is_dir():
-        configs |= {name: _real_config(root, name, spec) for name, spec in REAL.items()}
-    out = {}
-    for name, config in configs.items():
-        try:
-            run_config(config, out_dir=root / name, show_progress=False, previews="none")
-        except SynthkitError as exc:  # a refusal writes no mesh: nothing for a client to open
-            assert exc.exit_code in (2, 3), f"{name}: {exc}"
-            continue
-        out[name] = root / name
-    return out
+        configs += [_real_config(root, name, spec) for name, spec in REAL.items()]
+    proc = subprocess.run([*SYNTHKIT, "run", *map(str, configs), "--out-root", str(root / "out"), "--workers", "2",
+                           "--previews", "none", "--no-progress"], capture_output=True, text=True, timeout=900)
+    assert proc.returncode in (0, 3), proc.stderr[-3000:]
+    folders = {p.stem: root / "out" / p.stem for p in configs}
+    done = {name: f for name, f in folders.items() if (f / "report.json").is_file()}
+    assert all(json.loads((f / "report.json").read_text())["status"] in ("ok", "degraded") for f in done.values())
+    assert len(done) >= len(folders) - 1, proc.stderr[-3000:]
+    return done
 
 
 def _mesh_outputs(folder: Path) -> list[Path]:

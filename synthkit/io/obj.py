@@ -104,7 +104,7 @@ def _index(token: str, count: int, what: str) -> int:
     if token == "":
         return -1
     value = int(token)
-    if value == 0 or abs(value) > _MAX_INDEX:
+    if value == 0 or abs(value) > _MAX_INDEX or count + value < 0:
         raise ValueError(f"{what} index {token} is out of range")
     return value - 1 if value > 0 else count + value
 

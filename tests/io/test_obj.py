@@ -88,6 +88,7 @@ def test_a_material_name_with_a_space_is_one_name(tmp_path):
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", r"a.obj: line 4: malformed OBJ statement: vertex index 0 is out of range"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", r"line 4: .*vertex index 9+ is out of range"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", r"a.obj: line 4: malformed OBJ statement: 'f' needs 3 corners, got 2"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/-1 2 3\n", r"a.obj: line 4: malformed OBJ statement: texture index -1 is out"),
     ("v 0 0 0\nv 1 0 0\n", r"a.obj: mesh has no faces \(2 vertices, no triangles\)"),
 ])
 def test_malformed_statements_name_the_file_and_line(tmp_path, text, message):

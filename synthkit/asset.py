@@ -36,7 +36,7 @@ class Material:
     maps : the MTL block's texture-map statements: ``(statement without the file name, file)``,
         the file resolved (``map_Kd`` included, whether or not the file exists)
     gltf_index : the material's index among ``Asset.gltf.materials`` (glTF input), or None
-    pbr : the trimesh material object of a mesh given in memory, or None
+    pbr : the trimesh material object of a glTF or of a mesh given in memory (its PBR factors), or None
     """
 
     name: str

@@ -187,9 +187,8 @@ def _link_gltf_materials(asset: Asset) -> None:
     for mat in asset.materials:
         if mat.name is not None and names.count(mat.name) == 1:
             mat.gltf_index = names.index(mat.name)
-            mat.pbr = None
     if len(asset.materials) == 1 and len(names) == 1:
-        asset.materials[0].gltf_index, asset.materials[0].pbr = 0, None
+        asset.materials[0].gltf_index = 0
 
 
 def _geometry_appearance(g: trimesh.Trimesh):

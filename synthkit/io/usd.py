@@ -309,7 +309,7 @@ def _check_arrays(V, F, corner_uv, corner_normals, corner_color, face_material, 
 
 
 def usd_material(mat) -> UsdMaterial:
-    """The :class:`UsdMaterial` of an asset's :class:`~synthkit.io.assets.Material` (its PBR
+    """The :class:`UsdMaterial` of an asset's :class:`~synthkit.asset.Material` (its PBR
     factors from a GLB's material; its texture file's bytes from an OBJ's). Read by attribute:
     this module does not import :mod:`synthkit.io.assets`, so that one can call :func:`write_usd`."""
     pbr = mat.pbr

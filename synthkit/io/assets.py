@@ -318,6 +318,11 @@ def save_asset(path: Path | str, V, F, *, like: Asset, corner_uv=None, face_mate
     if suffix not in WRITE_SUFFIXES:
         raise ValueError(f"unsupported mesh format {suffix!r} (use {', '.join(WRITE_SUFFIXES)})")
     V, F, corner_uv, face_material, corner_color = _check_shapes(V, F, corner_uv, face_material, corner_color, like)
+    for key, value in (("face_polygon", face_polygon), ("face_group", face_group)):
+        if value is not None and np.shape(value) != (len(F),):
+            raise ValueError(f"{key} must have shape ({len(F)},), got {np.shape(value)}")
+    if face_group is not None and len(F) and not 0 <= np.min(face_group) <= np.max(face_group) < len(like.groups):
+        raise ValueError(f"face_group indexes {len(like.groups)} groups")
     V, F, _ = _used_vertices(V, F)
     if suffix == ".obj":
         return _write_obj(path, V, F, corner_uv, face_material, corner_color, like, face_polygon, face_group)

@@ -206,3 +206,12 @@ def test_a_gltf_with_external_buffers_keeps_its_image_bytes(tmp_path):
     out = _glb_json(tmp_path / "out.glb")
     assert out["materials"][0]["name"] == "paint" and out["images"][0]["mimeType"] == "image/png"
     np.testing.assert_array_equal(load_asset(tmp_path / "out.glb").materials[0].image[..., :3], texture)
+
+
+def test_polygon_and_group_arrays_of_the_wrong_shape_are_refused(tmp_path):
+    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\no one\nf 1 2 3\n")
+    asset = load_asset(tmp_path / "a.obj")
+    with pytest.raises(ValueError, match=r"face_polygon must have shape \(1,\), got \(2,\)"):
+        save(tmp_path / "out.obj", asset, face_polygon=np.zeros(2, np.int64))
+    with pytest.raises(ValueError, match=r"face_group indexes 2 groups"):
+        save(tmp_path / "out.obj", asset, face_group=np.array([5]))

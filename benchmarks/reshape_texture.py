@@ -18,8 +18,8 @@ door, two windows and a plinth over plaster noise, 512^2) and its 2x upscale (10
   over input), and the time of each.
 
 - real houses (../shared/data/architecture/houses, skipped when absent): house1, 2 and 4 widened by
-  30 % and raised by 20 % through whole ``synthkit reshape`` runs; over the surfaces that map a
-  door, window or garage rectangle of their atlas (the fixture rectangles of
+  30 % and raised by 20 % through whole ``synthkit reshape`` runs with ``texture: reshape``; over the
+  surfaces that map a door, window or garage rectangle of their atlas (the fixture rectangles of
   tests/methods/test_reshape_texture.py), the mean rigid scale error of ours and of the naive
   stretch, and the texture stage's time.
 
@@ -179,7 +179,7 @@ def bench_real(quick: bool) -> None:
     cases = [("house1_baked.obj", "widen")] if quick else [(h, m) for h in HOUSE_ATLAS for m in ("widen", "raise")]
     for name, mode in cases:
         mesh = load_textured(HOUSES / name)
-        cfg = {"method": "reshape", "input": str(HOUSES / name), "contacts": {"tol": 1e-4}, "baseline": False,
+        cfg = {"method": "reshape", "input": str(HOUSES / name), "contacts": {"tol": 1e-4}, "texture": "reshape",
                **house_motion(mesh.V, mode)}
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "house.yaml"

@@ -5,7 +5,7 @@ its own name, so every run has its own output folder), run in the same process:
 
 1. one after another in this process, as ``synthkit run --workers 1`` does (``run_config`` per run);
 2. on a local cluster of 2 single-threaded workers, as ``synthkit run --workers 2`` does
-   (``synthkit.batch.local_cluster`` + ``run_on_dask``), cluster start and shutdown included.
+   (``synthkit.cluster.local_cluster`` + ``run_on_dask``), cluster start and shutdown included.
 
 Figures: the wall-clock speedup of 2 workers over 1 (goal >= 1.7x on a 2-core machine) and the
 scheduling overhead per run (goal <= 50 ms): the time from submitting a run to having its result in
@@ -30,8 +30,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import print_table, record, write_results  # noqa: E402
-from synthkit import batch  # noqa: E402
-from synthkit.runner import run_config  # noqa: E402
+from synthkit import batch, cluster  # noqa: E402
+from synthkit.plan import Job  # noqa: E402
+from synthkit.runner import RunSettings, run_config  # noqa: E402
 
 AREA = "batch"
 REPO = Path(__file__).resolve().parent.parent
@@ -56,8 +57,8 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="the four fastest configs, 12 runs")
     ap.add_argument("--runs", type=int, default=None, help="number of runs (default 30, 12 with --quick)")
     args = ap.parse_args()
-    if batch.dask_missing():
-        sys.exit(f"benchmarks/batch.py needs Dask distributed: pip install '{batch.DIST_EXTRA}'")
+    if cluster.dask_missing():
+        sys.exit(f"benchmarks/batch.py needs Dask distributed: pip install '{cluster.DIST_EXTRA}'")
     if args.quick:
         configs = [REPO / "configs" / f"{name}.yaml" for name in QUICK]
     else:
@@ -70,12 +71,12 @@ def main() -> None:
             run_config(REPO / "configs" / f"{name}.yaml", out_dir=work / "warm" / Path(name).name,
                        show_progress=False)
 
+        settings = RunSettings(show_progress=False)
         seq_root = work / "seq"
         start = time.perf_counter()
         seq_seconds = []
         for link in links:
-            outcome = batch.execute(str(link), str(seq_root / link.stem), seed=None, overrides=[], overwrite=False,
-                                    max_bytes=None)
+            outcome = batch.execute(Job(str(link), [], out=str(seq_root / link.stem)), settings)
             assert outcome["status"] == "ok", outcome["error"]
             seq_seconds.append(outcome["seconds"])
         t_seq = time.perf_counter() - start
@@ -84,18 +85,17 @@ def main() -> None:
 
         par_root = work / "par"
         start = time.perf_counter()
-        cluster = batch.local_cluster(2)
-        client = Client(cluster, set_as_default=False)
-        batch.prepare_workers(client)
+        local = cluster.local_cluster(2)
+        client = Client(local, set_as_default=False)
+        cluster.prepare_workers(client)
         t_start = time.perf_counter() - start
         outcomes: dict[int, dict] = {}
-        tasks = [{"config": str(link), "out_dir": str(par_root / link.stem), "seed": None, "overrides": [],
-                  "overwrite": False, "max_bytes": None} for link in links]
+        tasks = [(Job(str(link), [], out=str(par_root / link.stem)), settings) for link in links]
         try:
-            stats = batch.run_on_dask(client, tasks, retries=0, on_done=outcomes.__setitem__)
+            stats = cluster.run_on_dask(client, tasks, retries=0, on_done=outcomes.__setitem__)
         finally:
             client.close()
-            cluster.close()
+            local.close()
         t_par = time.perf_counter() - start
         assert all(o["status"] == "ok" for o in outcomes.values()), [o["error"] for o in outcomes.values()]
         par_seconds = [o["seconds"] for o in outcomes.values()]

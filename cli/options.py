@@ -99,13 +99,17 @@ def strict_mode(ctx: click.Context) -> bool:
     return bool(root.obj.get("strict")) if root.obj else False
 
 
-def run_budget(ctx: click.Context):
-    """The :class:`~synthkit.limits.Budget` of each run, from the group's ``--max-memory`` (GiB)."""
-    from synthkit.limits import Budget
+def run_settings(ctx: click.Context, *, seed, overwrite: bool, no_progress: bool, previews: str,
+                 name_outputs: bool):
+    """The :class:`~synthkit.runner.RunSettings` of every run of this command: its options and the
+    group's ``--max-memory`` (GiB), ``--strict`` and ``-v``/``-q``."""
+    from synthkit.runner import RunSettings
 
     root = ctx.find_root()
     gib = root.obj.get("max_memory") if root.obj else None
-    return Budget(None if gib is None else int(gib * 2**30))
+    return RunSettings(seed=seed, overwrite=overwrite, show_progress=not no_progress and verbosity(ctx) >= 0,
+                       max_bytes=None if gib is None else int(gib * 2**30), previews=previews,
+                       strict=strict_mode(ctx), name_outputs=name_outputs, verbosity=verbosity(ctx))
 
 
 def report_errors(fn: Callable) -> Callable:
@@ -180,19 +184,9 @@ def method_command(
         ctx = click.get_current_context()
         extra_sets = [flags[_flag_name(k)][0] for k, on in extra.items() if on]
         out = out_dir or str(default_out_dir(config))
-        report = run_config(
-            config,
-            method=name,
-            out_dir=out,
-            seed=seed,
-            overrides=[*extra_sets, *overrides],
-            overwrite=overwrite,
-            show_progress=not no_progress and verbosity(ctx) >= 0,
-            budget=run_budget(ctx),
-            previews=previews,
-            strict=strict_mode(ctx),
-            name_outputs=name_outputs,
-        )
+        settings = run_settings(ctx, seed=seed, overwrite=overwrite, no_progress=no_progress, previews=previews,
+                                name_outputs=name_outputs)
+        report = run_config(config, method=name, out_dir=out, overrides=[*extra_sets, *overrides], settings=settings)
         if as_json:
             click.echo(json.dumps(report, indent=2))
         print_summary(ctx, report, out)

@@ -2,7 +2,7 @@
 
 In this process one after another (``--workers 1``, the default), on a local Dask cluster
 (``--workers N``) or on an existing one (``--scheduler`` / ``--scheduler-file``); ``--sweep`` turns
-each config into the Cartesian product of the swept values (:mod:`synthkit.batch`).
+each config into the Cartesian product of the swept values (:mod:`synthkit.plan`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from .options import (
     previews_option,
     print_summary,
     progress_option,
-    run_budget,
+    run_settings,
     seed_option,
     set_option,
     strict_mode,
@@ -66,41 +66,37 @@ def command(ctx, configs, out_root, seed, overrides, sweeps, workers, scheduler,
     rows are written to OUT_ROOT/batch.json, and the command exits with the exit code of the first
     failure (0 when all succeeded).
     """
-    from synthkit import batch, batch_run
+    from synthkit import batch, cluster, plan
     from synthkit.errors import ConfigError
 
     if scheduler and scheduler_file:
         raise click.UsageError("give --scheduler or --scheduler-file, not both")
-    cluster = batch_run.Cluster(workers, scheduler, scheduler_file, connect_timeout, retries)
-    if cluster.remote and workers > 1:
+    where = cluster.Cluster(workers, scheduler, scheduler_file, connect_timeout, retries)
+    if where.remote and workers > 1:
         raise click.UsageError("--workers starts a local cluster; give it or --scheduler, not both")
     try:
-        jobs, notes = batch_run.plan_jobs(configs, sweeps=sweeps, overrides=overrides, seed=seed, out_root=out_root)
-    except batch_run.PlanError as exc:
+        jobs, notes = plan.plan_jobs(configs, sweeps=sweeps, overrides=overrides, seed=seed, out_root=out_root)
+    except plan.PlanError as exc:
         if exc.option:
             raise click.BadParameter(str(exc), param_hint=exc.option) from None
         _fail(ctx, str(exc))
     except ConfigError as exc:
         _fail(ctx, str(exc))
-    if (cluster.remote or workers > 1) and batch.dask_missing():
+    if (where.remote or workers > 1) and cluster.dask_missing():
         option = f"--workers {workers}" if workers > 1 else ("--scheduler" if scheduler else "--scheduler-file")
-        _fail(ctx, f"{option} needs Dask distributed, which is not installed: pip install '{batch.DIST_EXTRA}'")
+        _fail(ctx, f"{option} needs Dask distributed, which is not installed: pip install '{cluster.DIST_EXTRA}'")
     _say(ctx, notes)
-    report = batch_run.BatchReport(jobs, Path(out_root), strict=strict_mode(ctx))
+    report = batch.BatchReport(jobs, Path(out_root), strict=strict_mode(ctx))
+    settings = run_settings(ctx, seed=seed, overwrite=overwrite, no_progress=no_progress, previews=previews,
+                            name_outputs=name_outputs)
     bar = _progress_bar(ctx, len(jobs), no_progress)
     on_done = _printer(ctx, bar)
     problem = None
     try:
-        if cluster.remote or workers > 1:
-            root = ctx.find_root().obj or {}
-            max_bytes = None if root.get("max_memory") is None else int(root["max_memory"] * 2**30)
-            problem = batch_run.run_distributed(report, cluster, seed=seed, overwrite=overwrite, max_bytes=max_bytes,
-                                                verbosity=verbosity(ctx), previews=previews, on_done=on_done,
-                                                name_outputs=name_outputs)
+        if where.remote or workers > 1:
+            problem = cluster.run_distributed(report, where, settings, on_done)
         else:
-            batch_run.run_sequential(report, seed=seed, overwrite=overwrite, budget=run_budget(ctx),
-                                     show_progress=not no_progress and verbosity(ctx) >= 0, previews=previews,
-                                     on_done=on_done, name_outputs=name_outputs)
+            batch.run_sequential(report, settings, on_done)
     finally:
         bar.close()
         _say(ctx, report.finish(), always=True)
@@ -128,7 +124,7 @@ def _printer(ctx, bar):
     """The callback printing each run's outcome above the progress bar: its summary, or its error
     line (with the traceback under -v)."""
 
-    def on_done(i: int, row: dict, exc, trace) -> None:
+    def on_done(i: int, row: dict, trace) -> None:
         with _above(bar):
             if row["status"] in ("ok", "degraded"):
                 print_summary(ctx, row["report"], row["out"])

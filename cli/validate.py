@@ -11,15 +11,15 @@ def _checks(path: str, overrides: tuple[str, ...]) -> tuple[bool, list]:
     """Whether ``path`` is a batch file, and the (config, overrides) pairs to validate for it:
     itself, or for a batch file each of its configs with its ``set:`` and with each sweep value
     its method has (one value at a time)."""
-    from synthkit import batch
+    from synthkit import plan
 
-    spec = batch.read_batch_file(path)
+    spec = plan.read_batch_file(path)
     if spec is None:
         return False, [(path, list(overrides))]
     pairs = []
     for config in spec.configs:
         base = [*spec.overrides, *overrides]
-        kept, _ = batch.axes_for(batch.config_method(config), spec.axes)
+        kept, _ = plan.axes_for(plan.config_method(config), spec.axes)
         pairs.append((config, base))
         pairs += [(config, [*base, f"{key}={value}"]) for key, values in kept for value in values]
     return True, pairs

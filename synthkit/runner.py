@@ -16,6 +16,7 @@ import shutil
 import sys
 import time
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -275,45 +276,83 @@ def _naming_config(exc: SynthkitError, config_path: Path) -> SynthkitError:
     return type(exc)(f"{config_path}: {line}", keep_outputs=exc.keep_outputs)
 
 
+@dataclass(frozen=True)
+class RunSettings:
+    """How runs are carried out, the same for every run of one command, apart from each config.
+
+    Built once by the command line from its options (``cli/options.py``), passed whole to
+    :func:`run_config` and, for a batch, to :func:`synthkit.batch.execute` here or on a Dask worker.
+
+    Attributes
+    ----------
+    seed : int or None
+        Replaces every config's ``seed`` (``--seed``); None keeps each config's own.
+    overwrite : bool
+        Replace an output folder that a previous synthkit run wrote (``--overwrite``).
+    show_progress : bool
+        Stage lines and progress bars on a terminal.
+    max_bytes : int or None
+        Memory budget of each run (``--max-memory``); None: :func:`synthkit.limits.default_max_bytes`
+        of the machine that runs it.
+    previews : str
+        ``"all"``, ``"summary"`` or ``"none"`` (``--previews``).
+    strict : bool
+        ``--strict``: a degraded output raises :class:`QualityError` (exit 3) once written, and a
+        pipeline refuses what it would otherwise only warn about.
+    name_outputs : bool
+        ``--name-outputs``: the summary preview and main result are also linked under the folder's name.
+    verbosity : int
+        -1 quiet, 0 normal, 1 verbose, 2 debug: the logging of a run on a Dask worker.
+    """
+
+    seed: int | None = None
+    overwrite: bool = False
+    show_progress: bool = True
+    max_bytes: int | None = None
+    previews: str = "all"
+    strict: bool = False
+    name_outputs: bool = False
+    verbosity: int = 0
+
+
 def run_config(
     config_path: Path,
     *,
     method: str | None = None,
     out_dir: Path | None = None,
-    seed: int | None = None,
     overrides: Iterable[str] = (),
-    overwrite: bool = False,
-    show_progress: bool = True,
-    budget: Budget | None = None,
-    previews: str = "all",
-    strict: bool = False,
-    name_outputs: bool = False,
+    settings: RunSettings | None = None,
+    **changes: Any,
 ) -> dict[str, Any]:
     """Validate ``config_path``, run its method into ``out_dir`` atomically and return the report.
 
-    See :mod:`synthkit.outdir` for what may be replaced, the lock and the staging folder. With
-    ``strict``, a run whose report says ``degraded`` is written, then raises :class:`QualityError`
-    (exit 3) naming its first figure over a limit. With ``name_outputs``, the summary preview and
-    the main result are also written as ``<folder name>.<suffix>`` and ``<folder name>.preview.png``
-    (hard links), so that files gathered from many runs keep apart.
+    ``settings`` (default :class:`RunSettings`) with ``changes`` to its fields, as keywords
+    (``run_config(path, show_progress=False)``). See :mod:`synthkit.outdir` for what may be
+    replaced, the lock and the staging folder. With ``strict``, a run whose report says
+    ``degraded`` is written, then raises :class:`QualityError` (exit 3) naming its first figure over
+    a limit. With ``name_outputs``, the summary preview and the main result are also written as
+    ``<folder name>.<suffix>`` and ``<folder name>.preview.png`` (hard links), so that files
+    gathered from many runs keep apart.
     """
+    s = replace(settings or RunSettings(), **changes)
     named: list[Path] = []
     fields: list[str] = []
     method, cfg, inputs = load_method_config(
-        config_path, method=method, overrides=overrides, seed=seed, named_inputs=named, input_fields=fields
+        config_path, method=method, overrides=overrides, seed=s.seed, named_inputs=named, input_fields=fields
     )
-    check_input_sizes(inputs, fields, budget if budget is not None else Budget())
+    budget = Budget(s.max_bytes)
+    check_input_sizes(inputs, fields, budget)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(config_path)
     config_forms = [Path(os.path.abspath(config_path)), Path(config_path).resolve()]
-    with staged_output(out_dir, [*named, *inputs, *config_forms], overwrite=overwrite) as staging:
-        ctx = RunContext(staging, seed=cfg.seed, show_progress=show_progress, budget=budget, previews=previews,
-                         strict=strict)
+    with staged_output(out_dir, [*named, *inputs, *config_forms], overwrite=s.overwrite) as staging:
+        ctx = RunContext(staging, seed=cfg.seed, show_progress=s.show_progress, budget=budget, previews=s.previews,
+                         strict=s.strict)
         name = Path(os.path.abspath(out_dir)).name
         ctx.label = f"{method} {name}"
-        ctx.name_outputs_as = name if name_outputs else None
+        ctx.name_outputs_as = name if s.name_outputs else None
         report = _run_staged(method, cfg, ctx, config_path)
     log.info("%s: wrote %s (%.2f s)", method, out_dir, ctx.timings["total"])
-    if strict and report["status"] == "degraded":
+    if s.strict and report["status"] == "degraded":
         raise QualityError(f"{config_path}: output degraded (--strict): {ctx.quality_warnings[0]}")
     return report
 
@@ -479,4 +518,5 @@ def write_json(path: Path, obj: Any) -> None:
     write_text_atomic(path, json.dumps(_finite_or_none(to_jsonable(obj)), indent=2, allow_nan=False) + "\n")
 
 
-__all__ = ["RunContext", "run_config", "load_method_config", "default_out_dir", "write_json", "SynthkitError"]
+__all__ = ["RunContext", "RunSettings", "run_config", "load_method_config", "default_out_dir", "write_json",
+           "SynthkitError"]

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from synthkit import batch
+from synthkit import batch, cluster, plan
 from synthkit.cli.main import cli
 
 REPO = Path(__file__).resolve().parents[2]
@@ -33,16 +33,16 @@ FAST = [
 CONNECT_TIMEOUT = 3.0
 """Seconds the unreachable-scheduler tests allow; the command must give up within this plus start-up."""
 
-needs_dask = pytest.mark.skipif(batch.dask_missing(), reason="needs synthkit[dist]")
+needs_dask = pytest.mark.skipif(cluster.dask_missing(), reason="needs synthkit[dist]")
 
 
 # ------------------------------------------------------------------------------- pure helpers
 
 def test_parse_sweep_values_ranges_and_yaml_lists():
-    assert batch.parse_sweep("seed=0..3") == ("seed", ["0", "1", "2", "3"])
-    assert batch.parse_sweep("synth.patch=16, 24,-2..-1") == ("synth.patch", ["16", "24", "-2", "-1"])
-    assert batch.parse_sweep("output_size=[64, 64],[96,96]") == ("output_size", ["[64, 64]", "[96,96]"])
-    assert batch.parse_sweep("name='a,b',c") == ("name", ["'a,b'", "c"])
+    assert plan.parse_sweep("seed=0..3") == ("seed", ["0", "1", "2", "3"])
+    assert plan.parse_sweep("synth.patch=16, 24,-2..-1") == ("synth.patch", ["16", "24", "-2", "-1"])
+    assert plan.parse_sweep("output_size=[64, 64],[96,96]") == ("output_size", ["[64, 64]", "[96,96]"])
+    assert plan.parse_sweep("name='a,b',c") == ("name", ["'a,b'", "c"])
 
 
 @pytest.mark.parametrize("text, message", [
@@ -56,49 +56,49 @@ def test_parse_sweep_values_ranges_and_yaml_lists():
 ])
 def test_parse_sweep_errors(text, message):
     with pytest.raises(ValueError, match=re.escape(message)):
-        batch.parse_sweep(text)
+        plan.parse_sweep(text)
 
 
 def test_sweep_axes_refuse_a_key_twice_and_product_order():
     with pytest.raises(ValueError, match="seed is swept twice"):
-        batch.sweep_axes(["seed=1,2", "seed=3"])
-    axes = batch.sweep_axes(["seed=1..3", "gain=0.5,2"])
-    combos = list(batch.combinations(axes))
-    assert len(combos) == 6 == batch.count_runs(axes)
+        plan.sweep_axes(["seed=1,2", "seed=3"])
+    axes = plan.sweep_axes(["seed=1..3", "gain=0.5,2"])
+    combos = list(plan.combinations(axes))
+    assert len(combos) == 6 == plan.count_runs(axes)
     assert combos[0] == {"seed": "1", "gain": "0.5"} and combos[1] == {"seed": "1", "gain": "2"}
     assert combos[-1] == {"seed": "3", "gain": "2"}
-    assert list(batch.combinations([])) == [{}] and batch.count_runs([]) == 1
+    assert list(plan.combinations([])) == [{}] and plan.count_runs([]) == 1
 
 
 def test_folder_names_are_sanitised_and_bounded():
-    name = batch.folder_name("facade", {"seed": "3", "analysis.dense_radius": "0.03"})
+    name = plan.folder_name("facade", {"seed": "3", "analysis.dense_radius": "0.03"})
     assert name == "facade__seed-3__analysis.dense_radius-0.03"
-    assert batch.folder_name("quilt", {"output_size": "[64, 64]"}) == "quilt__output_size-64_64"
-    assert batch.folder_name("q", {"name": "'a/b c'"}) == "q__name-a_b_c"
-    long = batch.folder_name("x", {"k": "v" * 300})
-    assert len(long) == batch.MAX_NAME and re.fullmatch(r"[A-Za-z0-9._-]+", long)
-    assert long != batch.folder_name("x", {"k": "v" * 301})
+    assert plan.folder_name("quilt", {"output_size": "[64, 64]"}) == "quilt__output_size-64_64"
+    assert plan.folder_name("q", {"name": "'a/b c'"}) == "q__name-a_b_c"
+    long = plan.folder_name("x", {"k": "v" * 300})
+    assert len(long) == plan.MAX_NAME and re.fullmatch(r"[A-Za-z0-9._-]+", long)
+    assert long != plan.folder_name("x", {"k": "v" * 301})
 
 
 def test_check_access_names_what_a_worker_cannot_see(tmp_path):
     (tmp_path / "probe").write_text("")
     (tmp_path / "in.png").write_text("")
-    assert batch.check_access([str(tmp_path / "in.png")], str(tmp_path), "probe") == []
-    problems = batch.check_access([str(tmp_path / "gone.png")], str(tmp_path), "other-probe")
+    assert cluster.check_access([str(tmp_path / "in.png")], str(tmp_path), "probe") == []
+    problems = cluster.check_access([str(tmp_path / "gone.png")], str(tmp_path), "other-probe")
     assert problems[0] == f"cannot see {tmp_path / 'gone.png'}"
     assert "does not see the --out-root" in problems[1]
 
 
 def test_read_scheduler_file_errors(tmp_path):
-    with pytest.raises(batch.ClusterError, match="no such file"):
-        batch.read_scheduler_file(str(tmp_path / "none.json"))
+    with pytest.raises(cluster.ClusterError, match="no such file"):
+        cluster.read_scheduler_file(str(tmp_path / "none.json"))
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
-    with pytest.raises(batch.ClusterError, match="not a Dask scheduler file"):
-        batch.read_scheduler_file(str(bad))
+    with pytest.raises(cluster.ClusterError, match="not a Dask scheduler file"):
+        cluster.read_scheduler_file(str(bad))
     good = tmp_path / "good.json"
     good.write_text(json.dumps({"address": "tcp://10.0.0.1:8786", "type": "Scheduler"}))
-    assert batch.read_scheduler_file(str(good)) == "tcp://10.0.0.1:8786"
+    assert cluster.read_scheduler_file(str(good)) == "tcp://10.0.0.1:8786"
 
 
 # ------------------------------------------------------------------- sweeps in this process
@@ -118,7 +118,7 @@ def test_sweep_in_process_3x2_folders_and_rows(runner, echo_config, tmp_path):
         report = json.loads((Path(row["out"]) / "report.json").read_text())
         assert report["seed"] == int(row["sweep"]["seed"])
         assert report["config"]["gain"] == float(row["sweep"]["gain"])
-        assert Path(row["out"]).name == batch.folder_name("echo", row["sweep"])
+        assert Path(row["out"]).name == plan.folder_name("echo", row["sweep"])
 
 
 def test_sweep_failure_is_isolated(runner, echo_config, tmp_path):
@@ -189,7 +189,7 @@ def test_batch_usage_errors_are_one_line_exit_2(echo_config, tmp_path, args, mes
 
 @pytest.mark.parametrize("args", [["--workers", "2"], ["--scheduler", "tcp://127.0.0.1:1"]])
 def test_without_dask_the_extra_is_named(runner, echo_config, tmp_path, monkeypatch, args):
-    monkeypatch.setattr(batch, "dask_missing", lambda: True)
+    monkeypatch.setattr(cluster, "dask_missing", lambda: True)
     result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(tmp_path / "o"), *args])
     assert result.exit_code == 2
     assert result.stderr.strip().splitlines() == [
@@ -215,13 +215,13 @@ def _env() -> dict[str, str]:
 
 @pytest.mark.parametrize("address", ["notanaddress", "inproc://x", "tcp://127.0.0.1:99999", "tcp://h:0", "tcp://:1"])
 def test_scheduler_address_checked_before_connecting(address):
-    with pytest.raises(batch.ClusterError, match=re.escape(f"--scheduler {address}: not a scheduler address")):
-        batch.check_address(address, what=f"--scheduler {address}")
+    with pytest.raises(cluster.ClusterError, match=re.escape(f"--scheduler {address}: not a scheduler address")):
+        cluster.check_address(address, what=f"--scheduler {address}")
 
 
 def test_scheduler_addresses_accepted():
     for address in ("tcp://127.0.0.1:8786", "node-3.cluster:8786", "tls://[::1]:8786", "ucx://10.0.0.2:13337"):
-        batch.check_address(address, what="--scheduler")
+        cluster.check_address(address, what="--scheduler")
 
 
 @needs_dask
@@ -414,19 +414,19 @@ def test_local_workers_thread_limits_and_main_thread_imports():
         import sys
         import threading
 
-        from synthkit import batch
+        from synthkit import cluster
 
-        return {"pymeshlab": "pymeshlab" in sys.modules, "threads": {k: os.environ.get(k) for k in batch.THREAD_ENV},
+        return {"pymeshlab": "pymeshlab" in sys.modules, "threads": {k: os.environ.get(k) for k in cluster.THREAD_ENV},
                 "malloc_trim": os.environ.get("MALLOC_TRIM_THRESHOLD_"), "main": threading.current_thread().name}
 
-    cluster = batch.local_cluster(1)
+    local = cluster.local_cluster(1)
     try:
-        with Client(cluster, set_as_default=False) as client:
-            batch.prepare_workers(client)
+        with Client(local, set_as_default=False) as client:
+            cluster.prepare_workers(client)
             (state,) = client.run(worker_state).values()
     finally:
-        cluster.close()
-    assert state == {"pymeshlab": True, "threads": dict.fromkeys(batch.THREAD_ENV, "1"), "malloc_trim": None,
+        local.close()
+    assert state == {"pymeshlab": True, "threads": dict.fromkeys(cluster.THREAD_ENV, "1"), "malloc_trim": None,
                      "main": "MainThread"}
 
 
@@ -436,9 +436,9 @@ def test_two_local_clusters_on_one_machine_start_without_a_port_warning():
     """The scheduler's HTTP server took port 8787 even without a dashboard, so a second batch on
     the machine warned "Port 8787 is already in use" (an error under this suite's filter: a CI
     run beside another batch failed). Each now binds a port of its own."""
-    first = batch.local_cluster(1)
+    first = cluster.local_cluster(1)
     try:
-        second = batch.local_cluster(1)
+        second = cluster.local_cluster(1)
         try:
             ports = {first.scheduler.http_server.port, second.scheduler.http_server.port}
         finally:

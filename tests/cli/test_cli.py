@@ -214,9 +214,9 @@ def test_global_options_after_the_method_name(runner, echo_config, tmp_path):
 
 
 def test_a_sweep_key_applies_only_to_configs_whose_method_has_it(runner, echo_config, tmp_path):
-    from synthkit import batch
+    from synthkit import plan
 
-    kept, dropped = batch.axes_for("retarget", [("gain", ["1"]), ("seed", ["1", "2"]), ("analysis.tau", ["0.1"])])
+    kept, dropped = plan.axes_for("retarget", [("gain", ["1"]), ("seed", ["1", "2"]), ("analysis.tau", ["0.1"])])
     assert ([k for k, _ in kept], dropped) == (["seed", "analysis.tau"], ["gain"])
     root = tmp_path / "o"
     result = runner.invoke(cli, ["run", str(echo_config), "--out-root", str(root), "--sweep", "gain=1,2",
@@ -227,13 +227,13 @@ def test_a_sweep_key_applies_only_to_configs_whose_method_has_it(runner, echo_co
 
 
 def test_batch_file_sweep_values_parse_as_on_the_command_line(tmp_path):
-    from synthkit import batch
+    from synthkit import plan
 
     spec = tmp_path / "study.yaml"
     spec.write_text("configs: [a.yaml]\nsweep:\n  target.axis_steps: ['{y: 1}', {z: 2}]\n")
-    axes = batch.read_batch_file(str(spec)).axes
+    axes = plan.read_batch_file(str(spec)).axes
     assert axes == [("target.axis_steps", ["{y: 1}", '{"z": 2}'])]
-    assert batch.parse_sweep("target.axis_steps={y: 1}")[1] == ["{y: 1}"]
+    assert plan.parse_sweep("target.axis_steps={y: 1}")[1] == ["{y: 1}"]
 
 
 def test_validate_accepts_a_batch_file_and_checks_its_sweeps(runner, echo_config, tmp_path):

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from synthkit.batch_run import PlanError, plan_jobs
+from synthkit.plan import PlanError, plan_jobs
 from synthkit.runner import load_method_config
 
 from .conftest import CASE_SECONDS, RECIPES, REPO

@@ -1,4 +1,4 @@
-"""A Dask worker plugin for synthkit runs (imports ``distributed``: used only by :mod:`synthkit.batch`)."""
+"""A Dask worker plugin for synthkit runs (imports ``distributed``: used only by :mod:`synthkit.cluster`)."""
 
 from __future__ import annotations
 

@@ -100,8 +100,7 @@ class RegionTermSection(StrictModel):
     model: Literal["none", "geodesic", "color"] = Field(
         "geodesic",
         description="none = boundary costs only (the paper's choice); geodesic = normalised edge-graph distance "
-        "to each region's strokes; color = k-means of each region's stroked colours (Lazy Snapping). "
-        "Default chosen by benchmarks/segmentation.py (docs/findings/surface-by-numbers.md).",
+        "to each region's strokes; color = k-means of each region's stroked colours (Lazy Snapping).",
     )
     weight: float = Field(
         0.5, ge=0, le=1e4, description="Balance of the region term against the boundary term (per unit node area)."
@@ -236,8 +235,7 @@ class SynthesisSection(StrictModel):
         "vector_heat", description="Log maps the patches are laid out by (4.3): vector_heat = potpourri3d's "
         "vector heat log map of the whole surface (one factorization per surface, then two solves per map); "
         "exp_map = the discrete exponential map (Schmidt et al. 2006, faces unfolded) over the vertices a patch "
-        "reaches only: 2.3x less CPU on a 10k-vertex target, but higher seam costs on curved targets "
-        "(findings).")
+        "reaches only (faster; seams cost more on curved targets).")
     trimming: Literal["graphcut", "none"] = Field("graphcut", description="graphcut = dual-graph min cut with seam "
                                                   "nodes (4.4); none = a patch overwrites all it covers.")
     orientation: Literal["free", "up"] = Field(
@@ -334,7 +332,7 @@ class SurfacingConfig(RunConfig):
     graph: Literal["vertex", "face"] = Field(
         "face",
         description="vertex = the paper's graph (3.2), one node per vertex, faces by the corner-majority rule; "
-        "face = the dual graph, one node per face, cut along mesh edges. Default chosen by the benchmark.",
+        "face = the dual graph, one node per face, cut along mesh edges.",
     )
     boundary: BoundarySection = Field(default_factory=BoundarySection)
     region_term: RegionTermSection = Field(default_factory=RegionTermSection)

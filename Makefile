@@ -58,7 +58,7 @@ browser: ## Install Debian's chromium for the review page's browser test (as roo
 demo: $(STAMP) ## Install, then run every bundled config in configs/ into out/
 	$(BIN)/synthkit run configs/*/*.yaml --out-root out --overwrite --no-progress
 
-test: $(STAMP) browser clients ## Install, then run the whole test suite (what CI runs)
+test: $(BENCH_STAMP) browser clients ## Install (with the benchmarks' peers), then run the whole test suite (what CI runs)
 	$(BIN)/python -m pytest -q
 
 test-fast: $(STAMP) ## Run the tests not marked slow

@@ -7,6 +7,7 @@ when a baseline or peer was measured in the same run (below 1 means faster than 
 from __future__ import annotations
 
 import json
+import os
 import statistics
 import sys
 import time
@@ -14,7 +15,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-RESULTS_DIR = Path(__file__).resolve().parent.parent / "bench-results"
+RESULTS_DIR = Path(os.environ.get("SYNTHKIT_BENCH_RESULTS", Path(__file__).resolve().parent.parent / "bench-results"))
+"""Where :func:`write_results` writes: ``bench-results/``, or ``$SYNTHKIT_BENCH_RESULTS`` (the tests'
+quick runs)."""
 _FIGURES: dict[str, dict[str, dict[str, Any]]] = {}
 
 
@@ -60,7 +63,7 @@ def print_table(area: str, file=sys.stdout) -> None:
 
 def write_results(area: str) -> Path:
     """Write ``bench-results/<area>.json`` and return its path."""
-    RESULTS_DIR.mkdir(exist_ok=True)
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
     path = RESULTS_DIR / f"{area}.json"
     path.write_text(json.dumps(_FIGURES.get(area, {}), indent=2) + "\n")
     return path

@@ -54,8 +54,8 @@ def repeated_configs(folder: Path, configs: list[Path], runs: int) -> list[Path]
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="the four fastest configs, 12 runs")
-    ap.add_argument("--runs", type=int, default=None, help="number of runs (default 30, 12 with --quick)")
+    ap.add_argument("--quick", action="store_true", help="the four fastest configs, one run each")
+    ap.add_argument("--runs", type=int, default=None, help="number of runs (default 30, 4 with --quick)")
     args = ap.parse_args()
     if cluster.dask_missing():
         sys.exit(f"benchmarks/batch.py needs Dask distributed: pip install '{cluster.DIST_EXTRA}'")
@@ -63,7 +63,7 @@ def main() -> None:
         configs = [REPO / "configs" / f"{name}.yaml" for name in QUICK]
     else:
         configs = sorted((REPO / "configs").glob("*/*.yaml"))
-    runs = args.runs or (12 if args.quick else 30)
+    runs = args.runs or (4 if args.quick else 30)
     work = Path(tempfile.mkdtemp(prefix="synthkit-bench-batch-"))
     try:
         links = repeated_configs(work, configs, runs)

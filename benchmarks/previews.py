@@ -5,7 +5,7 @@ does, twice: with ``--previews all`` (the default), timing every call into :mod:
 that renders or writes a PNG (nested calls counted once), and with ``--previews none`` as the
 baseline. The figure is the rendering time over the run's ``timings.total``.
 
-Run: ``.venv/bin/python benchmarks/previews.py``; writes bench-results/previews.json.
+Run: ``.venv/bin/python benchmarks/previews.py [--quick]``; writes bench-results/previews.json.
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ from benchmarks._common import print_table, record, write_results  # noqa: E402
 
 AREA = "previews"
 GOAL_SHARE = 0.25
+QUICK = ("retarget/facade.yaml", "symmetry-texture/quilt.yaml")
+"""The configs of ``--quick``."""
 
 
 def _timed(fn, spent: list[float], depth: list[int]):
@@ -60,12 +62,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--previews", default="all", help=argparse.SUPPRESS)
+    ap.add_argument("--quick", action="store_true", help=f"only {', '.join(QUICK)} (checks that it runs)")
     args = ap.parse_args()
     if args.one:
         print(json.dumps(run_one(Path(args.one), args.previews)))
         return 0
     shares = []
-    for config in sorted(ROOT.glob("configs/*/*.yaml")):
+    configs = sorted(ROOT.glob("configs/*/*.yaml"))
+    if args.quick:
+        configs = [ROOT / "configs" / name for name in QUICK]
+    for config in configs:
         runs = {}
         for level in ("all", "none"):
             out = subprocess.run([sys.executable, __file__, "--one", str(config), "--previews", level],

@@ -19,7 +19,7 @@ Goals of issue 29 for ``default``: mean at most 0.09 (disc) and 0.035 (body), be
 model, and on each model within 0.01 of the better of ``previous-default`` and ``paper-face``.
 
 Run: ``.venv/bin/python benchmarks/segmentation.py [--sources first|all] [--only quality|speed]
-[--configs NAME,...] [--models ID,...] [--protocols disc,body]``.
+[--configs NAME,...] [--models ID,...] [--protocols disc,body] [--quick]``.
 """
 
 from __future__ import annotations
@@ -63,6 +63,8 @@ CONFIGS = {
 """Configs scored; ``previous-default`` is the default before issue 29 (concavity 1000, the region
 term trusted everywhere); ``default-multires`` forces the hierarchy down to 2000 nodes (PSB meshes have 3k-31k
 faces) and compares it with the single-level cut on the same strokes."""
+QUICK = {"configs": "paper-face,default", "models": "2", "protocols": "disc", "sizes": "100k"}
+"""The arguments ``--quick`` sets."""
 
 
 def _graph(V, F):
@@ -341,7 +343,11 @@ def main() -> int:
     parser.add_argument("--models", default="", help="PSB model ids to score, e.g. 42,182 (default: all 8)")
     parser.add_argument("--protocols", default="disc,body")
     parser.add_argument("--sizes", default="100k,1M")
+    parser.add_argument("--quick", action="store_true",
+                        help="two configs, one model, one protocol, one size: QUICK (checks that it runs)")
     args = parser.parse_args()
+    if args.quick:
+        vars(args).update(QUICK)
     args.protocols = args.protocols.split(",")
     args.sizes = args.sizes.split(",")
     if not PSB.is_dir():

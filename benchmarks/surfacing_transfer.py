@@ -23,7 +23,8 @@ parameterization, then by patch finding. Goals on this machine: the whole transf
 fan precomputation <= 10 s.
 
 Run: ``.venv/bin/python benchmarks/surfacing_transfer.py`` (writes bench-results/surfacing_transfer.json), or with
-``--only parameterize`` (the parameterization timing alone), ``--only accuracy``, ``--base COMMIT``.
+``--only parameterize`` (the parameterization timing alone), ``--only accuracy``, ``--base COMMIT``;
+``--quick``: a 1280-face target and one parameterization round (checks that it runs).
 """
 
 from __future__ import annotations
@@ -117,10 +118,10 @@ def timed_transfer(target_mesh, source_mesh, opt: Options, seed: int, mods=None)
     return res, cpu[0]
 
 
-def parameterize_speed(target_mesh, source_mesh, opt: Options, base: str = BASE_COMMIT) -> None:
+def parameterize_speed(target_mesh, source_mesh, opt: Options, base: str = BASE_COMMIT, rounds: int = 3) -> None:
     """Parameterization seconds (wall, and CPU in ``mutual_patch``) of the code before issue 29
-    (``base``) and today's with each log map, alternated three times in this process with the same
-    seed; the patches, coverage and final seam cost of each."""
+    (``base``) and today's with each log map, alternated ``rounds`` times in this process with the
+    same seed; the patches, coverage and final seam cost of each."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -128,7 +129,7 @@ def parameterize_speed(target_mesh, source_mesh, opt: Options, base: str = BASE_
                 "vector_heat": lambda *a: timed_transfer(*a[:2], replace(a[2], parameterization="vector_heat"), a[3]),
                 "now": lambda *a: timed_transfer(*a[:2], replace(a[2], parameterization="exp_map"), a[3])}
         rows: dict[str, list] = {k: [] for k in runs}
-        for _ in range(3):
+        for _ in range(rounds):
             for name, run in runs.items():
                 res, cpu = run(target_mesh, source_mesh, opt, 0)
                 rows[name].append((res.timings["parameterize"], cpu, len(res.patches),
@@ -143,9 +144,9 @@ def parameterize_speed(target_mesh, source_mesh, opt: Options, base: str = BASE_
         mean = {k: float(np.mean([x[i] for x in r])) for k, r in rows.items()}
         for name in ("vector_heat", "now"):
             label = "exp_map" if name == "now" else name
-            record(AREA, f"  parameterize {what} {label}, best of 3 (vs {base[:7]})", best[name], "s",
+            record(AREA, f"  parameterize {what} {label}, best of {rounds} (vs {base[:7]})", best[name], "s",
                    baseline=best["before"])
-            record(AREA, f"  parameterize {what} {label}, mean of 3 (vs {base[:7]})", mean[name], "s",
+            record(AREA, f"  parameterize {what} {label}, mean of {rounds} (vs {base[:7]})", mean[name], "s",
                    baseline=mean["before"])
 
 
@@ -257,43 +258,21 @@ def accuracy(target_mesh) -> None:
             log_map_accuracy(f"spot {share}", surf, "mesh", share * np.sqrt(surf.area), samples=150)
 
 
-def parse_args():
-    """``--only parameterize`` and ``--base COMMIT`` (default :data:`BASE_COMMIT`)."""
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", choices=["parameterize", "accuracy"],
-                    help="run only the parameterization timing, or only the log maps' accuracy")
-    ap.add_argument("--base", default=BASE_COMMIT, help="commit whose code is the timing's baseline")
-    return ap.parse_args()
-
-
-def main() -> int:
-    rng = np.random.default_rng(0)
-    target_mesh = sample.sphere(5)
-    source_mesh = colour_source(rng)
-    args = parse_args()
-    if args.only == "parameterize":
-        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base)
-        print_table(AREA)
-        return 0
-    if args.only == "accuracy":
-        accuracy(target_mesh)
-        print_table(AREA)
-        return 0
+def whole_transfer(target_mesh, source_mesh) -> None:
+    """Fan precomputation, the whole transfer and its baselines (module docstring)."""
     V, F, colors = source_mesh
     source = make_surface(V, F, np.arange(len(F)), Signal("color", values=colors[F]))
     t = time.perf_counter()
     cloud = make_cloud(source)
     build_index(source, cloud, source.signal.sample(cloud.faces, cloud.bary), spokes=8, steps=4, radius=0.3)
     fans = time.perf_counter() - t
-    record(AREA, "fan precompute, 10082 source faces", fans, "s", goal=10.0)
+    record(AREA, f"fan precompute, {len(F)} source faces", fans, "s", goal=10.0)
     base_opt = Options(patch_radius=1.0)
     ours, res = transfer(target_mesh, source_mesh, base_opt, 0)
     rnd, res_rnd = transfer(target_mesh, source_mesh, replace(base_opt, matching="random"), 0)
     none_opt = replace(base_opt, matching="random", trimming="none", fixed_patches=True, max_patches=len(res.patches))
     untrimmed, res_none = transfer(target_mesh, source_mesh, none_opt, 0)
-    record(AREA, "whole transfer, 20480 target faces (fans)", ours, "s", goal=60.0, baseline=rnd)
+    record(AREA, f"whole transfer, {len(target_mesh[1])} target faces (fans)", ours, "s", goal=60.0, baseline=rnd)
     record(AREA, "whole transfer, random matching", rnd, "s")
     record(AREA, "whole transfer, random + no trim", untrimmed, "s")
     for kind in KINDS:
@@ -305,7 +284,35 @@ def main() -> int:
     record(AREA, "seam cost (random + no trim)", res_none.seam_cost[-1], "")
     cov = res.patch_of >= 0
     record(AREA, "distortion max (bound 2)", float(res.distortion[cov].max()), "", goal=2.0)
-    parameterize_speed(target_mesh, source_mesh, base_opt, args.base)
+
+
+
+def parse_args():
+    """``--only parameterize`` and ``--base COMMIT`` (default :data:`BASE_COMMIT`)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=["parameterize", "accuracy"],
+                    help="run only the parameterization timing, or only the log maps' accuracy")
+    ap.add_argument("--base", default=BASE_COMMIT, help="commit whose code is the timing's baseline")
+    ap.add_argument("--quick", action="store_true",
+                    help="a 1280-face target (icosphere subdivision 3) and one parameterization round")
+    return ap.parse_args()
+
+
+def main() -> int:
+    args = parse_args()
+    rng = np.random.default_rng(0)
+    target_mesh = sample.sphere(3 if args.quick else 5)
+    source_mesh = colour_source(rng)
+    rounds = 1 if args.quick else 3
+    if args.only == "parameterize":
+        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base, rounds)
+    elif args.only == "accuracy":
+        accuracy(target_mesh)
+    else:
+        whole_transfer(target_mesh, source_mesh)
+        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base, rounds)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}")
     return 0

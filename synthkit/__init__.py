@@ -13,7 +13,7 @@ They are imported on first use, so that ``import synthkit`` stays fast.
 
 import importlib
 
-__version__ = "0.1.0"
+from synthkit.version import __version__
 
 API_FUNCTIONS = {
     "retarget": "synthkit.methods.retarget.api",

@@ -186,8 +186,8 @@ class BatchReport:
     def _write_batch(self) -> list[str]:
         """Write ``batch.json`` (rows without full reports), unless a file of that name exists there
         that synthkit did not write (then a warning line is returned)."""
-        from synthkit import __version__
-        from synthkit.runner import write_json
+        from synthkit.context import write_json
+        from synthkit.version import __version__
 
         path = self.out_root / BATCH_FILE
         if path.exists():

@@ -28,8 +28,8 @@ import socket
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from synthkit import __version__
 from synthkit.errors import ConfigError
+from synthkit.version import __version__
 
 MARKER = ".synthkit-output"
 """File written into every output folder (and staging folder): JSON with version, host and pid."""

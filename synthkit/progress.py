@@ -1,6 +1,6 @@
 """A line on a terminal that says which stage of a run is working, once it has taken a while.
 
-:class:`StageTicker` is started by :meth:`synthkit.runner.RunContext.stage` when progress is shown
+:class:`StageTicker` is started by :meth:`synthkit.context.RunContext.stage` when progress is shown
 (a terminal, no ``--no-progress`` or ``-q``): after :data:`TICK_DELAY` seconds it writes
 ``<method>: <stage> 12 s`` on stderr and rewrites it every :data:`TICK_INTERVAL`, and clears the
 line when the stage ends. While a stage shows its own progress bar, the ticker stays silent.

@@ -1,7 +1,8 @@
 """The package's shape, checked on its source (issue 27): the library never imports the command
 line; files are replaced atomically in one place only; no import cycle (lazy imports included);
 no function over 80 lines of code outside numba kernels; only pipelines, configs and the framework
-raise ConfigError/InputError; no private name is imported from another module."""
+raise ConfigError/InputError; no private name is imported from another module; stage modules import
+neither files (``synthkit.io``) nor the layers above the methods (issue 36)."""
 
 import ast
 from pathlib import Path
@@ -104,12 +105,37 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def _registry_imports(known: dict[str, Path]) -> dict[str, set[str]]:
+    """The imports the registries make by name: ``synthkit.methods`` loads each method's package,
+    config and pipeline (:data:`synthkit.methods.METHODS`), ``synthkit`` each Python function's
+    module (:data:`synthkit.API_FUNCTIONS`)."""
+    import synthkit
+    from synthkit.methods import METHODS
+
+    loaded = {f"{package}{room}" for package in METHODS.values() for room in ("", ".config", ".pipeline")}
+    return {"synthkit.methods": loaded & set(known), "synthkit": set(synthkit.API_FUNCTIONS.values()) & set(known)}
+
+
+def _import_graph() -> dict[str, set[str]]:
+    known = _module_names()
+    graph = {name: _synthkit_imports(name, path, known) for name, path in known.items()}
+    for name, loaded in _registry_imports(known).items():
+        graph[name] |= loaded
+    return graph
 
 
 def test_no_import_cycles():
-    known = _module_names()
-    graph = {name: _synthkit_imports(name, path, known) for name, path in known.items()}
-    assert _cycles(graph) == []
+    assert _cycles(_import_graph()) == []
+
+
+def test_the_import_graph_follows_the_registries():
+    graph = _import_graph()
+    assert {"synthkit.methods.reshape.pipeline", "synthkit.methods.symtex.config"} <= graph["synthkit.methods"]
+    assert "synthkit.methods.surfacing.api" in graph["synthkit"]
+    # the loop issue 36 found: runner -> (registry) pipeline -> api -> runner
+    graph["synthkit.methods.reshape.pipeline"] |= {"synthkit.api"}
+    graph["synthkit.api"] |= {"synthkit.runner"}
+    assert any({"synthkit.runner", "synthkit.methods", "synthkit.api"} <= set(c) for c in _cycles(graph))
 
 
 def test_the_cycle_finder_finds_a_cycle():
@@ -120,7 +146,6 @@ def test_the_cycle_finder_finds_a_cycle():
 MAX_FUNCTION_LINES = 80
 """Most lines of code (no docstring, blank or comment lines) a function may have; numba kernels,
 which cannot call helpers cheaply, are exempt."""
-
 
 
 def _code_lines(node: ast.FunctionDef, lines: list[str]) -> int:
@@ -152,7 +177,6 @@ def test_functions_are_short():
 USER_ERRORS = ("ConfigError", "InputError")
 
 
-
 def test_only_pipelines_and_configs_raise_user_errors():
     """A method's stage modules raise ValueError carrying the key; its pipeline maps it to a
     ConfigError or InputError (the framework outside ``methods/`` may raise them too)."""
@@ -166,8 +190,6 @@ def test_only_pipelines_and_configs_raise_user_errors():
                 if ast.unparse(raised) in USER_ERRORS:
                     raising.add(path.relative_to(PACKAGE).as_posix())
     assert sorted(raising) == []
-
-
 
 
 def test_no_private_name_is_imported_from_another_module():
@@ -192,3 +214,29 @@ def test_every_method_has_the_same_rooms(package):
     defined = {node.name for node in ast.parse((folder / "pipeline.py").read_text()).body
                if isinstance(node, ast.FunctionDef)}
     assert {"compute", "run"} <= defined
+
+
+FRAMEWORK_ROOMS = ("__init__.py", "config.py", "options.py", "pipeline.py", "outputs.py", "api.py")
+"""The rooms of a method package that may reach files or the framework; every other module is a
+stage (or a stage's helper) over arrays and models."""
+ABOVE_THE_METHODS = ("synthkit.io", "synthkit.api", "synthkit.runner", "synthkit.batch", "synthkit.cluster")
+
+
+def _reaches(path: Path, prefixes: tuple[str, ...]) -> list[str]:
+    return sorted({m for m in _imports(path) for p in prefixes if m == p or m.startswith(p + ".")})
+
+
+STAGE_MODULES = sorted(p for p in (PACKAGE / "methods").rglob("*.py") if p.name not in FRAMEWORK_ROOMS)
+
+
+@pytest.mark.parametrize("path", STAGE_MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_stage_modules_import_neither_files_nor_the_layers_above(path):
+    assert _reaches(path, ABOVE_THE_METHODS) == []
+
+
+@pytest.mark.parametrize("path", sorted(p for p in (PACKAGE / "methods").rglob("*.py") if p.name != "api.py"),
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_no_method_imports_the_api_layer(path):
+    """A method's pipeline and outputs build :class:`synthkit.result.Result`; only its ``api.py``
+    (the Python function) uses :mod:`synthkit.api`."""
+    assert _reaches(path, ("synthkit.api", "synthkit.runner")) == []

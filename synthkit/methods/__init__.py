@@ -12,7 +12,7 @@ provides:
 - ``pipeline.py`` with ``compute(cfg, inputs, ctx) -> Result`` (reads every input through the
   :class:`synthkit.io.inputs.Inputs`, runs the stages, times them with ``ctx.stage``, fills
   ``ctx.metrics`` and maps stage ``ValueError``s to ``ConfigError``/``InputError`` naming the key;
-  writes nothing) and ``run(cfg, ctx: synthkit.runner.RunContext) -> None`` (the command line:
+  writes nothing) and ``run(cfg, ctx: synthkit.context.RunContext) -> None`` (the command line:
   ``compute(cfg, Inputs(), ctx).write(ctx)``);
 - ``outputs.py`` with the method's :class:`synthkit.api.Result` subclass: its outputs in memory and
   ``write(ctx)``, which writes the files and previews through ``ctx.path``;

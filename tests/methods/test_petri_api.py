@@ -10,10 +10,11 @@ import pytest
 import trimesh
 
 import synthkit
+from synthkit.context import to_jsonable
 from synthkit.errors import ConfigError, InputError
 from synthkit.io.assets import load_asset
 from synthkit.methods.petri import api
-from synthkit.runner import run_config, to_jsonable
+from synthkit.runner import run_config
 from synthkit.samples import petri as sample
 
 KEYS = {

@@ -745,11 +745,11 @@ def test_zero_area_mesh_exit_3(runner, tmp_path):
 
 
 def test_memory_budget_refuses_before_building(tmp_path):
+    from synthkit.context import RunContext
     from synthkit.errors import ConfigError
     from synthkit.limits import Budget
     from synthkit.methods.reshape import pipeline
     from synthkit.methods.reshape.config import ReshapeConfig
-    from synthkit.runner import RunContext
 
     cfg = ReshapeConfig.model_validate({"method": "reshape", **wall_config()})
     ctx = RunContext(tmp_path, seed=0, show_progress=False, budget=Budget(10_000))

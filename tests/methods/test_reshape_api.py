@@ -161,6 +161,7 @@ def test_textured_from_asset_render_vertices_and_back():
     """A UV seam splits a position into two render vertices; faces without a material get ``""``;
     reshaped_asset moves the positions and gives a retextured face its UVs and material."""
     from synthkit.asset import Asset, Material
+    from synthkit.io.inputs import image_from_array
     from synthkit.methods.reshape.textured import Retexture, reshaped_asset, textured_from_asset
 
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
@@ -169,7 +170,7 @@ def test_textured_from_asset_render_vertices_and_back():
     image = np.full((4, 4, 3), 128, np.uint8)
     asset = Asset(V=V, F=F, corner_uv=uv, corner_color=None, face_material=np.array([0, -1]),
                   materials=[Material("brick", image=image)], name="quad", source=Path("input"))
-    mesh = textured_from_asset(asset, "input")
+    mesh = textured_from_asset(asset, "input", {"brick": image_from_array(image, "input: material brick")})
     assert len(mesh.V) == 5 and mesh.materials == ["brick", ""]
     np.testing.assert_array_equal(mesh.V, V[mesh.position_index])
     np.testing.assert_array_equal(mesh.position_index[mesh.F], F)

@@ -10,7 +10,6 @@ import numpy as np
 import trimesh
 
 from synthkit import preview
-from synthkit.api import Result
 from synthkit.asset import Asset
 from synthkit.io.assets import save_asset
 from synthkit.io.atomic import write_bytes_atomic, write_text_atomic
@@ -19,6 +18,7 @@ from synthkit.io.usd import mesh_suffix
 from synthkit.methods.petri.appearance import Look
 from synthkit.methods.petri.assembly import PieceLibrary, assemble, label_colors, preview_library, reorder_library
 from synthkit.methods.petri.net import ColouredPetriNet, to_dot, to_pnml
+from synthkit.result import Result
 
 __all__ = ["PetriResult", "PreviewScene", "result_asset", "write_mesh", "export_nets", "write_previews",
            "VIEW_OF_PLANE", "PREVIEW_FACES"]

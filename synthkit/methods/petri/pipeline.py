@@ -13,7 +13,6 @@ from collections.abc import Iterator
 import numpy as np
 import trimesh
 
-from synthkit.api import result_fields
 from synthkit.asset import Asset
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError, KeyedError
@@ -37,6 +36,7 @@ from synthkit.methods.petri.network import build_network
 from synthkit.methods.petri.options import curves_of, lattice_options, space_options, unit_key
 from synthkit.methods.petri.outputs import PetriResult, PreviewScene, result_asset
 from synthkit.methods.petri.spaces import CurveSpace, NetworkSpace, Space
+from synthkit.result import result_fields
 
 __all__ = ["compute", "run", "refusals"]
 

@@ -17,7 +17,6 @@ from typing import Any, ClassVar
 import numpy as np
 import trimesh
 
-from synthkit.api import Result
 from synthkit.asset import Asset
 from synthkit.io.assets import load_asset, save_asset
 from synthkit.io.images import save_image
@@ -26,6 +25,7 @@ from synthkit.methods.reshape import previews as P
 from synthkit.methods.reshape.retexture import safe_name
 from synthkit.methods.reshape.textured import Retexture, TexturedMesh, reshaped_asset
 from synthkit.preview import Appearance, before_after_png, montage_png
+from synthkit.result import Result
 
 __all__ = ["ReshapeResult", "PreviewData", "reshaped", "write_piece", "write_previews", "write_texture_previews",
            "write_textured_summary"]

@@ -28,12 +28,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from synthkit.api import result_fields
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.assets import load_asset
 from synthkit.io.images import load_image
-from synthkit.io.inputs import Inputs
+from synthkit.io.inputs import Inputs, image_from_array
 from synthkit.methods.reshape import retexture as RT
 from synthkit.methods.reshape.assemble import assemble, frozen_nodes, place_pieces, portal_gaps, snap_joined
 from synthkit.methods.reshape.graph import ConstraintGraph, build_graph
@@ -50,6 +49,7 @@ from synthkit.methods.reshape.system import (
     strict_residuals,
 )
 from synthkit.methods.reshape.textured import TexturedMesh, material_textures, textured_from_asset
+from synthkit.result import result_fields
 
 __all__ = ["compute", "run", "load_textured", "Scene", "MEMORY_PIECE"]
 
@@ -207,7 +207,10 @@ def _read(inputs: Inputs, path) -> TexturedMesh:
     if not inputs.is_memory(path):
         return load_textured(path)
     asset = inputs.asset(path)
-    return textured_from_asset(asset, str(asset.source))
+    key = str(asset.source)
+    textures = {m.name: image_from_array(m.image, f"{key}: material {m.name}")
+                for m in asset.materials if m.image is not None}
+    return textured_from_asset(asset, key, textures)
 
 
 def _load(cfg, opt: Options, inputs: Inputs, ctx) -> Scene:

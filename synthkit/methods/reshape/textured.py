@@ -65,22 +65,20 @@ class Retexture:
     image: np.ndarray
 
 
-def textured_from_asset(asset: Asset, key: str | None = None) -> TexturedMesh:
-    """The textured mesh of ``asset``: given in memory for config key ``key`` (its textures converted
-    as image files are), else read from ``asset.source``."""
-    from synthkit.io.inputs import image_from_array
-
+def textured_from_asset(asset: Asset, key: str | None = None,
+                        textures: dict[str, np.ndarray] | None = None) -> TexturedMesh:
+    """The textured mesh of ``asset``: given in memory for config key ``key`` with its material
+    name -> ``textures (H, W, 3)`` float32 in [0, 1] (converted by the pipeline as image files are),
+    else read from ``asset.source``."""
     r = render_vertices(asset.V, asset.F, asset.corner_uv)
     names = [m.name for m in asset.materials]
     fm = np.asarray(asset.face_material, np.int64).copy()
     if (fm < 0).any():
         names.append("")
         fm[fm < 0] = len(names) - 1
-    textures = {} if key is None else {m.name: image_from_array(m.image, f"{key}: material {m.name}")
-                                       for m in asset.materials if m.image is not None}
     return TexturedMesh(V=r.V, F=r.F, UV=r.UV, face_material=fm, materials=names, position_index=r.position_index,
                         positions=np.asarray(asset.V, np.float64), source=Path(key) if key else asset.source,
-                        asset=asset, in_memory=key is not None, textures=textures)
+                        asset=asset, in_memory=key is not None, textures=dict(textures or {}))
 
 
 def material_textures(mesh: TexturedMesh) -> dict[str, Path]:

@@ -59,7 +59,7 @@ def output_quality(res: Retargeted, F_written, center, scale, Vn, F, input_quali
     """The quality of the written mesh (``F_written`` over the result's vertices, model units
     ``res.V * scale + center``) beside the input's (:func:`input_quality`; normalised ``Vn``,
     ``F``): ``(quality figures, their limits, retargeting's own figures)``, the first two for
-    :meth:`~synthkit.runner.RunContext.check_quality`.
+    :meth:`~synthkit.context.RunContext.check_quality`.
 
     Limits: open and non-manifold edges at most the input's times the copies used (each copy
     brings its own), no degenerate or duplicate face. Own figures: ``copies``, ``volume_ratio``

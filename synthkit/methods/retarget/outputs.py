@@ -17,7 +17,6 @@ from typing import ClassVar
 import numpy as np
 import trimesh
 
-from synthkit.api import Result
 from synthkit.asset import Asset
 from synthkit.io.assets import save_asset
 from synthkit.io.meshes import save_mesh
@@ -31,6 +30,7 @@ from synthkit.preview import (
     plot_curve_png,
     render_mesh_png,
 )
+from synthkit.result import Result
 
 __all__ = ["RetargetResult", "RetargetedMesh", "label_colours", "palette", "write_statistics", "write_mesh"]
 

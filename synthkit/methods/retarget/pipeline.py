@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from synthkit.api import result_fields
 from synthkit.asset import Asset
 from synthkit.core.mesh import normalize_unit
 from synthkit.errors import ConfigError, InputError, KeyedError
@@ -48,6 +47,7 @@ from synthkit.methods.retarget.options import SynthesisOptions, Target, options_
 from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
 from synthkit.methods.retarget.problem import build_problem, resolve_steps
 from synthkit.methods.retarget.seams import Retargeted, stitch
+from synthkit.result import result_fields
 
 __all__ = ["compute", "run", "NoRepetition", "check_analysis_budget"]
 

@@ -21,11 +21,11 @@ import numpy as np
 import trimesh
 
 from synthkit import preview
-from synthkit.api import Result
 from synthkit.io.assets import asset_from_trimesh, save_asset
 from synthkit.io.images import save_image
 from synthkit.io.segmentation import write_labels_ply, write_point_polylines_obj, write_polylines_obj, write_seg
 from synthkit.methods.surfacing.views import Camera
+from synthkit.result import Result
 
 __all__ = ["SegmentResult", "legend", "write_region", "REGION_SUFFIXES"]
 

@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from synthkit.api import result_fields
 from synthkit.errors import ConfigError, KeyedError
 from synthkit.io.inputs import Inputs
 from synthkit.methods.surfacing import prepare
@@ -31,6 +30,7 @@ from synthkit.methods.surfacing.outputs import REGION_SUFFIXES, SegmentResult
 from synthkit.methods.surfacing.segment import Segmentation, chain_edges, cut_edges
 from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
 from synthkit.methods.surfacing.transfer import pipeline as transfer_pipeline
+from synthkit.result import result_fields
 
 __all__ = ["run", "compute", "with_mode"]
 

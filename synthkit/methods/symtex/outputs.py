@@ -15,10 +15,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from synthkit.api import Result
 from synthkit.io.images import save_image
 from synthkit.methods.symtex.tile import tile_order
 from synthkit.preview import heatmap_png, montage_png, plot_curve_png
+from synthkit.result import Result
 
 REPRESENTATION_NAMES = {"translational": "S_T", "rotational": "S_R", "reflective": "S_Ref"}
 

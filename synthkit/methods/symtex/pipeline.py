@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-from synthkit.api import result_fields
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
 from synthkit.errors import ConfigError, InputError
@@ -35,6 +34,7 @@ from synthkit.methods.symtex.common import build_objective, build_targets, repre
 from synthkit.methods.symtex.config import SymtexConfig
 from synthkit.methods.symtex.options import SymtexOptions, options_from_config
 from synthkit.methods.symtex.outputs import SymmetryTextureResult
+from synthkit.result import result_fields
 
 MIN_SIZE = 8
 

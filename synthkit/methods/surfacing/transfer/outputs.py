@@ -24,12 +24,12 @@ import numpy as np
 import trimesh
 
 from synthkit import preview
-from synthkit.api import Result
 from synthkit.asset import Asset, Material
 from synthkit.io.assets import save_asset
 from synthkit.io.meshes import save_mesh
 from synthkit.io.signals import write_signal_ply
 from synthkit.io.usd import mesh_suffix
+from synthkit.result import Result
 
 __all__ = ["TransferResult", "transferred_asset", "PALETTE"]
 

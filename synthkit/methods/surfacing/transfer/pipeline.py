@@ -22,7 +22,6 @@ from types import SimpleNamespace
 import numpy as np
 import trimesh
 
-from synthkit.api import result_fields
 from synthkit.core.mesh import face_areas, face_normals, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, KeyedError
@@ -50,6 +49,7 @@ from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_su
 from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
 from synthkit.methods.surfacing.transfer.synth import Synthesis
 from synthkit.methods.surfacing.transfer.trim import seam_costs
+from synthkit.result import result_fields
 
 __all__ = ["compute", "texel_size", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS",
            "BYTES_PER_FACE"]

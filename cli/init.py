@@ -20,11 +20,12 @@ def command(ctx: click.Context, method: str, out_file: str | None) -> None:
     import os
 
     from synthkit.config_template import config_template
-    from synthkit.methods import config_module, package_module
+    from synthkit.methods import spec
+    from synthkit.methods.rooms import config_module
 
-    package = package_module(method)
-    text = config_template(config_module(method).CONFIG, method=method, values=getattr(package, "INIT_VALUES", None),
-                           required=tuple(getattr(package, "INIT_REQUIRED", ())))
+    declared = spec(method)
+    text = config_template(config_module(method).CONFIG, method=method, values=declared.init_values,
+                           required=declared.init_required)
     if out_file is None:
         click.echo(text, nl=False)
         return

@@ -13,9 +13,9 @@ import click
 
 from synthkit import __version__
 from synthkit.errors import TERMINATION_REQUESTED, Terminated
-from synthkit.methods import available_methods, package_module
+from synthkit.methods import available_methods, package_module, spec
 
-from .options import DEFAULT_SET_EXAMPLE, configure_logging, method_command, nan_refused
+from .options import configure_logging, method_command, nan_refused
 
 _TOOLS = ("init", "schema", "validate", "run", "report")
 """Subcommands that are not methods, after the methods in ``--help``."""
@@ -48,10 +48,9 @@ class _Group(click.Group):
             module = __import__(f"{__package__}.{name}", fromlist=["command"])
             return module.command
         if name in available_methods():
-            package = package_module(name)
-            help_text = (package.__doc__ or name).strip().splitlines()[0]
-            return method_command(name, help_text, flags=getattr(package, "CLI_FLAGS", None),
-                                  set_example=getattr(package, "SET_EXAMPLE", DEFAULT_SET_EXAMPLE))
+            help_text = (package_module(name).__doc__ or name).strip().splitlines()[0]
+            declared = spec(name)
+            return method_command(name, help_text, flags=declared.cli_flags, set_example=declared.set_example)
         return None
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):

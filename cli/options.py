@@ -12,11 +12,10 @@ import click
 
 from synthkit.errors import Terminated
 from synthkit.logs import configure_logging, describe_exception
+from synthkit.methods.spec import DEFAULT_SET_EXAMPLE
 from synthkit.summary import headline
 
 SET_HELP = "Override a config key (repeatable; values are YAML), e.g. --set {example}."
-DEFAULT_SET_EXAMPLE = "seed=7"
-"""The ``--set`` example of a method whose package gives no ``SET_EXAMPLE``."""
 
 config_argument = click.argument("config", type=click.Path(dir_okay=False, path_type=str))
 seed_option = click.option(
@@ -144,7 +143,7 @@ def print_summary(ctx: click.Context, report: dict, out_dir: str) -> None:
     """One line per run on stderr (unless -q): method, folder, seconds, headline metrics."""
     if verbosity(ctx) < 0:
         return
-    shown = headline(report.get("metrics", {}))
+    shown = headline(report.get("metrics", {}), report.get("method"))
     text = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in shown.items())
     status = "" if report.get("status", "ok") == "ok" else f" [{report['status']}]"
     click.echo(f"{report['method']}: wrote {out_dir} in {report['timings']['total']:.2f} s ({text}){status}",

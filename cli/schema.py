@@ -17,7 +17,7 @@ def command(method: str) -> None:
     """
     import json
 
-    from synthkit.methods import config_module
+    from synthkit.methods.rooms import config_module
 
     schema = config_module(method).CONFIG.model_json_schema()
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"

@@ -13,17 +13,15 @@ They are imported on first use, so that ``import synthkit`` stays fast.
 
 import importlib
 
+from synthkit import methods as _registry
 from synthkit.version import __version__
 
 API_FUNCTIONS = {
-    "retarget": "synthkit.methods.retarget.api",
-    "segment": "synthkit.methods.surfacing.api",
-    "transfer": "synthkit.methods.surfacing.api",
-    "reshape": "synthkit.methods.reshape.api",
-    "petri_synth": "synthkit.methods.petri.api",
-    "symmetry_texture": "synthkit.methods.symtex.api",
+    function: f"{_registry.METHODS[name]}.api"
+    for name in _registry.available_methods()
+    for function in _registry.spec(name).functions
 }
-"""Public function name -> the module that defines it."""
+"""Public function name -> the module that defines it, from each method's spec."""
 
 __all__ = ["__version__", *API_FUNCTIONS]
 

@@ -28,7 +28,7 @@ import numpy as np
 from synthkit.config import RunConfig, sub_models, validate_config
 from synthkit.errors import ConfigError, SynthkitError
 from synthkit.io.inputs import Inputs, is_memory_object, memory_name
-from synthkit.methods import config_module
+from synthkit.methods.rooms import config_module
 from synthkit.result import Result, result_fields
 
 __all__ = ["Result", "prepare", "run_in_memory", "result_fields"]

@@ -109,7 +109,7 @@ class BatchReport:
     def succeeded(self, i: int, report: dict, *, out: str, seconds: float, worker: str, attempts: int = 1) -> dict:
         """Row ``i`` of a run that wrote its outputs: ``ok``, or ``degraded`` (exit 3 when strict)."""
         row = self.rows[i] | {"status": "ok", "exit_code": 0, "seconds": seconds, "out": out, "worker": worker,
-                              "metrics": headline(report.get("metrics", {})), "report": report}
+                              "metrics": headline(report.get("metrics", {}), report.get("method")), "report": report}
         if attempts > 1:
             row["attempts"] = attempts
         if report.get("status") == "degraded":
@@ -178,10 +178,10 @@ class BatchReport:
             if report is None or not report.is_file():
                 continue
             try:
-                outputs = json.loads(report.read_text()).get("outputs", {})
+                written = json.loads(report.read_text())
             except (OSError, ValueError):
                 continue
-            row |= {"out": out, "preview": summary_preview(outputs)}
+            row |= {"out": out, "preview": summary_preview(written.get("outputs", {}), written.get("method"))}
 
     def _write_batch(self) -> list[str]:
         """Write ``batch.json`` (rows without full reports), unless a file of that name exists there

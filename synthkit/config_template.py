@@ -7,9 +7,9 @@ commented out, ready to uncomment; a list of sections (such as painted views or 
 empty by default is followed by one commented example item with every key.
 
 Keys without a default, and keys a method needs one of (such as petri-synth's ``lattice.unit``
-or ``construction.points``), take the method's ``INIT_VALUES`` (dotted key -> value, from the
-method package) marked ``example value``; input files left to the user (required ones, and the
-package's ``INIT_REQUIRED``) are ``null`` marked ``REQUIRED``.
+or ``construction.points``), take the method's ``init_values`` (dotted key -> value, from its
+spec) marked ``example value``; input files left to the user (required ones, and the
+spec's ``init_required``) are ``null`` marked ``REQUIRED``.
 """
 
 from __future__ import annotations

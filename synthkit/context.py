@@ -256,7 +256,7 @@ def write_report(
         "timings": ctx.timings,
         "metrics": ctx.metrics,
         "outputs": {**ctx.outputs, "report": "report.json"},
-        "preview": summary_preview(ctx.outputs),
+        "preview": summary_preview(ctx.outputs, method),
     }
     if error is not None:
         report["error"] = error

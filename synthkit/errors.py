@@ -15,14 +15,16 @@ class SynthkitError(Exception):
     ``keep_outputs=True`` marks a refusal whose diagnostics are worth keeping (for example the
     offset statistics of a mesh with no repetition): the runner then still moves the output folder
     into place, with ``report.json`` saying ``"status": "refused"`` and the message, before the
-    error reaches the user with its exit code.
+    error reaches the user with its exit code. Such a refusal may carry ``result``: the partial
+    :class:`~synthkit.result.Result` (the statistics) the runner writes into that folder.
     """
 
     exit_code = 1
 
-    def __init__(self, message: str, *, keep_outputs: bool = False):
+    def __init__(self, message: str, *, keep_outputs: bool = False, result=None):
         super().__init__(message)
         self.keep_outputs = keep_outputs
+        self.result = result
 
 
 class ConfigError(SynthkitError):

@@ -122,7 +122,8 @@ def axes_for(method: str | None, axes: Sequence[tuple[str, Sequence[str]]]):
     batch may mix methods: a sweep key applies where it means something). An unknown method keeps
     every axis, so that its run reports the problem."""
     from synthkit.config import schema_has_key
-    from synthkit.methods import METHODS, config_module
+    from synthkit.methods import METHODS
+    from synthkit.methods.rooms import config_module
 
     if method not in METHODS:
         return list(axes), []

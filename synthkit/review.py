@@ -67,9 +67,10 @@ def _entry_of_folder(root: Path, folder: Path, row: dict | None) -> RunEntry:
     status = report.get("status", row["status"] if row else "unknown")
     if row and row.get("status") not in (None, "ok", "degraded") and status == "ok":
         status = row["status"]
+    method = report.get("method")
     return RunEntry(name=folder.name, folder=folder.relative_to(root).as_posix(), status=status,
-                    method=report.get("method", ""), error=report.get("error") or (row or {}).get("error"),
-                    metrics=headline(report.get("metrics", {})), preview=summary_preview(outputs),
+                    method=method or "", error=report.get("error") or (row or {}).get("error"),
+                    metrics=headline(report.get("metrics", {}), method), preview=summary_preview(outputs, method),
                     previews=[v for v in outputs.values() if str(v).lower().endswith(".png")], report=report)
 
 
@@ -92,7 +93,7 @@ def collect_runs(root: Path | str) -> list[RunEntry]:
         else:
             name = Path(row.get("config", "run")).stem
             entries.append(RunEntry(name=name, folder=None, status=row.get("status", "failed"),
-                                    error=row.get("error"), metrics=headline(row.get("metrics") or {})))
+                                    error=row.get("error"), metrics=row.get("metrics") or {}))
     for folder in sorted(p for p in root.iterdir() if p.is_dir() and p.name not in seen and p.name != REVIEW_DIR):
         if (folder / "report.json").is_file():
             entries.append(_entry_of_folder(root.absolute(), folder.absolute(), None))

@@ -21,9 +21,11 @@ from synthkit import outdir
 from synthkit.config import RunConfig, apply_overrides, load_yaml, validate_config
 from synthkit.context import RefusalKept, RunContext, check_previews, staged_output, write_report
 from synthkit.errors import ConfigError, QualityError, SynthkitError
+from synthkit.io.inputs import Inputs
 from synthkit.limits import Budget
-from synthkit.methods import METHODS, available_methods, config_module, pipeline_module
-from synthkit.summary import summary_preview
+from synthkit.methods import METHODS, available_methods
+from synthkit.methods.rooms import config_module, pipeline_module
+from synthkit.summary import main_output, summary_preview
 
 log = logging.getLogger("synthkit")
 
@@ -214,9 +216,9 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
     raising the refusal itself."""
     start = time.perf_counter()
     try:
-        pipeline_module(method).run(cfg, ctx)
+        _compute_and_write(method, cfg, ctx)
         if ctx.name_outputs_as:
-            _name_outputs(ctx, ctx.name_outputs_as)
+            _name_outputs(ctx, method, ctx.name_outputs_as)
         check_previews(method, ctx)
         return write_report(method, cfg, ctx, config_path, start, ctx.status)
     except SynthkitError as exc:
@@ -229,11 +231,24 @@ def _run_staged(method: str, cfg: RunConfig, ctx: RunContext, config_path: Path)
         raise named from None
 
 
-def _name_outputs(ctx: RunContext, name: str) -> None:
-    """Hard-link (or copy) the summary preview and the main result under the run's ``name``."""
-    from synthkit.summary import main_output
+def _compute_and_write(method: str, cfg: RunConfig, ctx: RunContext) -> None:
+    """The method's ``compute`` on the config's files, then its result's files; a refusal's partial
+    result (``exc.result``) is written before the refusal is raised."""
+    try:
+        result = pipeline_module(method).compute(cfg, Inputs(), ctx)
+    except SynthkitError as exc:
+        if exc.result is not None:
+            exc.result.write(ctx)
+        raise
+    result.write(ctx)
 
-    for key, source in (("named_preview", summary_preview(ctx.outputs)), ("named_result", main_output(ctx.outputs))):
+
+def _name_outputs(ctx: RunContext, method: str, name: str) -> None:
+    """Hard-link (or copy) the summary preview and the main result under the run's ``name``."""
+    for key, source in (
+        ("named_preview", summary_preview(ctx.outputs, method)),
+        ("named_result", main_output(ctx.outputs, method)),
+    ):
         if source is None:
             continue
         suffix = ".preview.png" if key == "named_preview" else Path(source).suffix

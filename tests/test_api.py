@@ -161,7 +161,7 @@ def test_run_in_memory_writes_nothing(echo_method, nothing_written):
     cfg, inputs = prepare("echo", "synthkit.echo()", {"image": img}, {"mode": "invert"})
     result = run_in_memory("echo", "synthkit.echo()", _echo_compute(), cfg, inputs)
     np.testing.assert_array_equal(result.image, [[1.0, 0.0]])
-    assert result.metrics == {"mean": 0.5} and result.status == "ok"
+    assert result.metrics == {"mean": 0.5, "noise": 850} and result.status == "ok"  # noise: default_rng(0)
     assert set(result.timings) == {"load", "process", "total"}
 
 
@@ -179,7 +179,7 @@ def test_save_writes_the_output_folder_whole(echo_method, tmp_path):
     assert files == [".synthkit-output", "report.json", "result.png"]
     np.testing.assert_allclose(load_image(tmp_path / "out" / "result.png", mode="gray"), [[0.0, 1.0]])
     on_disk = json.loads((tmp_path / "out" / "report.json").read_text())
-    assert on_disk == report and report["config_file"] is None and report["metrics"] == {"mean": 0.5}
+    assert on_disk == report and report["config_file"] is None and report["metrics"] == {"mean": 0.5, "noise": 850}
     assert report["timings"]["total"] >= report["timings"]["process"]
     with pytest.raises(ConfigError, match=r"output folder exists; pass --overwrite"):
         result.save(tmp_path / "out")

@@ -38,7 +38,7 @@ def _run_folder(root: Path, name: str, colour, status="ok", error=None):
     folder.mkdir(parents=True)
     save_image(folder / "comparison.png", np.broadcast_to(np.array(colour, np.float32), (320, 480, 3)).copy())
     save_image(folder / "other.png", np.zeros((8, 8), np.float32))
-    report = {"method": "echo", "status": status, "config": {"seed": 0}, "metrics": {"energy": 1.5, "cells": 3},
+    report = {"method": "retarget", "status": status, "config": {"seed": 0}, "metrics": {"energy": 1.5, "cells": 3},
               "outputs": {"other": "other.png", "comparison": "comparison.png", "report": "report.json"}}
     if error:
         report["error"] = error

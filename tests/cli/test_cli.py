@@ -256,6 +256,6 @@ def test_name_outputs_links_the_summary_and_main_result_under_the_run_name(runne
     assert (folder / "echo.preview.png").read_bytes() == (folder / "result.png").read_bytes()
     report = json.loads((folder / "report.json").read_text())
     assert report["outputs"]["named_preview"] == "echo.preview.png"
-    assert main_output({"labels_ply": "labels.ply", "mesh_wall": "wall.obj"}) == "labels.ply"
-    assert main_output({"mesh_wall": "wall.obj", "report": "report.json"}) == "wall.obj"
-    assert main_output({"report": "report.json"}) is None
+    assert main_output({"labels_ply": "labels.ply", "transferred": "t.obj"}, "surface-by-numbers") == "t.obj"
+    assert main_output({"mesh_wall": "wall.obj", "report": "report.json"}, "reshape") == "wall.obj"
+    assert main_output({"report": "report.json"}, "reshape") is None

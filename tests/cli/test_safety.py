@@ -18,7 +18,7 @@ from synthkit.cli.main import cli
 from synthkit.config import YAML_NODE_BUDGET
 from synthkit.errors import ConfigError
 from synthkit.limits import Budget
-from synthkit.methods import available_methods, package_module
+from synthkit.methods import available_methods, spec
 from synthkit.outdir import MARKER, move_into_place, target_lock
 
 REPO = Path(__file__).resolve().parents[2]
@@ -217,11 +217,10 @@ def test_sigterm_swallowed_by_a_library_still_ends_the_run(runner, user_tree, ec
     """OpenCV's import runs a bare ``except:``; a SIGTERM handled inside it was lost and the run
     exited 0. Here the load swallows it the same way: the run still ends at the stage's end with
     exit 143, leaving neither output nor staging folder."""
-    import echo_method.pipeline as pipeline
-
+    import synthkit.io.inputs as inputs
     from synthkit.errors import TERMINATION_REQUESTED, Terminated
 
-    real_load = pipeline.load_image
+    real_load = inputs.load_image
 
     def load_swallowing_sigterm(*args, **kwargs):
         try:
@@ -231,7 +230,7 @@ def test_sigterm_swallowed_by_a_library_still_ends_the_run(runner, user_tree, ec
             pass
         return real_load(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "load_image", load_swallowing_sigterm)
+    monkeypatch.setattr(inputs, "load_image", load_swallowing_sigterm)
     before = snapshot(user_tree)
     try:
         result = runner.invoke(cli, ["echo", str(echo_config), "--out", str(user_tree / "out")])
@@ -479,7 +478,7 @@ def test_schema_is_json_schema_of_the_config(runner, method):
 
 @pytest.mark.parametrize("method", available_methods())
 def test_set_example_in_help_is_a_real_key(runner, method):
-    example = package_module(method).SET_EXAMPLE
+    example = spec(method).set_example
     result = runner.invoke(cli, [method, "--help"])
     assert f"--set {example}" in " ".join(result.output.split())
     sample = sorted(CONFIGS.glob(f"{method}/*.yaml"))[0]

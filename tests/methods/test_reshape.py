@@ -747,6 +747,7 @@ def test_zero_area_mesh_exit_3(runner, tmp_path):
 def test_memory_budget_refuses_before_building(tmp_path):
     from synthkit.context import RunContext
     from synthkit.errors import ConfigError
+    from synthkit.io.inputs import Inputs
     from synthkit.limits import Budget
     from synthkit.methods.reshape import pipeline
     from synthkit.methods.reshape.config import ReshapeConfig
@@ -754,7 +755,7 @@ def test_memory_budget_refuses_before_building(tmp_path):
     cfg = ReshapeConfig.model_validate({"method": "reshape", **wall_config()})
     ctx = RunContext(tmp_path, seed=0, show_progress=False, budget=Budget(10_000))
     with pytest.raises(ConfigError, match=r"^input: .*reshape-wall.obj needs about .* matrix entries"):
-        pipeline.run(cfg, ctx)
+        pipeline.compute(cfg, Inputs(), ctx)
     assert not ctx.outputs
 
 

@@ -11,8 +11,13 @@ baseline; :mod:`.assembly` deforms the chosen pieces into their cells, :mod:`.jo
 :mod:`.pipeline` runs it all (:func:`synthkit.petri_synth`), :mod:`.outputs` writes the files.
 """
 
-SET_EXAMPLE = "inference.max_restarts=5"
-"""A real key of this method, shown in ``--set``'s help."""
+from synthkit.methods.spec import MethodSpec
 
-INIT_VALUES = {"lattice.unit": [1.0, 1.0, 1.0], "construction.points": [[0.0, 0.0], [10.0, 0.0]]}
-"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""
+SPEC = MethodSpec(
+    functions=("petri_synth",),
+    headline=("cells", "labels", "adjacency_violations", "normal_histogram_D"),
+    summary_keys=("before_after", "preview_montage"),
+    main_keys=("mesh",),
+    set_example="inference.max_restarts=5",
+    init_values={"lattice.unit": [1.0, 1.0, 1.0], "construction.points": [[0.0, 0.0], [10.0, 0.0]]},
+)

@@ -38,7 +38,7 @@ from synthkit.methods.petri.outputs import PetriResult, PreviewScene, result_ass
 from synthkit.methods.petri.spaces import CurveSpace, NetworkSpace, Space
 from synthkit.result import result_fields
 
-__all__ = ["compute", "run", "refusals"]
+__all__ = ["compute", "refusals"]
 
 
 @contextlib.contextmanager
@@ -204,8 +204,3 @@ def compute(cfg: PetriConfig, inputs: Inputs, ctx) -> PetriResult:
                        labels={**space.labels_doc(syn.labels), **example_doc(ex, cons)}, target_net=syn.net,
                        example_net=example_net(ex.grid, cons, ex.spec), baseline_net=bnet, example=asset, look=look,
                        scene=scene)
-
-
-def run(cfg: PetriConfig, ctx) -> None:
-    """The command line's run: :func:`compute` on the config's files, then the result's files."""
-    compute(cfg, Inputs(), ctx).write(ctx)

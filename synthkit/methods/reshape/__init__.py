@@ -15,12 +15,13 @@ Modules: ``config`` (schema), ``options`` (keys to arguments), ``pipeline`` (sta
 ``retexture`` and ``texture/``; drawing in ``previews``.
 """
 
-SET_EXAMPLE = "solver.steps=20"
-"""A real key of this method, shown in ``--set``'s help."""
+from synthkit.methods.spec import MethodSpec
 
-INIT_VALUES = {"scale": {"x": 1.3}}
-"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""
-
-INIT_REQUIRED = ("input",)
-"""Optional keys ``synthkit init`` marks REQUIRED (``input``, or ``pieces`` for a chain)."""
-
+SPEC = MethodSpec(
+    functions=("reshape",),
+    summary_keys=("before_after", "comparison"),
+    main_keys=("mesh_",),
+    set_example="solver.steps=20",
+    init_values={"scale": {"x": 1.3}},
+    init_required=("input",),
+)

@@ -51,7 +51,7 @@ from synthkit.methods.reshape.system import (
 from synthkit.methods.reshape.textured import TexturedMesh, material_textures, textured_from_asset
 from synthkit.result import result_fields
 
-__all__ = ["compute", "run", "load_textured", "Scene", "MEMORY_PIECE"]
+__all__ = ["compute", "load_textured", "Scene", "MEMORY_PIECE"]
 
 log = logging.getLogger("synthkit")
 
@@ -449,9 +449,3 @@ def _reshaped_pieces(ctx, sc: Scene, graph, X) -> dict[str, TexturedMesh]:
         out[name] = reshaped(m, P)
         _check_quality(ctx, name, m, P)
     return out
-
-
-def run(cfg, ctx) -> None:
-    """Run ``synthkit reshape`` for a validated :class:`~synthkit.methods.reshape.config.ReshapeConfig`:
-    :func:`compute` with the config's files, then write the outputs."""
-    compute(cfg, Inputs(), ctx).write(ctx)

@@ -2,8 +2,13 @@
 
 3-D model retargeting with sparse offset statistics (Wu, Li, Wand, Hildebrandt, Jansen, Seidel)."""
 
-CLI_FLAGS = {"--analyze-only": ("analyze_only=true", "Stop after the offset statistics; write the report.")}
-"""Extra boolean options of ``synthkit retarget``: flag -> (--set override, help)."""
+from synthkit.methods.spec import MethodSpec
 
-SET_EXAMPLE = "analysis.dense_radius=0.03"
-"""A real key of this method, shown in ``--set``'s help."""
+SPEC = MethodSpec(
+    functions=("retarget",),
+    headline=("n_principal", "sparsity_top7", "graph_nodes", "graph_labels", "energy"),
+    summary_keys=("comparison", "before"),
+    main_keys=("mesh",),
+    cli_flags={"--analyze-only": ("analyze_only=true", "Stop after the offset statistics; write the report.")},
+    set_example="analysis.dense_radius=0.03",
+)

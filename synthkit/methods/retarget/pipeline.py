@@ -49,7 +49,7 @@ from synthkit.methods.retarget.problem import build_problem, resolve_steps
 from synthkit.methods.retarget.seams import Retargeted, stitch
 from synthkit.result import result_fields
 
-__all__ = ["compute", "run", "NoRepetition", "check_analysis_budget"]
+__all__ = ["compute", "NoRepetition", "check_analysis_budget"]
 
 
 _MESH_OUT = {".obj": ".obj", ".ply": ".ply", ".glb": ".glb", ".gltf": ".glb", ".off": ".off", ".stl": ".stl"}
@@ -101,8 +101,7 @@ class NoRepetition(InputError):
     ``result`` (the :class:`RetargetResult` of the analysis) writes."""
 
     def __init__(self, message: str, *, keep_outputs: bool = True, result: RetargetResult | None = None):
-        super().__init__(message, keep_outputs=keep_outputs)
-        self.result = result
+        super().__init__(message, keep_outputs=keep_outputs, result=result)
 
 
 def _load(cfg, inputs: Inputs, src: str, ctx):
@@ -258,16 +257,3 @@ def compute(cfg, inputs: Inputs, ctx) -> RetargetResult:
                 ctx.metrics.update(metrics)
                 result.retargeted = out
     return result
-
-
-def run(cfg, ctx) -> None:
-    """Run the retargeting described by ``cfg`` into ``ctx`` (the command line's path): compute,
-    then write; a mesh without repetition writes its statistics before it is refused."""
-    try:
-        result = compute(cfg, Inputs(), ctx)
-    except NoRepetition as exc:
-        if exc.result is not None:
-            exc.result.write(ctx)
-        raise
-    result.write(ctx)
-

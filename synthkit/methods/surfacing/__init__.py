@@ -13,13 +13,16 @@ both modes), :mod:`.pipeline` (reads and runs; mode transfer in :mod:`.transfer.
 ``synthkit.transfer``).
 """
 
-CLI_FLAGS = {
-    "--render-views": ("views.render=true", "Also write the named views and their cameras, to paint strokes on.")
-}
-"""Extra boolean options of ``synthkit surface-by-numbers``: flag -> (--set override, help)."""
+from synthkit.methods.spec import MethodSpec
 
-SET_EXAMPLE = "boundary.eta=2"
-"""A real key of this method, shown in ``--set``'s help."""
-
-INIT_VALUES = {"regions": [{"name": "a", "vertices": [0]}, {"name": "b", "vertices": [1]}]}
-"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""
+SPEC = MethodSpec(
+    functions=("segment", "transfer"),
+    headline=("graph_nodes",),
+    summary_keys=("preview_regions", "preview_transfer"),
+    main_keys=("transferred", "labels_ply"),
+    cli_flags={
+        "--render-views": ("views.render=true", "Also write the named views and their cameras, to paint strokes on.")
+    },
+    set_example="boundary.eta=2",
+    init_values={"regions": [{"name": "a", "vertices": [0]}, {"name": "b", "vertices": [1]}]},
+)

@@ -32,7 +32,7 @@ from synthkit.methods.surfacing.smoothing import polyline_length, smooth_chains
 from synthkit.methods.surfacing.transfer import pipeline as transfer_pipeline
 from synthkit.result import result_fields
 
-__all__ = ["run", "compute", "with_mode"]
+__all__ = ["compute", "with_mode"]
 
 log = logging.getLogger("synthkit")
 
@@ -171,8 +171,3 @@ def with_mode(keys: dict[str, Any], mode: str, call: str) -> dict[str, Any]:
         hint = f"; use {other}" if given in ("segment", "transfer") else ""
         raise ConfigError(f"{call}: mode: {given!r} contradicts the function (mode {mode}){hint}")
     return {**keys, "mode": mode}
-
-
-def run(cfg: SurfacingConfig, ctx) -> None:
-    """Run ``cfg`` into ``ctx.out_dir`` (the command line: :func:`compute`, then write)."""
-    compute(cfg, Inputs(), ctx).write(ctx)

@@ -8,8 +8,13 @@ and ``run``), :mod:`.outputs` (the result and its files) and :mod:`.api`
 (``synthkit.symmetry_texture``).
 """
 
-SET_EXAMPLE = "synth.patch=24"
-"""A real key of this method, shown in ``--set``'s help."""
+from synthkit.methods.spec import MethodSpec
 
-INIT_VALUES = {"mode": "quilt"}
-"""Example values ``synthkit init`` writes for keys a config must give (dotted key -> value)."""
+SPEC = MethodSpec(
+    functions=("symmetry_texture",),
+    headline=("objective_start", "objective_end", "baseline_objective"),
+    summary_keys=("comparison", "result"),
+    main_keys=("result",),
+    set_example="synth.patch=24",
+    init_values={"mode": "quilt"},
+)

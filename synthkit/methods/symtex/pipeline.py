@@ -141,11 +141,6 @@ CONFIG_KEYS = ("tile.margin", "filter.kind")
 """The keys the stage modules name in a ``ValueError`` that the pipeline reports as a config error."""
 
 
-def run(cfg: SymtexConfig, ctx) -> None:
-    """The command line's run: :func:`compute` on the config's files, then write the outputs."""
-    compute(cfg, Inputs(), ctx).write(ctx)
-
-
 def _check_patch(opts: SymtexOptions, src: np.ndarray, source) -> None:
     patch, out_shape = opts.synth.patch, opts.output_size or src.shape[:2]
     if patch > min(src.shape[:2]):

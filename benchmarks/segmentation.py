@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from itertools import combinations
 from pathlib import Path
 
@@ -44,21 +45,29 @@ from synthkit.core.mesh import vertex_graph_edges  # noqa: E402
 from synthkit.io.meshes import load_mesh  # noqa: E402
 from synthkit.io.segmentation import read_seg  # noqa: E402
 from synthkit.methods.surfacing import measures, regions  # noqa: E402
+from synthkit.methods.surfacing.config import SurfacingConfig  # noqa: E402
 from synthkit.methods.surfacing.graph import face_labels_from_vertices  # noqa: E402
-from synthkit.methods.surfacing.segment import Options, segment  # noqa: E402
+from synthkit.methods.surfacing.options import options_of  # noqa: E402
+from synthkit.methods.surfacing.segment import segment  # noqa: E402
 
 PSB = Path(__file__).resolve().parents[2] / "shared" / "data" / "psb"
 AREA = "segmentation"
 MIN_FACES = 20
 
+
+def seg_options(**changes):
+    """The segmentation's options of a config with its defaults, with ``changes``."""
+    return replace(options_of(SurfacingConfig.model_construct()).segment, **changes)
+
+
 CONFIGS = {
-    "paper-vertex": Options(graph="vertex", region_model="none"),
-    "paper-face": Options(graph="face", region_model="none"),
-    "geodesic-plain": Options(concavity=0.0, trust=0.0),
-    "previous-default": Options(concavity=1000.0, trust=0.0),
-    "default-vertex": Options(graph="vertex"),
-    "default": Options(),
-    "default-multires": Options(coarsest_nodes=2000, compare_single_level=True),
+    "paper-vertex": seg_options(graph="vertex", region_model="none"),
+    "paper-face": seg_options(graph="face", region_model="none"),
+    "geodesic-plain": seg_options(concavity=0.0, trust=0.0),
+    "previous-default": seg_options(concavity=1000.0, trust=0.0),
+    "default-vertex": seg_options(graph="vertex"),
+    "default": seg_options(),
+    "default-multires": seg_options(coarsest_nodes=2000, compare_single_level=True),
 }
 """Configs scored; ``previous-default`` is the default before issue 29 (concavity 1000, the region
 term trusted everywhere); ``default-multires`` forces the hierarchy down to 2000 nodes (PSB meshes have 3k-31k
@@ -315,7 +324,7 @@ def run_speed(args):
         owner = simulate_strokes(V, F, segs[0], "disc")
         L = int(owner.max()) + 1
         fo = np.full(len(F), -1)
-        opt = Options(compare_single_level=label == "100k")
+        opt = seg_options(compare_single_level=label == "100k")
         res = segment(V, F, owner, fo, L, opt, rng=0)
         total = res.timings["graph"] + res.timings["hierarchy"] + res.timings["cut"]  # not the single-level run
         cut = res.timings["cut"]

@@ -39,6 +39,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import base_synthkit, print_table, record, write_results  # noqa: E402
+from synthkit.methods.surfacing.config import SurfacingConfig, TransferPair, TransferSection  # noqa: E402
+from synthkit.methods.surfacing.options import options_of  # noqa: E402
 from synthkit.methods.surfacing.transfer import surface as surface_module  # noqa: E402
 from synthkit.methods.surfacing.transfer import synth as synth_module  # noqa: E402
 from synthkit.methods.surfacing.transfer.extract import corner_values, vertex_values  # noqa: E402
@@ -79,6 +81,12 @@ BASE_COMMIT = "2342190d9de31856f0a084ff02480fdd8ec7b70b"
 parameterization timing."""
 
 
+def default_options(radius: float) -> Options:
+    """One pair's synthesis options of a config with its defaults, patch radius ``radius``."""
+    transfer = TransferSection.model_construct(pairs=[TransferPair.model_construct()])
+    return options_of(SurfacingConfig.model_construct(transfer=transfer)).synthesis(0, radius)
+
+
 def base_transfer(folder: Path, commit: str):
     """:func:`transfer` run by ``synthkit`` as of ``commit`` (its files from ``git archive``, imported
     as ``synthkit_base``) with the step's CPU seconds: a function like :func:`timed_transfer`."""
@@ -111,7 +119,8 @@ def timed_transfer(target_mesh, source_mesh, opt: Options, seed: int, mods=None)
         source = sf.make_surface(V, F, np.arange(len(F)), sf.Signal("color", values=colors[F]))
         radius = 0.3 * np.sqrt(min(target.area, source.area))
         keys = ("bound", "matching", "trimming") + (("parameterization",) if mods is None else ())
-        o = sy.Options(**{k: getattr(opt, k) for k in keys}, patch_radius=radius)
+        given = {k: getattr(opt, k) for k in keys}
+        o = sy.Options(**given, patch_radius=radius) if mods else replace(default_options(radius), **given)
         res = sy.Synthesis(target, source, o, rng=np.random.default_rng(seed)).run()
     finally:
         sy.mutual_patch = inner
@@ -267,7 +276,7 @@ def whole_transfer(target_mesh, source_mesh) -> None:
     build_index(source, cloud, source.signal.sample(cloud.faces, cloud.bary), spokes=8, steps=4, radius=0.3)
     fans = time.perf_counter() - t
     record(AREA, f"fan precompute, {len(F)} source faces", fans, "s", goal=10.0)
-    base_opt = Options(patch_radius=1.0)
+    base_opt = default_options(1.0)
     ours, res = transfer(target_mesh, source_mesh, base_opt, 0)
     rnd, res_rnd = transfer(target_mesh, source_mesh, replace(base_opt, matching="random"), 0)
     none_opt = replace(base_opt, matching="random", trimming="none", fixed_patches=True, max_patches=len(res.patches))
@@ -307,12 +316,12 @@ def main() -> int:
     source_mesh = colour_source(rng)
     rounds = 1 if args.quick else 3
     if args.only == "parameterize":
-        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base, rounds)
+        parameterize_speed(target_mesh, source_mesh, default_options(1.0), args.base, rounds)
     elif args.only == "accuracy":
         accuracy(target_mesh)
     else:
         whole_transfer(target_mesh, source_mesh)
-        parameterize_speed(target_mesh, source_mesh, Options(patch_radius=1.0), args.base, rounds)
+        parameterize_speed(target_mesh, source_mesh, default_options(1.0), args.base, rounds)
     print_table(AREA)
     print(f"wrote {write_results(AREA)}")
     return 0

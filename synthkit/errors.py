@@ -6,7 +6,9 @@ data: a mesh or image a config names that does not exist, cannot be read or is d
 Any other exception is a bug or an environment problem and exits with 1.
 """
 
+import contextlib
 import threading
+from collections.abc import Iterator
 
 
 class SynthkitError(Exception):
@@ -57,6 +59,26 @@ class KeyedError(ValueError):
         super().__init__(f"{key}: {message}" if key else message)
         self.key = key
         self.message = message
+
+
+def user_error(exc: KeyedError, prefix: str = "", section: str = "", *,
+               keyed: type[SynthkitError] = ConfigError) -> SynthkitError:
+    """The user's error for a stage's refusal ``exc``: ``keyed`` (a ConfigError unless the caller
+    knows the input is at fault) reading ``<prefix><section>.<key>: <message>`` when it names a key,
+    else an InputError reading ``<prefix><message>``. ``prefix`` is usually ``"<file>: "``."""
+    if exc.key is None:
+        return InputError(prefix + exc.message)
+    where = f"{section}.{exc.key}" if section else exc.key
+    return keyed(f"{prefix}{where}: {exc.message}")
+
+
+@contextlib.contextmanager
+def refusals(prefix: str = "", section: str = "", *, keyed: type[SynthkitError] = ConfigError) -> Iterator[None]:
+    """Raise a :class:`KeyedError` of the block again as its :func:`user_error`."""
+    try:
+        yield
+    except KeyedError as exc:
+        raise user_error(exc, prefix, section, keyed=keyed) from None
 
 
 class Terminated(BaseException):

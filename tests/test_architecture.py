@@ -245,3 +245,48 @@ def test_no_method_imports_the_api_layer(path):
     """A method's pipeline and outputs build :class:`synthkit.result.Result`; only its ``api.py``
     (the Python function) uses :mod:`synthkit.api`."""
     assert _reaches(path, ("synthkit.api", "synthkit.runner")) == []
+
+
+def _default_config(name: str):
+    """Method ``name``'s config with every default, its required keys taken from its first bundled
+    config (unvalidated beyond those: ``model_construct``)."""
+    from synthkit.runner import load_method_config
+
+    path = next(p for p in sorted((PACKAGE.parent / "configs").glob("*/*.yaml")) if p.parent.name == name)
+    _, given, _ = load_method_config(path)
+    required = {k: getattr(given, k) for k, f in type(given).model_fields.items() if f.is_required()}
+    return type(given).model_construct(**required)
+
+
+def _option_defaults(value, where: str):
+    """``(where, field, default, value)`` of every field with a default in the dataclasses of ``value``."""
+    import dataclasses
+
+    if isinstance(value, tuple):
+        return [row for k, item in enumerate(value) for row in _option_defaults(item, f"{where}[{k}]")]
+    if not dataclasses.is_dataclass(value):
+        return []
+    rows = []
+    for f in dataclasses.fields(value):
+        field_value = getattr(value, f.name)
+        if f.default is not dataclasses.MISSING:
+            rows.append((where, f.name, f.default, field_value))
+        rows += _option_defaults(field_value, f"{where}.{f.name}")
+    return rows
+
+
+@pytest.mark.parametrize("name", ["retarget", "petri-synth", "symmetry-texture", "surface-by-numbers", "reshape"])
+def test_every_option_default_is_the_configs(name):
+    """Each method builds its stages' options in one function, ``options_of(cfg)``; a default an
+    options dataclass writes (most write none: the config's is the one) equals what ``options_of``
+    makes of the config's defaults."""
+    import importlib
+
+    from synthkit.methods import METHODS
+
+    module = importlib.import_module(f"{METHODS[name]}.options")
+    builders = sorted(n for n, v in vars(module).items() if callable(v) and not isinstance(v, type)
+                      and "options" in n and not n.startswith("_"))
+    assert builders == ["options_of"]
+    rows = _option_defaults(module.options_of(_default_config(name)), "options")
+    assert [r for r in rows if r[2] != r[3]] == []

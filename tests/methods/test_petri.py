@@ -32,7 +32,7 @@ from synthkit.methods.petri.net import (
     to_pnml,
 )
 from synthkit.methods.petri.network import build_network
-from synthkit.methods.petri.options import SpaceOptions, curves_of, lattice_options, space_options
+from synthkit.methods.petri.options import SpaceOptions, curves_of, options_of
 from synthkit.methods.petri.spaces import NetworkSpace
 from synthkit.runner import run_config
 from synthkit.samples import petri as sample
@@ -812,8 +812,8 @@ def network_objects(example: Path, curves, *, seed=0):
     cfg = CONFIG.model_validate(data)
     mesh = trimesh.load(example, process=False)
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    ex = analysis.analyse(V, F, lattice_options(cfg))
-    wrapped = NetworkSpace(build_network(curves_of(cfg), space_options(cfg, ex.spec)))
+    ex = analysis.analyse(V, F, options_of(cfg).lattice)
+    wrapped = NetworkSpace(build_network(curves_of(cfg), options_of(cfg).space(ex.spec)))
     library = PieceLibrary(ex.pieces, ex.reps, wrapped.axes)
     syn = pipeline.synthesize(wrapped, ex.cons, library, ex.grid, np.random.default_rng(seed), 20, None)
     return wrapped.space, syn.net, library, syn.assembler, ex.cons

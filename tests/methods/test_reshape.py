@@ -313,7 +313,8 @@ def test_factor_cache_and_drag_with_a_frozen_node():
     T = X0.copy()
     T[3, 0] = 6.0
     kw = dict(X0=X0, T=T, edges=edges, stress_slice=where["s"], stress_weights=np.ones(3),
-              options=DragOptions(steps=3, short_ratio=0.2, raise_factor=1.5, flip_ratio=1e-3, backend="auto"))
+              options=DragOptions(steps=3, short_ratio=0.2, raise_factor=1.5, flip_ratio=1e-3, backend="auto",
+                                  propagation=None, allow_partial=False))
     dragging = drag(lambda s: limited, b, **kw)
     np.testing.assert_allclose(dragging.X[:, 0], [0, 1, 2, 6], atol=1e-9)  # node 2 frozen: 2-3 takes it all
     released = drag(lambda s: full if s == 3 else limited, b, **kw)

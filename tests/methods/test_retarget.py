@@ -3,6 +3,7 @@ known lattices, end-to-end runs, bad input."""
 
 import itertools
 import json
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -34,8 +35,9 @@ from synthkit.methods.retarget.analysis import (
     sparsity_curve,
     vertex_normals,
 )
+from synthkit.methods.retarget.config import RetargetConfig
 from synthkit.methods.retarget.corners import carry, pack, unpack
-from synthkit.methods.retarget.options import AnalysisOptions, Target, options_of
+from synthkit.methods.retarget.options import Target, options_of
 from synthkit.methods.retarget.outputs import label_colours
 from synthkit.methods.retarget.problem import resolve_steps
 from synthkit.methods.retarget.synthesis import (
@@ -52,6 +54,11 @@ from synthkit.methods.retarget.synthesis import (
 )
 from synthkit.runner import load_method_config, run_config
 from synthkit.samples import retarget as samples
+
+
+def analysis_options(**changes):
+    """The analysis options of a config with its defaults, with ``changes``."""
+    return replace(options_of(RetargetConfig.model_construct())[0], **changes)
 
 REPO = Path(__file__).resolve().parents[2]
 KENNEY = REPO.parent / "shared" / "data" / "meshes" / "kenney-city"
@@ -338,7 +345,7 @@ def _analysed(name):
     if name not in _CACHE:
         V, F, truth = samples.SAMPLES[name][0]()
         Vn, _, scale = normalize_unit(V)
-        _CACHE[name] = (analyze(Vn, F, rng=0), truth, scale)
+        _CACHE[name] = (analyze(Vn, F, analysis_options(), rng=0), truth, scale)
     return _CACHE[name]
 
 
@@ -683,14 +690,14 @@ def test_resolve_steps_names_the_target_entry():
     an = SimpleNamespace(n_principal=1, basis=np.diag([0.4, 0.2, 0.2]))  # one principal offset along x
     Vn = np.array([[-1.0, 0, 0], [1.0, 0.5, 0.2]])  # 5 steps of 0.4 along x
     keys: dict = {}
-    assert resolve_steps(Target(axis_steps={"x": 2, "y": 0}), an, Vn, keys=keys).tolist() == [2, 0, 0]
+    assert resolve_steps(Target(None, {"x": 2, "y": 0}, None), an, Vn, keys=keys).tolist() == [2, 0, 0]
     assert keys == {0: "target.axis_steps.x=2"}
-    assert resolve_steps(Target(scale=[2.0]), an, Vn).tolist() == [5, 0, 0]
+    assert resolve_steps(Target(None, None, [2.0]), an, Vn).tolist() == [5, 0, 0]
     with pytest.raises(KeyedError, match=r"^target.steps\[1\]=1: only 1 principal offset") as info:
-        resolve_steps(Target(steps=[0, 1]), an, Vn)
+        resolve_steps(Target([0, 1], None, None), an, Vn)
     assert isinstance(info.value, ValueError) and info.value.key == "target.steps[1]=1"
     with pytest.raises(KeyedError, match=r"^target.axis_steps.y=1: no principal offset was found"):
-        resolve_steps(Target(axis_steps={"y": 1}), SimpleNamespace(n_principal=0, basis=np.eye(3)), Vn)
+        resolve_steps(Target(None, {"y": 1}, None), SimpleNamespace(n_principal=0, basis=np.eye(3)), Vn)
 
 
 def test_options_map_every_analysis_key(tmp_path):
@@ -699,14 +706,14 @@ def test_options_map_every_analysis_key(tmp_path):
                                "analysis": {"tau": 0.2, "min_angle_deg": 45.0, "descriptor": "fpfh"}}))
     _, config, _ = load_method_config(cfg, check_files=False)
     analysis, synthesis, target = options_of(config)
-    assert analysis == AnalysisOptions(tau=0.2, min_angle=np.pi / 4, descriptor="fpfh")
-    assert synthesis.label_margin == 1 and synthesis.descriptor == "fpfh" and target == Target(steps=[1])
+    assert analysis == analysis_options(tau=0.2, min_angle=np.pi / 4, descriptor="fpfh")
+    assert synthesis.label_margin == 1 and synthesis.descriptor == "fpfh" and target == Target([1], None, None)
 
 
 def test_analysis_is_deterministic_for_a_seed():
     V, F, _ = samples.build_bridge()
     Vn, _, _ = normalize_unit(V)
-    a, b = analyze(Vn, F, rng=3), analyze(Vn, F, rng=3)
+    a, b = analyze(Vn, F, analysis_options(), rng=3), analyze(Vn, F, analysis_options(), rng=3)
     np.testing.assert_array_equal(a.offsets, b.offsets)
     np.testing.assert_array_equal(a.basis, b.basis)
 
@@ -714,7 +721,7 @@ def test_analysis_is_deterministic_for_a_seed():
 def test_fpfh_descriptor_finds_the_railing_period():
     V, F, truth = samples.build_railing()
     Vn, _, scale = normalize_unit(V)
-    an = analyze(Vn, F, AnalysisOptions(descriptor="fpfh", descriptor_radius=0.1), rng=0)
+    an = analyze(Vn, F, analysis_options(descriptor="fpfh", descriptor_radius=0.1), rng=0)
     assert an.n_principal == 1
     np.testing.assert_allclose(np.abs(an.principal[0]) * scale, truth["lattice"][0], atol=1e-6)
 

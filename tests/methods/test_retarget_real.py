@@ -17,6 +17,8 @@ from synthkit.core.quality import mesh_quality
 from synthkit.io.assets import load_asset
 from synthkit.io.meshes import load_mesh
 from synthkit.methods.retarget.analysis import analyze
+from synthkit.methods.retarget.config import RetargetConfig
+from synthkit.methods.retarget.options import options_of
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = REPO.parent / "shared" / "data"
@@ -50,7 +52,7 @@ def _analysed(name):
         mesh = load_mesh(DATA / name)
         V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
         _, center, scale = normalize_unit(V[np.unique(F)])
-        _CACHE[name] = (analyze((V - center) / scale, F, rng=0), scale)
+        _CACHE[name] = (analyze((V - center) / scale, F, options_of(RetargetConfig.model_construct())[0], rng=0), scale)
     return _CACHE[name]
 
 

@@ -17,12 +17,20 @@ from synthkit.cli.main import cli
 from synthkit.io.segmentation import read_seg
 from synthkit.methods.surfacing import measures
 from synthkit.methods.surfacing import solve as solve_mod
+from synthkit.methods.surfacing.config import SurfacingConfig
 from synthkit.methods.surfacing.graph import boundary_cost, build_graph, face_labels_from_vertices
+from synthkit.methods.surfacing.options import options_of
 from synthkit.methods.surfacing.regions import normalised_cost, trust_weights, walled_off
-from synthkit.methods.surfacing.segment import Options, chain_edges, cut_edges, segment
+from synthkit.methods.surfacing.segment import chain_edges, cut_edges, segment
 from synthkit.methods.surfacing.solve import Problem, build_hierarchy, contract, cut_cost, solve_labels
 from synthkit.methods.surfacing.strokes import graph_seeds
 from synthkit.samples import surfacing as sample
+
+
+def seg_options(**changes):
+    """The segmentation's options of a config with its defaults, with ``changes``."""
+    return replace(options_of(SurfacingConfig.model_construct()).segment, **changes)
+
 
 PSB = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "psb"
 
@@ -201,7 +209,7 @@ def test_static_hierarchy_levels_equal_the_rebuilt_ones():
 def test_crease_cut_runs_exactly_along_the_concave_crease(crease):
     V, F, part, caps = crease
     vo, fo = owners(V, F, face_sets=caps)
-    res = segment(V, F, vo, fo, 2, Options(region_model="none"))
+    res = segment(V, F, vo, fo, 2, seg_options(region_model="none"))
     np.testing.assert_array_equal(res.face_labels, part)
     assert res.solver.startswith("s-t min cut")
     # the cut: the crease line x = 1, y = 1.5 and its straight continuation y = 1.5 over the flat sides
@@ -212,7 +220,7 @@ def test_crease_cut_runs_exactly_along_the_concave_crease(crease):
 def test_three_or_more_parts_recovered(figure):
     V, F, part, strokes = figure
     vo, fo = owners(V, F, vertex_sets=[[v] for v in strokes])
-    res = segment(V, F, vo, fo, 4, Options())
+    res = segment(V, F, vo, fo, 4, seg_options())
     assert res.solver.startswith("alpha-expansion")
     assert min(iou(res.face_labels, part, k) for k in range(4)) >= 0.95
 
@@ -234,25 +242,25 @@ def test_no_leak_across_the_creases_around_head_and_arms(figure):
     front = np.flatnonzero(np.isclose(V[:, 2], 2.0) & (V[:, 1] > 0.2) & (V[:, 1] < 4.9) & (V[:, 0] > 3.1)
                            & (V[:, 0] < 5.9))
     vo, fo = owners(V, F, vertex_sets=[front, [strokes[1]], [strokes[2]], [strokes[3]]])
-    plain = Options(concavity=0.0, trust=0.0, region_weight=2.0)
+    plain = seg_options(concavity=0.0, trust=0.0, region_weight=2.0)
     leaky = segment(V, F, vo, fo, 4, replace(plain, wall_deg=180.0), rng=0).face_labels
     assert ((leaky == 0) & (part != 0)).sum() > 300
     walled = segment(V, F, vo, fo, 4, plain, rng=0).face_labels
     np.testing.assert_array_equal(walled, part)
-    np.testing.assert_array_equal(segment(V, F, vo, fo, 4, Options(), rng=0).face_labels, part)
+    np.testing.assert_array_equal(segment(V, F, vo, fo, 4, seg_options(), rng=0).face_labels, part)
 
 
 def test_paper_energy_shrinks_around_small_strokes(figure):
     V, F, part, strokes = figure
     vo, fo = owners(V, F, vertex_sets=[[v] for v in strokes])
-    res = segment(V, F, vo, fo, 4, Options(region_model="none"))
+    res = segment(V, F, vo, fo, 4, seg_options(region_model="none"))
     assert min(iou(res.face_labels, part, k) for k in range(4)) < 0.5
 
 
 def test_multires_equals_single_level(figure):
     V, F, part, strokes = figure
     vo, fo = owners(V, F, vertex_sets=[[v] for v in strokes])
-    res = segment(V, F, vo, fo, 4, Options(coarsest_nodes=600, compare_single_level=True))
+    res = segment(V, F, vo, fo, 4, seg_options(coarsest_nodes=600, compare_single_level=True))
     assert len(res.levels) == 3
     assert all(st["free_nodes"] < st["nodes"] / 2 for st in res.levels[:-1])
     assert res.single_level["face_agreement"] >= 0.99
@@ -264,12 +272,12 @@ def test_multires_equals_single_level_on_the_crease():
     C = V[F].mean(axis=1)
     caps = [np.flatnonzero(np.isclose(C[:, 0], 2.0)), np.flatnonzero(np.isclose(C[:, 1], 2.5))]
     vo, fo = owners(V, F, face_sets=caps)
-    res = segment(V, F, vo, fo, 2, Options(coarsest_nodes=4000, compare_single_level=True))
+    res = segment(V, F, vo, fo, 2, seg_options(coarsest_nodes=4000, compare_single_level=True))
     assert len(res.levels) == 2 and res.levels[0]["free_nodes"] < len(F) / 4
     assert res.cut_cost == pytest.approx(res.single_level["cut_cost"], rel=0.01)
     assert res.single_level["face_agreement"] >= 0.99
     # the paper's energy, single level, at this resolution too
-    paper = segment(V, F, vo, fo, 2, Options(region_model="none", multires=False))
+    paper = segment(V, F, vo, fo, 2, seg_options(region_model="none", multires=False))
     np.testing.assert_array_equal(paper.face_labels, part)
 
 
@@ -282,7 +290,7 @@ def test_unstroked_piece_gets_the_nearest_region():
     m = trimesh.util.concatenate([a, b, c])
     V, F = np.asarray(m.vertices), np.asarray(m.faces)
     vo, fo = owners(V, F, vertex_sets=[[0], [len(a.vertices)]])
-    res = segment(V, F, vo, fo, 2, Options())
+    res = segment(V, F, vo, fo, 2, seg_options())
     assert res.unstroked_components == 1
     third = np.arange(len(F)) >= 2 * len(a.faces)
     assert (res.face_labels[third] == 1).all()
@@ -293,7 +301,7 @@ def test_non_manifold_mesh_is_segmented():
     V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1], [2, 0, 0]], float)
     F = np.array([[0, 1, 2], [0, 3, 1], [0, 1, 4], [1, 5, 2]])  # edge (0, 1) in three faces
     vo, fo = owners(V, F, face_sets=[[0], [3]])
-    res = segment(V, F, vo, fo, 2, Options())
+    res = segment(V, F, vo, fo, 2, seg_options())
     assert res.face_labels.shape == (4,) and res.face_labels[0] == 0 and res.face_labels[3] == 1
 
 
@@ -303,14 +311,14 @@ def test_color_model_follows_the_painted_disc():
     top, bottom = int(np.argmax(V[:, 2])), int(np.argmin(V[:, 2]))
     vo, fo = owners(V, F, vertex_sets=[[top], [bottom]])
     c = colors / 255.0
-    res = segment(V, F, vo, fo, 2, Options(region_model="color"), colors=c, rng=0)
+    res = segment(V, F, vo, fo, 2, seg_options(region_model="color"), colors=c, rng=0)
     rim = np.zeros(len(V), bool)
     rim[F[disc].ravel()] = True
     rim &= np.isin(np.arange(len(V)), F[~disc].ravel())
     near_rim = rim[F].any(axis=1)
     got = res.face_labels == 0
     assert (got == disc)[~near_rim].all()
-    plain = segment(V, F, vo, fo, 2, Options(region_model="none"), rng=0)
+    plain = segment(V, F, vo, fo, 2, seg_options(region_model="none"), rng=0)
     assert ((plain.face_labels == 0) != disc)[~near_rim].sum() > 0.2 * disc.sum()
 
 
@@ -465,7 +473,7 @@ def test_psb_body_strokes_beat_voronoi_on_the_table():
     V, F, segs = bench.load_model("142")
     owner = bench.simulate_strokes(V, F, segs[0], "body")
     L = int(owner.max()) + 1
-    res = segment(V, F, owner, np.full(len(F), -1), L, Options(), rng=0)
+    res = segment(V, F, owner, np.full(len(F), -1), L, seg_options(), rng=0)
     ours = measures.rand_index_error(res.face_labels, segs[0])
     base = measures.rand_index_error(bench.voronoi(V, F, owner, L), segs[0])
     assert ours <= 0.05 < base
@@ -484,7 +492,7 @@ def test_psb_wrist_does_not_leak_into_the_palm():
     V, F, segs = bench.load_model("182")
     owner = bench.simulate_strokes(V, F, segs[0], "body")
     L = int(owner.max()) + 1
-    labels = segment(V, F, owner, np.full(len(F), -1), L, Options(), rng=0).face_labels
+    labels = segment(V, F, owner, np.full(len(F), -1), L, seg_options(), rng=0).face_labels
     assert bench.growth(labels, segs[0], owner, F)[0] < 0.5
     assert measures.rand_index_error(labels, segs[0]) < 0.08
 

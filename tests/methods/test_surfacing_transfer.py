@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import itertools
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,13 +19,22 @@ from click.testing import CliRunner
 
 from synthkit.cli.main import cli
 from synthkit.core.mesh import vertex_graph_edges
+from synthkit.methods.surfacing.config import SurfacingConfig, TransferPair, TransferSection
+from synthkit.methods.surfacing.options import options_of
 from synthkit.methods.surfacing.transfer.extract import smooth
 from synthkit.methods.surfacing.transfer.fans import FanIndex
 from synthkit.methods.surfacing.transfer.param import Locator, distortion, rotation
 from synthkit.methods.surfacing.transfer.surface import Signal, bilinear, make_surface
-from synthkit.methods.surfacing.transfer.synth import Options, synthesize
+from synthkit.methods.surfacing.transfer.synth import synthesize
 from synthkit.methods.surfacing.transfer.trim import trim_cut
 from synthkit.samples import surfacing_transfer as sample
+
+
+def synth_options(radius: float, **changes):
+    """One pair's synthesis options of a config with its defaults, patch radius ``radius``, with ``changes``."""
+    transfer = TransferSection.model_construct(pairs=[TransferPair.model_construct()])
+    cfg = SurfacingConfig.model_construct(transfer=transfer)
+    return replace(options_of(cfg).synthesis(0, radius), **changes)
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
@@ -282,7 +292,7 @@ def test_no_accepted_patch_triangle_exceeds_the_bound():
     cap = np.flatnonzero(S[G].mean(axis=1)[:, 2] > 0.2)
     tgt = make_surface(S, G, cap, None, largest=False, margin=0.6)
     bound = 1.3
-    res = synthesize(tgt, src, Options(patch_radius=0.5, bound=bound, max_patches=40), rng=np.random.default_rng(1))
+    res = synthesize(tgt, src, synth_options(0.5, bound=bound, max_patches=40), rng=np.random.default_rng(1))
     cov = res.patch_of >= 0
     d, det = distortion(tgt.V[tgt.F[cov]], res.corner_uv[cov])
     assert d.max() <= bound + 1e-9 and (det > 0).all()
@@ -313,7 +323,7 @@ def test_up_error_exact_and_held_on_every_face_of_a_curved_target():
         if hold:
             tgt.orient((0.0, 1.0, 0.0))
             src.orient((0.0, 1.0, 0.0))
-        res = synthesize(tgt, src, Options(patch_radius=0.6, max_patches=30, fixed_orientation=True),
+        res = synthesize(tgt, src, synth_options(0.6, max_patches=30, fixed_orientation=True),
                          rng=np.random.default_rng(1))
         cov = res.patch_of >= 0
         assert cov.mean() > 0.95
@@ -915,7 +925,7 @@ def test_fan_matching_beats_random_matching_with_the_same_trimming():
     src = make_surface(V, F, np.arange(len(F)), Signal("color", values=(colors / 255.0)[F]))
     S, G, labels = sample.cylinder(64, 32)
     tgt = make_surface(S, G, np.flatnonzero(labels == 0), None, largest=False, margin=1.0)
-    cost = {m: synthesize(tgt, src, Options(patch_radius=0.6, matching=m), rng=np.random.default_rng(0)).seam_cost[-1]
+    cost = {m: synthesize(tgt, src, synth_options(0.6, matching=m), rng=np.random.default_rng(0)).seam_cost[-1]
             for m in ("fans", "random")}
     assert cost["fans"] <= 0.6 * cost["random"], cost  # measured 1.36 vs 4.52
 

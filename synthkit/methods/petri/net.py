@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from synthkit.errors import KeyedError
+
 STATES = ("selectable", "fillable", "filled", "deformed")
 SELECTABLE, FILLABLE, FILLED, DEFORMED = range(4)
 DIRECTIONS = ("+a", "-a", "+b", "-b", "+c", "-c")
@@ -62,8 +64,12 @@ def _shown(labels: list[int], most: int = 8) -> str:
     return str(labels) if len(labels) <= most else f"({len(labels)} labels)"
 
 
-class Unfillable(ValueError):
-    """The example's adjacency constraints cannot fill the construction space (an input error)."""
+class Unfillable(KeyedError):
+    """The example's adjacency constraints cannot fill the construction space (an input error: a
+    :class:`KeyedError` without a key)."""
+
+    def __init__(self, message: str):
+        super().__init__(None, message)
 
 
 class Contradiction(Exception):

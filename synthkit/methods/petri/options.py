@@ -12,7 +12,7 @@ from synthkit.methods.petri.curves import PLANE_AXES, VIEW_AXES
 if TYPE_CHECKING:
     from synthkit.methods.petri.config import PetriConfig
 
-__all__ = ["LatticeOptions", "SpaceOptions", "lattice_options", "space_options", "curves_of", "unit_key"]
+__all__ = ["LatticeOptions", "SpaceOptions", "PetriOptions", "options_of", "curves_of", "unit_key"]
 
 @dataclass(frozen=True)
 class LatticeOptions:
@@ -44,28 +44,40 @@ class SpaceOptions:
     unit_key: str
 
 
-def lattice_options(cfg: PetriConfig) -> LatticeOptions:
-    """:class:`LatticeOptions` of the config."""
-    lat, ann = cfg.lattice, cfg.lattice.annotation
-    return LatticeOptions(
+@dataclass(frozen=True)
+class PetriOptions:
+    """Every stage's options of one config (:func:`options_of`): the example's cut (``lattice``) and
+    the construction space's settings, which :meth:`space` completes with the example's lattice."""
+
+    lattice: LatticeOptions
+    plane: str
+    side: str
+    size_y: int | None
+    size_z: int | None
+    unit_key: str
+
+    def space(self, spec) -> SpaceOptions:
+        """:class:`SpaceOptions` on the example's lattice ``spec`` (an :class:`analysis.LatticeSpec`;
+        S_Y and S_Z default to the example's counts)."""
+        axes = PLANE_AXES[self.plane]
+        return SpaceOptions(
+            plane=self.plane, side=self.side, units=spec.unit[list(axes)],
+            size_y=self.size_y if self.size_y is not None else int(spec.counts[axes[1]]),
+            size_z=self.size_z if self.size_z is not None else int(spec.counts[axes[2]]),
+            sweep_origin=float(spec.origin[axes[2]]), unit_key=self.unit_key,
+        )
+
+
+def options_of(cfg: PetriConfig) -> PetriOptions:
+    """The :class:`PetriOptions` of a config."""
+    lat, ann, con = cfg.lattice, cfg.lattice.annotation, cfg.construction
+    lattice = LatticeOptions(
         unit=lat.unit, origin=lat.origin,
         annotation=None if ann is None else (ann.view, ann.rect, ann.depth_unit),
         fit_tolerance=lat.fit_tolerance, caps=lat.caps, tolerance=cfg.labels.tolerance,
         match_geometry=cfg.labels.match == "geometry", boundary=cfg.labels.boundary,
     )
-
-
-def space_options(cfg: PetriConfig, spec) -> SpaceOptions:
-    """:class:`SpaceOptions` of the config on the example's lattice ``spec`` (an
-    :class:`analysis.LatticeSpec`; S_Y and S_Z default to the example's counts)."""
-    con = cfg.construction
-    axes = PLANE_AXES[con.plane]
-    return SpaceOptions(
-        plane=con.plane, side=con.side, units=spec.unit[list(axes)],
-        size_y=con.size_y if con.size_y is not None else int(spec.counts[axes[1]]),
-        size_z=con.size_z if con.size_z is not None else int(spec.counts[axes[2]]),
-        sweep_origin=float(spec.origin[axes[2]]), unit_key=unit_key(cfg, axes[0]),
-    )
+    return PetriOptions(lattice, con.plane, con.side, con.size_y, con.size_z, unit_key(cfg, PLANE_AXES[con.plane][0]))
 
 
 def curves_of(cfg: PetriConfig) -> list[tuple[list, bool]]:

@@ -2,20 +2,17 @@
 
 One run for a single curve and a curve network (:mod:`.spaces`). The only module of the method that
 knows config keys and exit codes: the stages raise :class:`~synthkit.errors.KeyedError` (a config error) or
-:class:`~.net.Unfillable` (an input error), mapped here by :func:`refusals`.
+:class:`~.net.Unfillable` (an input error), mapped here by :func:`synthkit.errors.refusals`.
 """
 
 from __future__ import annotations
-
-import contextlib
-from collections.abc import Iterator
 
 import numpy as np
 import trimesh
 
 from synthkit.asset import Asset
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, InputError, KeyedError
+from synthkit.errors import InputError, refusals
 from synthkit.io.inputs import Inputs
 from synthkit.methods.petri import analysis
 from synthkit.methods.petri.appearance import example_look
@@ -31,26 +28,13 @@ from synthkit.methods.petri.evaluation import (
     result_metrics,
 )
 from synthkit.methods.petri.joints import joined_mesh, welded_mesh
-from synthkit.methods.petri.net import Unfillable
 from synthkit.methods.petri.network import build_network
-from synthkit.methods.petri.options import curves_of, lattice_options, space_options, unit_key
+from synthkit.methods.petri.options import curves_of, options_of, unit_key
 from synthkit.methods.petri.outputs import PetriResult, PreviewScene, result_asset
 from synthkit.methods.petri.spaces import CurveSpace, NetworkSpace, Space
 from synthkit.result import result_fields
 
-__all__ = ["compute", "refusals"]
-
-
-@contextlib.contextmanager
-def refusals(section: str, prefix: str = "") -> Iterator[None]:
-    """Map a stage's refusals to the user's errors: :class:`KeyedError` to a ConfigError naming
-    ``<section>.<key>`` (after ``prefix``), :class:`Unfillable` to an InputError."""
-    try:
-        yield
-    except KeyedError as exc:
-        raise ConfigError(f"{prefix}{section}.{exc.key}: {exc.message}") from None
-    except Unfillable as exc:
-        raise InputError(str(exc)) from None
+__all__ = ["compute"]
 
 
 def curve_constraints(cfg: PetriConfig, ex: analysis.Example, axis: int):
@@ -71,7 +55,7 @@ def build_space(cfg: PetriConfig, ex: analysis.Example, cons, hint: str | None, 
     """The construction space of the config's curve or network (Algorithm 1) and the hint for an
     unfillable one. A single curve's S_X is fitted to the example's rows (``construction.fit_cells``,
     reported as ``metrics.fitted_cells``) unless some row cannot repeat at all (``hint``)."""
-    opts = space_options(cfg, ex.spec)
+    opts = options_of(cfg).space(ex.spec)
     if cfg.construction.curves is not None:
         return NetworkSpace(build_network(curves_of(cfg), opts)), hint
     points, closed = curves_of(cfg)[0]
@@ -127,7 +111,7 @@ def run_baseline(cfg: PetriConfig, ctx, ex: analysis.Example, cons, library, spa
     figures (``metrics["baseline"]`` and ``metrics["baseline_normal_histogram_D"]``) and its net."""
     P0 = np.asarray(curves_of(cfg)[0][0][0], np.float64)
     length, what = space.straight_length()
-    bspace = CurveSpace(build_construction_space([P0, P0 + [length, 0.0]], False, space_options(cfg, ex.spec)))
+    bspace = CurveSpace(build_construction_space([P0, P0 + [length, 0.0]], False, options_of(cfg).space(ex.spec)))
     base = synthesize(bspace, cons, library, ex.grid, ctx.rng, cfg.inference.max_restarts, None)
     seams = bspace.cracks(library, base.net, base.assembler)["seams"]
     BV, BF, *_ = welded_mesh(base.assembler, seams, weld=cfg.output.weld)
@@ -151,7 +135,7 @@ GEOMETRY_COPIES = 3
 def check_construction_budget(budget, cfg: PetriConfig, spec, V: np.ndarray, F: np.ndarray, n_pieces: int) -> None:
     """Refuse a curve whose cells (S_X S_Y S_Z over every curve), each with its deformed piece,
     exceed the memory budget, before the construction space is built."""
-    opts = space_options(cfg, spec)
+    opts = options_of(cfg).space(spec)
     length = 0.0
     for points, closed in curves_of(cfg):
         P = np.asarray(points, np.float64)
@@ -171,15 +155,15 @@ def compute(cfg: PetriConfig, inputs: Inputs, ctx) -> PetriResult:
         V, F = asset.V, asset.F
         look = example_look(asset.corner_uv, asset.corner_color, asset.face_material, len(F))
     source = "" if inputs.is_memory(cfg.example) else f"{cfg.example}: "
-    with ctx.stage("analysis"), refusals("lattice", source):
-        ex = analysis.analyse(V, F, lattice_options(cfg), look)
+    with ctx.stage("analysis"), refusals(source, "lattice"):
+        ex = analysis.analyse(V, F, options_of(cfg).lattice, look)
     check_construction_budget(ctx.budget, cfg, ex.spec, V, F, len(ex.pieces.index))
     cons, hint, joined = curve_constraints(cfg, ex, PLANE_AXES[cfg.construction.plane][0])
     ctx.metrics["joined_ends"] = joined
-    with ctx.stage("construction"), refusals("construction"):
+    with ctx.stage("construction"), refusals(section="construction"):
         space, hint = build_space(cfg, ex, cons, hint, ctx)
     library = PieceLibrary(ex.pieces, ex.reps, space.axes)
-    with ctx.stage("inference"), refusals("inference"):
+    with ctx.stage("inference"), refusals(section="inference"):
         syn = synthesize(space, cons, library, ex.grid, ctx.rng, cfg.inference.max_restarts, hint)
     with ctx.stage("assembly"):
         cracks = space.cracks(library, syn.net, syn.assembler)
@@ -193,7 +177,7 @@ def compute(cfg: PetriConfig, inputs: Inputs, ctx) -> PetriResult:
         metrics = {**space.shape_metrics(syn.net, cracks, float(ex.spec.unit.min())), **shared}
     bnet = None
     if cfg.output.baseline:
-        with ctx.stage("baseline"), refusals("construction"):
+        with ctx.stage("baseline"), refusals(section="construction"):
             figures, bnet = run_baseline(cfg, ctx, ex, cons, library, space, h_ex)
             metrics.update(figures)
     ctx.metrics.update(metrics)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 from synthkit.methods.reshape.texture.surface import TextureParams
 
-__all__ = ["Options", "options_of", "GraphOptions", "PartsOptions", "TextureOptions", "texture_options",
-           "DragOptions", "drag_options", "SystemOptions", "system_options"]
+__all__ = ["Options", "options_of", "GraphOptions", "PartsOptions", "TextureOptions", "DragOptions",
+           "SystemOptions"]
 
 PARAM_KEYS = ("delta", "neighbourhood", "spacing", "s_min", "s_align", "t_max", "samples", "corner_form", "tau",
               "smoothness", "edge_sigma", "tries", "tile_search", "min_tile", "regions", "clusters", "sigma_s",
@@ -40,7 +40,7 @@ class TextureOptions:
     unchanged_texels: float
 
 
-def texture_options(cfg) -> TextureOptions:
+def _texture(cfg) -> TextureOptions:
     """The :class:`TextureOptions` of a :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
     t = cfg.texture_reshape
     params = TextureParams(**{n: getattr(t, n) for n in PARAM_KEYS}, backend=cfg.solver.backend)
@@ -60,11 +60,11 @@ class DragOptions:
     raise_factor: float
     flip_ratio: float
     backend: str
-    propagation: int | None = None
-    allow_partial: bool = False
+    propagation: int | None
+    allow_partial: bool
 
 
-def drag_options(cfg) -> DragOptions:
+def _drag(cfg) -> DragOptions:
     """The :class:`DragOptions` of a config: one step for a resize (its rest shape is the target)."""
     sv = cfg.solver
     steps = 1 if cfg.handles == [] else sv.steps
@@ -95,7 +95,7 @@ class SystemOptions:
     w_g: float
 
 
-def system_options(cfg) -> SystemOptions:
+def _system(cfg) -> SystemOptions:
     """The :class:`SystemOptions` of a config."""
     st, c, g = cfg.stiffness, cfg.contacts, cfg.groups
     return SystemOptions(st.l_min, st.l_min_quantile, st.w_small, st.w_long, cfg.strict.weight,
@@ -137,5 +137,5 @@ class Options:
 def options_of(cfg) -> Options:
     """The :class:`Options` of a :class:`~synthkit.methods.reshape.config.ReshapeConfig`."""
     g, p = cfg.graph, cfg.parts
-    return Options(GraphOptions(g.weld_tol, g.flat_angle_deg, g.portal_tol), system_options(cfg), drag_options(cfg),
-                   PartsOptions(p.attach_distance, p.rigid_share, p.end_tol), texture_options(cfg))
+    return Options(GraphOptions(g.weld_tol, g.flat_angle_deg, g.portal_tol), _system(cfg), _drag(cfg),
+                   PartsOptions(p.attach_distance, p.rigid_share, p.end_tol), _texture(cfg))

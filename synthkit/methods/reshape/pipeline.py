@@ -29,7 +29,7 @@ import numpy as np
 import trimesh
 
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, InputError, KeyedError
+from synthkit.errors import ConfigError, InputError, KeyedError, user_error
 from synthkit.io.assets import load_asset
 from synthkit.io.images import load_image
 from synthkit.io.inputs import Inputs, image_from_array
@@ -188,11 +188,6 @@ class Scene:
     source: object
 
 
-def _mapped(exc: KeyedError) -> ConfigError | InputError:
-    """A stage's error as the command line reports it: ConfigError naming its key, else InputError."""
-    return ConfigError(str(exc)) if exc.key else InputError(exc.message)
-
-
 def load_textured(path: Path | str) -> TexturedMesh:
     """The textured mesh of the OBJ or glTF file ``path``. Raises InputError naming the file for
     another format and whatever :func:`~synthkit.io.assets.load_asset` refuses."""
@@ -226,7 +221,7 @@ def _load(cfg, opt: Options, inputs: Inputs, ctx) -> Scene:
             offsets, joins, joined = place_pieces(names, meshes, [p for _, _, p in specs], cfg.chain,
                                                   tol=opt.graph.portal_tol * piece_size)
         except KeyedError as exc:
-            raise _mapped(exc) from None
+            raise user_error(exc) from None
         V, F, fm, ranges = assemble(names, meshes, offsets)
         snap_joined(V, ranges, joined)
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
@@ -296,7 +291,7 @@ def _textures(opt: Options, ctx, sc, graph, X) -> tuple[dict, dict]:
                                bytes_each=_BYTES_PER_TEXEL)
             results = RT.reshape_jobs(jobs, images, ctx.rng, options=options)
         except KeyedError as exc:
-            raise _mapped(exc) from None
+            raise user_error(exc) from None
         entries, boxes = RT.atlas_entries(sc.meshes, results, images)
         boxes = {name: (box, f"{sc.names[results[name][0].piece]}_{file}") for name, (box, file) in boxes.items()}
         ctx.metrics.update(RT.texture_metrics(results, notes, untouched, skipped, boxes))

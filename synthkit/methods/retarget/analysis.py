@@ -529,10 +529,10 @@ def _refine_dominant(feats: FeatureSet, dom, gen, *, icp_sources: int, dense_rad
     return refined, overlap, grip
 
 
-def analyze(Vn, F, opt: AnalysisOptions | None = None, *, rng=None) -> Analysis:
+def analyze(Vn, F, opt: AnalysisOptions, *, rng=None) -> Analysis:
     """Offset statistics of the normalised mesh ``Vn (#V, 3)``, ``F (#F, 3)`` (sections III-A, V)
     under the settings ``opt`` (:class:`~synthkit.methods.retarget.options.AnalysisOptions`, whose
-    names the text below uses; default: the paper's).
+    names the text below uses; the config's defaults are the paper's).
 
     Eligible refined offsets get a last ICP step on the mesh vertices (:func:`snap_to_vertices`,
     radius ``dense_radius / 4``) when vertices are features. Randomness enters through the
@@ -552,7 +552,6 @@ def analyze(Vn, F, opt: AnalysisOptions | None = None, *, rng=None) -> Analysis:
     them over the offsets of every feature, vertices included, as the dominant offsets are. Why,
     and the candidates measured and not adopted: docs/findings/retarget.md, "Sparsity statistics".
     """
-    opt = AnalysisOptions() if opt is None else opt
     gen = np.random.default_rng(rng)
     seed = int(gen.integers(0, 2**31 - 1))
     feats = sample_features(Vn, F, dense_radius=opt.dense_radius, feature_radius=opt.feature_radius,

@@ -124,9 +124,8 @@ class RetargetConfig(RunConfig):
         gt=0,
         le=1e-2,
         description=(
-            "Seam weld distance, normalised units. 1e-6: assets store 6-7 digits, so two copies "
-            "shifted by an offset snapped to vertices meet within their rounding (issue 15: at 1e-7, "
-            "87 of house1's 184 open seam edges lay on another open edge)."
+            "Seam weld distance, normalised units: vertices of two copies closer than this across a "
+            "seam become one vertex."
         ),
     )
     preview_size: int = Field(256, ge=64, le=2048, description="Side of the PNG previews in pixels.")

@@ -3,7 +3,7 @@ the one map from config keys to the stages' arguments."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,24 +16,24 @@ class AnalysisOptions:
     whose descriptions say what each does; lengths in normalised units). ``min_angle`` is in
     radians (``min_angle_deg``); ``icp_sources`` is how many dense samples the ICP moves at most."""
 
-    dense_radius: float = 0.02
-    feature_radius: float = 0.06
-    use_vertices: bool = True
-    descriptor: str = "shot"
-    descriptor_radius: float = 0.2
-    tau: float = 0.15
-    bin_size: float = 0.05
-    nms_window: float = 0.15
-    min_peak_share: float = 0.01
-    max_dominant: int = 20
-    min_overlap: float = 0.15
-    min_grip: float = 0.005
-    min_angle: float = np.pi / 3
-    max_principal: int = 3
-    dummy_length: float = 0.2
+    dense_radius: float
+    feature_radius: float
+    use_vertices: bool
+    descriptor: str
+    descriptor_radius: float
+    tau: float
+    bin_size: float
+    nms_window: float
+    min_peak_share: float
+    max_dominant: int
+    min_overlap: float
+    min_grip: float
+    min_angle: float
+    max_principal: int
+    dummy_length: float
+    statistics_features: str
+    generator_grip_ratio: float
     icp_sources: int = 4000
-    statistics_features: str = "samples"
-    generator_grip_ratio: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -44,13 +44,13 @@ class SynthesisOptions:
     ``weld_tolerance`` of the seams, and the analysis's ``dense_radius``, ``descriptor`` and
     ``descriptor_radius`` (voxels are described as the features are)."""
 
-    label_margin: int = 0
-    pins: list = field(default_factory=list)
-    max_cycles: int = 20
-    weld_tolerance: float = 1e-6
-    dense_radius: float = 0.02
-    descriptor: str = "shot"
-    descriptor_radius: float = 0.2
+    label_margin: int
+    pins: list
+    max_cycles: int
+    weld_tolerance: float
+    dense_radius: float
+    descriptor: str
+    descriptor_radius: float
 
 
 @dataclass(frozen=True)
@@ -60,9 +60,9 @@ class Target:
     (``{"x": 2}``), or a ``scale`` factor per principal offset. None of them: one step along the
     first principal offset."""
 
-    steps: list[int] | None = None
-    axis_steps: dict[str, int] | None = None
-    scale: list[float] | None = None
+    steps: list[int] | None
+    axis_steps: dict[str, int] | None
+    scale: list[float] | None
 
 
 def options_of(cfg) -> tuple[AnalysisOptions, SynthesisOptions, Target]:

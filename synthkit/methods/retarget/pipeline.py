@@ -30,7 +30,7 @@ import trimesh
 
 from synthkit.asset import Asset
 from synthkit.core.mesh import normalize_unit
-from synthkit.errors import ConfigError, InputError, KeyedError
+from synthkit.errors import InputError, KeyedError, user_error
 from synthkit.io.inputs import Inputs
 from synthkit.io.usd import mesh_suffix
 from synthkit.methods.retarget.analysis import Analysis, analyze
@@ -149,7 +149,7 @@ def _synthesize(Vn, F, an: Analysis, basis, steps, opt: SynthesisOptions, ctx, *
             grid, problem = build_problem(Vn, F, an, basis, steps, opt, regular=regular,
                                           pinned=prefix != "baseline_", step_keys=step_keys)
         except KeyedError as exc:
-            raise ConfigError(f"{src}: {exc}") from None
+            raise user_error(exc, f"{src}: ") from None
     with ctx.stage(f"{prefix}graphcut"):
         try:
             result = problem.solve(rng=ctx.rng, max_cycles=opt.max_cycles)
@@ -173,7 +173,7 @@ def _retarget_all(cfg, opt: SynthesisOptions, target: Target, an: Analysis, Vn, 
     try:
         steps = resolve_steps(target, an, Vn, keys=step_keys)
     except KeyedError as exc:
-        raise InputError(f"{src}: {exc}") from None
+        raise user_error(exc, f"{src}: ", keyed=InputError) from None
     results = []
     if cfg.offsets == "statistics":
         res = _synthesize(Vn, F, an, an.basis, steps, opt, ctx, src=src, prefix="", step_keys=step_keys, attr=attr)

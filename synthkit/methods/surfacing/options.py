@@ -4,36 +4,49 @@ segmentation's :class:`~synthkit.methods.surfacing.segment.Options`, each transf
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from synthkit.methods.surfacing.segment import Options
 from synthkit.methods.surfacing.transfer import synth
 from synthkit.preview import SET1
 
-__all__ = ["segment_options", "synthesis_options", "region_colors", "stroke_colors"]
+__all__ = ["SurfacingOptions", "options_of", "region_colors", "stroke_colors"]
 
 
-def segment_options(cfg) -> Options:
-    """Solver options from the config (``graph``, ``boundary``, ``region_term``, ``multires``)."""
+@dataclass(frozen=True)
+class SurfacingOptions:
+    """Every stage's options of one config (:func:`options_of`): the segmentation's (``segment``),
+    and each transfer pair's synthesis, which :meth:`synthesis` completes with its patch radius."""
+
+    segment: Options
+    synthesis_of: tuple[dict, ...]
+
+    def synthesis(self, k: int, radius: float) -> synth.Options:
+        """Synthesis options of ``transfer.pairs[k]`` with the patch ``radius`` the pipeline chose."""
+        return synth.Options(patch_radius=radius, **self.synthesis_of[k])
+
+
+def options_of(cfg) -> SurfacingOptions:
+    """The :class:`SurfacingOptions` of a config: ``graph``, ``boundary``, ``region_term`` and
+    ``multires`` for the segmentation, ``transfer.synthesis`` and each pair's ``scale`` for its synthesis."""
     m, r = cfg.multires, cfg.region_term
-    return Options(
+    segment = Options(
         graph=cfg.graph, eta=cfg.boundary.eta, gamma=cfg.boundary.gamma, region_model=r.model,
         region_weight=r.weight, concavity=r.concavity, trust=r.trust, wall_deg=r.wall_deg, clusters=r.clusters,
         multires=m.enabled,
         coarsest_nodes=m.coarsest_nodes, ratio=m.ratio, max_levels=m.max_levels, band_rings=m.band_rings,
         crease_deg=m.crease_deg, compare_single_level=cfg.compare_single_level,
     )
-
-
-def synthesis_options(cfg, k: int, radius: float) -> synth.Options:
-    """Synthesis options of ``transfer.pairs[k]`` (``transfer.synthesis`` and the pair's ``scale``) with
-    the patch ``radius`` the pipeline chose."""
-    syn, pair = cfg.transfer.synthesis, cfg.transfer.pairs[k]
-    return synth.Options(patch_radius=radius, scale=pair.scale, bound=syn.bound, matching=syn.matching,
-                         parameterization=syn.parameterization,
-                         trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
-                         tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
-                         patience=syn.patience, fixed_orientation=syn.orientation == "up")
+    if cfg.transfer is None:
+        return SurfacingOptions(segment, ())
+    syn = cfg.transfer.synthesis
+    shared = dict(bound=syn.bound, matching=syn.matching, parameterization=syn.parameterization,
+                  trimming=syn.trimming, spokes=syn.spokes, steps=syn.steps, fan_share=syn.fan_share,
+                  tolerance=syn.tolerance, edge_samples=syn.edge_samples, max_patches=syn.max_patches,
+                  patience=syn.patience, fixed_orientation=syn.orientation == "up")
+    return SurfacingOptions(segment, tuple({"scale": pair.scale, **shared} for pair in cfg.transfer.pairs))
 
 
 def region_colors(cfg) -> np.ndarray:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from synthkit.errors import ConfigError, KeyedError
+from synthkit.errors import ConfigError, KeyedError, user_error
 from synthkit.io.inputs import Inputs
 from synthkit.methods.surfacing import prepare
 from synthkit.methods.surfacing.config import SurfacingConfig
@@ -159,7 +159,7 @@ def compute(cfg: SurfacingConfig, inputs: Inputs, ctx):
     try:
         return _segment(cfg, inputs, ctx)
     except KeyedError as exc:
-        raise ConfigError(str(exc)) from None
+        raise user_error(exc) from None
 
 
 def with_mode(keys: dict[str, Any], mode: str, call: str) -> dict[str, Any]:

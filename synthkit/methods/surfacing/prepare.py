@@ -17,7 +17,7 @@ import trimesh
 
 from synthkit.errors import KeyedError
 from synthkit.methods.surfacing import views
-from synthkit.methods.surfacing.options import segment_options, stroke_colors
+from synthkit.methods.surfacing.options import options_of, stroke_colors
 from synthkit.methods.surfacing.segment import Segmentation, segment
 from synthkit.methods.surfacing.strokes import check_indices, snap_polyline, stroke_sets
 
@@ -154,7 +154,7 @@ def stroke_owners(cfg, mesh: trimesh.Trimesh, cache: ViewCache, inputs,
 def segmentation(cfg, ctx, mesh: trimesh.Trimesh, vertex_owner, face_owner) -> Segmentation:
     """:func:`~synthkit.methods.surfacing.segment.segment` of ``mesh`` by the stroke owners with the
     config's options; the solver's stage timings are added to ``ctx.timings``."""
-    opt = segment_options(cfg)
+    opt = options_of(cfg).segment
     n_nodes = len(mesh.faces) if cfg.graph == "face" else len(mesh.vertices)
     ctx.budget.require("input", cfg.input, n_nodes, "graph nodes", bytes_each=BYTES_PER_NODE)
     colors = mesh_colors(mesh) if opt.region_model == "color" else None

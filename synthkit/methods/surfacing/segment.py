@@ -38,22 +38,22 @@ and beyond any cut: area-normalised edge costs are of order 1 per edge)."""
 class Options:
     """Solver settings (see :mod:`synthkit.methods.surfacing.config` for their meaning)."""
 
-    graph: str = "face"
-    eta: float = 1.0
-    gamma: float = 1.0
-    region_model: str = "geodesic"
-    region_weight: float = 0.5
-    concavity: float = 1e5
-    trust: float = 2.0
-    wall_deg: float = 30.0
-    clusters: int = 64
-    multires: bool = True
-    coarsest_nodes: int = 8000
-    ratio: float = 0.25
-    max_levels: int = 4
-    band_rings: int = 2
-    crease_deg: float = 30.0
-    compare_single_level: bool = False
+    graph: str
+    eta: float
+    gamma: float
+    region_model: str
+    region_weight: float
+    concavity: float
+    trust: float
+    wall_deg: float
+    clusters: int
+    multires: bool
+    coarsest_nodes: int
+    ratio: float
+    max_levels: int
+    band_rings: int
+    crease_deg: float
+    compare_single_level: bool
 
 
 @dataclass

@@ -58,10 +58,9 @@ class SymmetrySection(StrictModel):
         gt=0.0,
         le=0.5,
         description=(
-            "S_T displacement window as a fraction of the output's height/width; 0.5 (the default) = "
-            "every translation, the paper's S_T; smaller values limit S_T to shorter displacements "
-            "(the paper's optional reduced domain, for smaller patterns); both take about as long "
-            "(docs/findings/symmetry-texture.md)."
+            "S_T displacement window as a fraction of the output's height/width; 0.5 = every "
+            "translation, the paper's S_T; smaller values limit S_T to shorter displacements (the "
+            "paper's optional reduced domain, for smaller patterns)."
         ),
     )
     center: tuple[float, float] | None = Field(
@@ -145,7 +144,7 @@ class DeformSection(StrictModel):
         description=(
             "Distortion bound: a move is refused when it would stretch (or squeeze) any mesh "
             "triangle by more than this factor against the start (max singular value, or 1/min); "
-            "null = unbounded (the paper's model, which smeared bark and bent brick courses)."
+            "null = unbounded (the paper's model)."
         ),
     )
     max_gradient: float | None = Field(
@@ -155,9 +154,7 @@ class DeformSection(StrictModel):
         description=(
             "Mode symmetrize: bound of the displacement field's gradient (largest singular value of "
             "its Jacobian per mesh triangle): two points d px apart move by at most this times d "
-            "against each other, so neighbouring pattern elements one period apart shift by at most "
-            "0.15 of it and stay in their rows (a smooth 3 px warp of a 128 px image has 0.147; at 0.2 "
-            "the rows of a photographed facade of cars came out wavy). Moves beyond it are refused, "
+            "against each other. Moves beyond it are refused, "
             "and a result beyond it, or whose E_symm is not above the input's by deform.min_gain, is "
             "not returned: the input comes back (metrics.status, metrics.status_reason). null: "
             "unbounded gradient (E_symm still checked)."
@@ -169,10 +166,8 @@ class DeformSection(StrictModel):
         le=0.5,
         description=(
             "A move is taken only when it improves the objective by more than this share of its "
-            "value. null: 0.01 for symmetrize (a regularizer toward small displacement: an already "
-            "regular photograph should come back unchanged, and moves buying less than 1% of "
-            "E_symm moved unwarped real photographs by 0.9-1.8 px), 0 otherwise (the paper's "
-            "descent)."
+            "value. null: 0.01 for symmetrize (a regularizer toward small displacement, so an already "
+            "regular photograph comes back unchanged), 0 otherwise (the paper's descent)."
         ),
     )
     interpolation: Literal["linear", "cubic", "lanczos"] = Field(
@@ -204,9 +199,8 @@ class TileSection(StrictModel):
         False,
         description=(
             "Run the paper's optimization (ARAP warp of the centre maximizing E_symm, then blended) "
-            "for one more candidate, the optimized tile. Off (the default): the blended input and "
-            "the cut tiles are compared with the input, in seconds; on a 640x477 photo the "
-            "optimization took 140 s and its tile was worse than the blend on 4 of 4 photos (issue 24)."
+            "for one more candidate, the optimized tile. Off: only the blended input and the cut "
+            "tiles are compared with the input, in seconds."
         ),
     )
     margin: float = Field(
@@ -225,9 +219,8 @@ class TileSection(StrictModel):
         ge=1.0,
         le=100.0,
         description=(
-            "Distortion bound of the tile's warp, in place of deform.max_stretch: a tile repeats "
-            "its warp and magnification costs sharpness; at 1.25 a photographed row of cars came "
-            "out in waves and a brick wall lost 30 % of its high frequencies."
+            "Distortion bound of the tile's warp, in place of deform.max_stretch (a tile repeats its "
+            "warp, so it is bounded tighter)."
         ),
     )
     cut_overlaps: list[Annotated[int, Field(ge=1, le=512)]] = Field(

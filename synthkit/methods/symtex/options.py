@@ -1,6 +1,6 @@
 """The arguments of the symmetry-texture stages, built from a config in one place.
 
-:func:`options_from_config` is the one map from config keys to stage arguments (with the mode's
+:func:`options_of` is the one map from config keys to stage arguments (with the mode's
 defaults resolved: the perturbation, ``deform.min_gain``, the stretch bound of a tile, the
 gradient bound of symmetrize); the stage modules take these dataclasses and arrays, never the
 config or the run context.
@@ -114,7 +114,7 @@ class SymtexOptions:
     lens: LensOptions
 
 
-def options_from_config(cfg: SymtexConfig) -> SymtexOptions:
+def options_of(cfg: SymtexConfig) -> SymtexOptions:
     """The stage arguments of a validated config (``symmetry.signals`` already resolved from
     ``auto``; see :func:`synthkit.methods.symtex.pipeline.resolve_auto_signals`)."""
     sym, dc, tc = cfg.symmetry, cfg.deform, cfg.tile

@@ -32,7 +32,7 @@ from synthkit.methods.symtex import synth as synth_mod
 from synthkit.methods.symtex import tile as tile_mod
 from synthkit.methods.symtex.common import build_objective, build_targets, representations, result_peak, similarity
 from synthkit.methods.symtex.config import SymtexConfig
-from synthkit.methods.symtex.options import SymtexOptions, options_from_config
+from synthkit.methods.symtex.options import SymtexOptions, options_of
 from synthkit.methods.symtex.outputs import SymmetryTextureResult
 from synthkit.result import result_fields
 
@@ -72,7 +72,7 @@ def resolve_auto_signals(cfg: SymtexConfig, src: np.ndarray, metrics: dict) -> S
     standardized representations, which are the same for lum and 1-lum: ``lum``.
     """
     if cfg.objective_kind() == "symm":
-        objective = build_objective(options_from_config(cfg).objective, src.shape[:2])
+        objective = build_objective(options_of(cfg).objective, src.shape[:2])
         variances = {}
         for s in ("lum", "1-lum"):
             f = sy.signal(src.astype(np.float64), s)
@@ -115,7 +115,7 @@ def compute(cfg: SymtexConfig, inputs: Inputs, ctx) -> SymmetryTextureResult:
             _check_signals(tgt, cfg.symmetry.signals, _name(inputs, cfg.target, "target"), "target image")
     ctx.metrics["signals"] = list(cfg.symmetry.signals)
     check_image_budget(ctx.budget, cfg, src, source)
-    opts = options_from_config(cfg)
+    opts = options_of(cfg)
     if opts.perturbation == "synth":
         _check_patch(opts, src, source)
     try:

@@ -24,11 +24,11 @@ import trimesh
 
 from synthkit.core.mesh import face_areas, face_normals, weld
 from synthkit.core.quality import mesh_quality
-from synthkit.errors import ConfigError, KeyedError
+from synthkit.errors import ConfigError, KeyedError, user_error
 from synthkit.io.inputs import Inputs
 from synthkit.io.signals import image_grid, read_face_labels, texture_of, vertex_attribute, vertex_colors
 from synthkit.methods.surfacing import prepare
-from synthkit.methods.surfacing.options import synthesis_options
+from synthkit.methods.surfacing.options import options_of
 from synthkit.methods.surfacing.transfer import refine
 from synthkit.methods.surfacing.transfer.bake import (
     bake,
@@ -335,9 +335,9 @@ STEP_KINDS = ("precompute", "precompute_fans", "position", "match", "parameteriz
 
 
 def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Synthesized, Synthesized | None]]:
-    out = []
+    out, options = [], options_of(cfg)
     for k, prep in enumerate(preps):
-        opt = synthesis_options(cfg, k, prep.radius)
+        opt = options.synthesis(k, prep.radius)
         try:
             res = Synthesis(prep.target, prep.source, opt, rng=ctx.rng, channels=prep.channels).run()
         except ValueError as exc:
@@ -693,4 +693,4 @@ def compute(cfg, inputs: Inputs, ctx) -> TransferResult:
     try:
         return _transfer(cfg, inputs, ctx)
     except KeyedError as exc:
-        raise ConfigError(str(exc)) from None
+        raise user_error(exc) from None

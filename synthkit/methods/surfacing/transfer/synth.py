@@ -37,20 +37,20 @@ class Options:
     """Synthesis settings; lengths in target units (see the config schema for their meaning)."""
 
     patch_radius: float
-    scale: float = 1.0
-    bound: float = 2.0
-    matching: str = "fans"
-    parameterization: str = "vector_heat"
-    trimming: str = "graphcut"
-    spokes: int = 8
-    steps: int = 4
-    fan_share: float = 0.5
-    tolerance: float = 0.1
-    edge_samples: int = 4
-    max_patches: int = 200
-    patience: int = 5
+    scale: float
+    bound: float
+    matching: str
+    parameterization: str
+    trimming: str
+    spokes: int
+    steps: int
+    fan_share: float
+    tolerance: float
+    edge_samples: int
+    max_patches: int
+    patience: int
+    fixed_orientation: bool
     fixed_patches: bool = False
-    fixed_orientation: bool = False
 
 
 @dataclass

@@ -2,7 +2,8 @@
 line; files are replaced atomically in one place only; no import cycle (lazy imports included);
 no function over 80 lines of code outside numba kernels; only pipelines, configs and the framework
 raise ConfigError/InputError; no private name is imported from another module; stage modules import
-neither files (``synthkit.io``) nor the layers above the methods (issue 36)."""
+neither files (``synthkit.io``) nor the layers above the methods; each method's options come from
+``options_of`` with the config's defaults; barycentric coordinates and normals are defined once (issue 36)."""
 
 import ast
 from pathlib import Path
@@ -290,3 +291,15 @@ def test_every_option_default_is_the_configs(name):
     assert builders == ["options_of"]
     rows = _option_defaults(module.options_of(_default_config(name)), "options")
     assert [r for r in rows if r[2] != r[3]] == []
+
+
+def test_barycentric_coordinates_and_normals_are_defined_once():
+    """Barycentric coordinates and vertex normals have one definition, in ``core/mesh.py`` (one rule
+    for degenerate triangles)."""
+    found = sorted(
+        f"{path.relative_to(PACKAGE)}:{node.name}"
+        for path in MODULES
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.FunctionDef) and (node.name.startswith("barycentric") or node.name == "vertex_normals")
+    )
+    assert found == ["core/mesh.py:barycentric", "core/mesh.py:vertex_normals"]

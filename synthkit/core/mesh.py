@@ -21,6 +21,8 @@ __all__ = [
     "as_mesh_arrays",
     "normalize_unit",
     "face_normals",
+    "vertex_normals",
+    "barycentric",
     "face_areas",
     "vertex_areas",
     "edge_lengths",
@@ -93,6 +95,60 @@ def face_normals(V, F) -> np.ndarray:
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def vertex_normals(V, F, *, weights: str = "area") -> np.ndarray:
+    """Vertex normals ``(#V, 3)`` (unit; zero for isolated vertices), the sum of the incident
+    face normals weighted by face area (``weights="area"``) or by the face's angle at the vertex
+    (``"angle"``, Thuermer and Wuethrich 1998: independent of how a flat region is triangulated)."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    if weights not in ("area", "angle"):
+        raise ValueError(f"weights must be 'area' or 'angle', got {weights!r}")
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    fn = np.cross(b - a, c - a)  # length = twice the area: area weighting
+    if weights == "angle":
+        ln = np.linalg.norm(fn, axis=1, keepdims=True)
+        fn = np.divide(fn, ln, out=np.zeros_like(fn), where=ln > 0)
+    acc = np.zeros_like(V)
+    tri = np.stack([a, b, c], axis=1)
+    for k in range(3):
+        w = 1.0
+        if weights == "angle":
+            e1, e2 = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
+            den = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+            cos = np.divide(np.einsum("ij,ij->i", e1, e2), den, out=np.ones(len(F)), where=den > 0)
+            w = np.arccos(np.clip(cos, -1.0, 1.0))[:, None]
+        np.add.at(acc, F[:, k], w * fn)
+    n = np.linalg.norm(acc, axis=1, keepdims=True)
+    return np.divide(acc, n, out=np.zeros_like(acc), where=n > 0)
+
+
+DEGENERATE = 1e-30
+"""A triangle is degenerate when its Gram determinant is below this share of the product of its
+squared edge lengths (zero area up to rounding)."""
+
+
+def barycentric(T, P) -> np.ndarray:
+    """Barycentric weights ``(m, k, 3)`` of the points ``P (m, k, d)`` in the triangles
+    ``T (m, 3, d)``, d = 2 or 3: least squares in the triangle's plane (a point off the plane is
+    projected, one outside extrapolated). A degenerate triangle (:data:`DEGENERATE`) gives each
+    point the weights of its nearest corner, so a value read through them is a corner's."""
+    T, P = np.asarray(T, np.float64), np.asarray(P, np.float64)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    d11, d12, d22 = (e1 * e1).sum(-1), (e1 * e2).sum(-1), (e2 * e2).sum(-1)
+    den = d11 * d22 - d12 * d12
+    ok = den > DEGENERATE * np.maximum(d11 * d22, 1e-300)
+    Q = P - T[:, None, 0]
+    q1, q2 = (Q * e1[:, None]).sum(-1), (Q * e2[:, None]).sum(-1)
+    safe = np.where(ok, den, 1.0)[:, None]
+    b1 = (d22[:, None] * q1 - d12[:, None] * q2) / safe
+    b2 = (d11[:, None] * q2 - d12[:, None] * q1) / safe
+    B = np.stack([1.0 - b1 - b2, b1, b2], axis=-1)
+    if ok.all():
+        return B
+    nearest = np.argmin(np.linalg.norm(P[:, :, None] - T[:, None], axis=-1), axis=-1)
+    return np.where(ok[:, None, None], B, np.eye(3)[nearest])
 
 
 def face_areas(V, F) -> np.ndarray:

@@ -341,3 +341,15 @@ def test_merge_vertices_exact(square):
     assert idx.tolist() == [0, 1, 2, 3, 2]
     assert F2.tolist() == [[0, 1, 2], [0, 2, 3]]  # the third face collapsed
     np.testing.assert_array_equal(V2, V)
+
+
+def test_barycentric_exact_projected_and_degenerate():
+    """Points in 3-D are projected onto their triangle's plane; a degenerate triangle gives each point
+    its nearest corner; 2-D points give the exact weights (outside: some negative)."""
+    T = np.array([[[0, 0, 0], [2, 0, 0], [0, 2, 0]], [[0, 0, 0], [1, 0, 0], [2, 0, 0]]], np.float64)
+    P = np.array([[[1, 0, 0], [0.5, 0.5, 3.0], [0, 2, 0]], [[1.9, 0, 0], [0, 0, 0], [1.1, 0, 0]]], np.float64)
+    B = M.barycentric(T, P)
+    np.testing.assert_allclose(B[0], [[0.5, 0.5, 0], [0.5, 0.25, 0.25], [0, 0, 1]], atol=1e-15)
+    np.testing.assert_array_equal(B[1], np.eye(3)[[2, 0, 1]])
+    flat = M.barycentric(T[:1, :, :2], np.array([[[3.0, 1.0]]]))
+    np.testing.assert_allclose(flat, [[[-1.0, 1.5, 0.5]]], atol=1e-15)

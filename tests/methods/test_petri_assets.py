@@ -11,7 +11,7 @@ import trimesh
 from synthkit.core.quality import mesh_quality
 from synthkit.io.assets import load_asset
 from synthkit.methods.petri import analysis, joints
-from synthkit.methods.petri.appearance import Look, barycentrics
+from synthkit.methods.petri.appearance import Look
 from synthkit.methods.petri.joints import close_t_junctions
 from synthkit.runner import run_config
 
@@ -27,14 +27,6 @@ def square_look() -> Look:
     color = np.zeros((2, 3, 4))
     color[0, 1] = color[1, 1] = 200.0  # corner 1 of face 0 (vertex 1) and of face 1 (vertex 2)
     return Look(uv, color, np.array([0, 1]))
-
-
-def test_barycentrics_exact_and_degenerate():
-    T = np.array([[[0, 0, 0], [2, 0, 0], [0, 2, 0]], [[0, 0, 0], [1, 0, 0], [2, 0, 0]]], np.float64)
-    P = np.array([[[1, 0, 0], [0.5, 0.5, 3.0], [0, 2, 0]], [[1.9, 0, 0], [0, 0, 0], [1.1, 0, 0]]], np.float64)
-    B = barycentrics(T, P)
-    np.testing.assert_allclose(B[0], [[0.5, 0.5, 0], [0.5, 0.25, 0.25], [0, 0, 1]], atol=1e-15)  # projected
-    np.testing.assert_array_equal(B[1], np.eye(3)[[2, 0, 1]])  # a degenerate triangle: nearest corner
 
 
 def test_cut_pieces_interpolate_uvs_at_cut_points():

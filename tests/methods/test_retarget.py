@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from synthkit.cli.main import cli
-from synthkit.core.mesh import normalize_unit, weld
+from synthkit.core.mesh import normalize_unit, vertex_normals, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, InputError, KeyedError
 from synthkit.io.assets import load_asset
@@ -33,7 +33,6 @@ from synthkit.methods.retarget.analysis import (
     share_in_top,
     snap_to_vertices,
     sparsity_curve,
-    vertex_normals,
 )
 from synthkit.methods.retarget.config import RetargetConfig
 from synthkit.methods.retarget.corners import carry, pack, unpack

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from synthkit.core.mesh import barycentric
+
 
 @dataclass
 class Look:
@@ -59,24 +61,6 @@ def example_look(corner_uv, corner_color, face_material, n_faces: int) -> Look:
     return Look(uv, col, mat)
 
 
-def barycentrics(T: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates ``(m, 3, 3)`` of the corner points ``P (m, 3, 3)`` in the triangles
-    ``T (m, 3, 3)`` (each point projected onto its triangle's plane). A degenerate triangle gives
-    the weights of its nearest corner."""
-    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    den = d11 * d22 - d12 * d12
-    ok = den > 1e-30 * np.maximum(d11 * d22, 1e-300)
-    Q = P - T[:, None, 0]
-    q1, q2 = (Q * e1[:, None]).sum(2), (Q * e2[:, None]).sum(2)
-    safe = np.where(ok, den, 1.0)[:, None]
-    b1 = (d22[:, None] * q1 - d12[:, None] * q2) / safe
-    b2 = (d11[:, None] * q2 - d12[:, None] * q1) / safe
-    B = np.stack([1.0 - b1 - b2, b1, b2], axis=2)
-    nearest = np.argmin(np.linalg.norm(P[:, :, None] - T[:, None], axis=3), axis=2)
-    return np.where(ok[:, None, None], B, np.eye(3)[nearest])
-
-
 def carry(look: Look, V: np.ndarray, F: np.ndarray, src: np.ndarray, V2: np.ndarray, F2: np.ndarray) -> Look:
     """The look of faces ``F2 (m, 3)`` over ``V2`` cut out of the example faces ``src (m,)`` of ``V, F``
     (``src = -1``: a cap face, which takes at each corner the values some non-cap face has at that
@@ -85,7 +69,7 @@ def carry(look: Look, V: np.ndarray, F: np.ndarray, src: np.ndarray, V2: np.ndar
     s = np.where(real, src, 0)
     out = [None, None]
     if any(arr is not None for arr in look.corners()):
-        B = barycentrics(np.asarray(V, np.float64)[F[s]], np.asarray(V2, np.float64)[F2])
+        B = barycentric(np.asarray(V, np.float64)[F[s]], np.asarray(V2, np.float64)[F2])
         out = [None if arr is None else np.einsum("mcb,mbk->mck", B, arr[s]) for arr in look.corners()]
     mat = look.face_material[s].copy()
     if not real.all():

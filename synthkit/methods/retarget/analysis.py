@@ -19,13 +19,12 @@ from scipy.ndimage import maximum_filter, uniform_filter
 from scipy.spatial import cKDTree
 
 from synthkit.core.descriptors import fpfh, shot
-from synthkit.core.mesh import poisson_disk_sample
+from synthkit.core.mesh import poisson_disk_sample, vertex_normals
 from synthkit.methods.retarget.options import AnalysisOptions
 
 __all__ = [
     "FeatureSet",
     "Analysis",
-    "vertex_normals",
     "sample_features",
     "describe",
     "match_offsets",
@@ -104,33 +103,6 @@ class Analysis:
     def principal(self) -> np.ndarray:
         """(n_principal, 3) refined principal offsets, normalised units."""
         return self.basis[:, : self.n_principal].T.copy() if self.basis is not None else np.zeros((0, 3))
-
-
-def vertex_normals(V, F, *, weights: str = "area") -> np.ndarray:
-    """Vertex normals ``(#V, 3)`` (unit; zero for isolated vertices), the sum of the incident
-    face normals weighted by face area (``weights="area"``) or by the face's angle at the vertex
-    (``"angle"``, Thuermer and Wuethrich 1998: independent of how a flat region is triangulated)."""
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    if weights not in ("area", "angle"):
-        raise ValueError(f"weights must be 'area' or 'angle', got {weights!r}")
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    fn = np.cross(b - a, c - a)  # length = twice the area: area weighting
-    if weights == "angle":
-        ln = np.linalg.norm(fn, axis=1, keepdims=True)
-        fn = np.divide(fn, ln, out=np.zeros_like(fn), where=ln > 0)
-    acc = np.zeros_like(V)
-    tri = np.stack([a, b, c], axis=1)
-    for k in range(3):
-        w = 1.0
-        if weights == "angle":
-            e1, e2 = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
-            den = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
-            cos = np.divide(np.einsum("ij,ij->i", e1, e2), den, out=np.ones(len(F)), where=den > 0)
-            w = np.arccos(np.clip(cos, -1.0, 1.0))[:, None]
-        np.add.at(acc, F[:, k], w * fn)
-    n = np.linalg.norm(acc, axis=1, keepdims=True)
-    return np.divide(acc, n, out=np.zeros_like(acc), where=n > 0)
 
 
 def sample_features(

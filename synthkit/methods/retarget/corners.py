@@ -14,33 +14,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ATTR_TOL", "barycentric", "carry", "carry_at", "same_map", "pack", "unpack"]
+from synthkit.core.mesh import barycentric
+
+__all__ = ["ATTR_TOL", "carry", "carry_at", "same_map", "pack", "unpack"]
 
 ATTR_TOL = 1e-5
 """Two corner values agree within this (UV units, colours scaled to [0, 1]): glTF stores float32
 texture coordinates, so an affine map read back from a file is exact only to about 1e-6."""
-
-
-def barycentric(P, T) -> np.ndarray:
-    """``W (m, j, 3)`` barycentric weights of the points ``P (m, j, 3)`` in the triangles
-    ``T (m, 3, 3)`` (least squares in the triangle's plane, so a point off the plane is projected
-    and one outside is extrapolated). A triangle of zero area weights its corners equally."""
-    P = np.asarray(P, dtype=np.float64)
-    T = np.asarray(T, dtype=np.float64)
-    e1 = (T[:, 1] - T[:, 0])[:, None, :]
-    e2 = (T[:, 2] - T[:, 0])[:, None, :]
-    q = P - T[:, None, 0]
-    d11 = (e1 * e1).sum(-1)
-    d12 = (e1 * e2).sum(-1)
-    d22 = (e2 * e2).sum(-1)
-    r1 = (q * e1).sum(-1)
-    r2 = (q * e2).sum(-1)
-    den = d11 * d22 - d12 * d12
-    ok = den > 1e-30 * np.maximum(d11 * d22, 1e-300)
-    safe = np.where(ok, den, 1.0)
-    v = np.where(ok, (d22 * r1 - d12 * r2) / safe, 1.0 / 3.0)
-    w = np.where(ok, (d11 * r2 - d12 * r1) / safe, 1.0 / 3.0)
-    return np.stack([1.0 - v - w, v, w], axis=-1)
 
 
 def carry(V, F_new, F_old, src, attr_old) -> np.ndarray | None:
@@ -60,7 +40,7 @@ def carry_at(P, T, X) -> np.ndarray:
     ``T (m, 3, 3)`` with corner values ``X (m, 3, k)``."""
     if len(P) == 0:
         return np.zeros((0, np.shape(P)[1], X.shape[2]))
-    return np.einsum("mjc,mck->mjk", barycentric(P, T), X)
+    return np.einsum("mjc,mck->mjk", barycentric(T, P), X)
 
 
 def same_map(PA, XA, PB, XB, *, tol: float = ATTR_TOL) -> np.ndarray:

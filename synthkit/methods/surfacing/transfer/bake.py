@@ -31,9 +31,9 @@ import scipy.sparse as sp
 from scipy.ndimage import distance_transform_edt
 from scipy.sparse.csgraph import dijkstra
 
-from synthkit.core.mesh import face_adjacency, vertex_graph_edges
+from synthkit.core.mesh import barycentric, face_adjacency, vertex_graph_edges
 
-__all__ = ["GUTTER", "MAX_SIDE", "OWNER_WEIGHT", "Atlas", "Blend", "feathered", "bake", "barycentric_2d", "shelf_pack",
+__all__ = ["GUTTER", "MAX_SIDE", "OWNER_WEIGHT", "Atlas", "Blend", "feathered", "bake", "shelf_pack",
            "texture_seam_visibility"]
 
 GUTTER = 2
@@ -68,19 +68,6 @@ def shelf_pack(sizes: np.ndarray) -> tuple[np.ndarray, int, int]:
         pos[i] = (y, x)
         x, shelf = x + w, max(shelf, h)
     return pos, int(y + shelf), width
-
-
-def barycentric_2d(T: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates ``(n, 3)`` of points ``P (n, 2)`` in triangles ``T (n, 3, 2)``
-    (outside: some negative; degenerate triangles: the first corner)."""
-    a, b, c = T[:, 0], T[:, 1], T[:, 2]
-    v0, v1, v2 = b - a, c - a, P - a
-    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-    ok = np.abs(den) > 1e-300
-    den = np.where(ok, den, 1.0)
-    s = np.where(ok, (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den, 0.0)
-    t = np.where(ok, (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den, 0.0)
-    return np.stack([1.0 - s - t, s, t], axis=1)
 
 
 def _raster_ids(T: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -142,7 +129,7 @@ def _chart(X, faces, colour, Q, lo, hi, texel, shape, channels) -> np.ndarray:
     r, c = np.nonzero(inside)
     D = np.c_[lo[0] + (c + 0.5 - GUTTER) * texel, hi[1] - (r + 0.5 - GUTTER) * texel]
     f = tri[r, c]
-    out[r, c] = colour(faces[f], barycentric_2d(Q[f], D))
+    out[r, c] = colour(faces[f], barycentric(Q[f], D[:, None])[:, 0])
     _, (ri, ci) = distance_transform_edt(~inside, return_indices=True)
     return out[ri, ci]
 

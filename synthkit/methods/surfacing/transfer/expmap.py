@@ -26,9 +26,8 @@ import numba
 import numpy as np
 
 from synthkit.core.flow import NUMBA_CACHE
-from synthkit.core.mesh import face_areas, face_normals
 
-__all__ = ["vertex_graph", "vertex_normals", "exp_map"]
+__all__ = ["vertex_graph", "exp_map"]
 
 
 def vertex_graph(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -41,16 +40,6 @@ def vertex_graph(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     indptr = np.zeros(n + 1, np.int64)
     np.add.at(indptr, both[:, 0] + 1, 1)
     return np.cumsum(indptr), both[:, 1].astype(np.int64)
-
-
-def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals ``(#V, 3)`` of ``V (#V, 3)``, ``F (#F, 3)`` (+z where none)."""
-    Nf = face_normals(V, F) * face_areas(V, F)[:, None]
-    N = np.zeros((len(V), 3))
-    for k in range(3):
-        np.add.at(N, F[:, k], Nf)
-    n = np.linalg.norm(N, axis=1, keepdims=True)
-    return np.where(n > 1e-300, N / np.maximum(n, 1e-300), np.array([0.0, 0.0, 1.0]))
 
 
 @numba.njit(cache=NUMBA_CACHE)

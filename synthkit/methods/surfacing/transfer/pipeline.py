@@ -22,7 +22,7 @@ from types import SimpleNamespace
 import numpy as np
 import trimesh
 
-from synthkit.core.mesh import face_areas, face_normals, weld
+from synthkit.core.mesh import barycentric, face_areas, face_normals, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, KeyedError, user_error
 from synthkit.io.inputs import Inputs
@@ -32,7 +32,6 @@ from synthkit.methods.surfacing.options import options_of
 from synthkit.methods.surfacing.transfer import refine
 from synthkit.methods.surfacing.transfer.bake import (
     bake,
-    barycentric_2d,
     feathered,
     texture_seam_visibility,
 )
@@ -487,7 +486,8 @@ def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layo
 
     def colour(faces, bary):
         s = local[layout.origin[faces]]
-        return tex.colour(s, barycentric_2d(res.corner_uv[s], np.einsum("nk,nkc->nc", bary, layout.uv[faces])))
+        uv = np.einsum("nk,nkc->nc", bary, layout.uv[faces])
+        return tex.colour(s, barycentric(res.corner_uv[s], uv[:, None])[:, 0])
 
     atlas = bake(mine.corner_uv, mine.patch_of, colour, texel_size(prep.source) * prep.scale)
     faces = np.flatnonzero(mine.patch_of >= 0)

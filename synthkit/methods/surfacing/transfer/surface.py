@@ -18,8 +18,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced
-from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_faces, vertex_graph, vertex_normals
+from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced, vertex_normals
+from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_faces, vertex_graph
 
 __all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
 

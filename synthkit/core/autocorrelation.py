@@ -11,64 +11,23 @@ this way.
 from __future__ import annotations
 
 import threading
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 
 import numpy as np
 import scipy.fft as sfft
-from threadpoolctl import ThreadpoolController
 
 from synthkit.core.symmetry import check_signal
+from synthkit.core.threads import one_blas_thread, thread_pool
 
-__all__ = ["IncrementalAutocorrelation", "one_blas_thread"]
+__all__ = ["IncrementalAutocorrelation"]
 
 _CHUNK = 4  # candidates per batched transform in IncrementalAutocorrelation.l2_of_changes
-_EXECUTORS: dict[int, ThreadPoolExecutor] = {}
-
-
-_BLAS: ThreadpoolController | None = None
-_BLAS_DEPTH = 0
-
-
-@contextmanager
-def one_blas_thread():
-    """Context: the BLAS libraries loaded (numpy's and scipy's OpenBLAS) run on one thread, and
-    get their thread counts back on exit (process-wide: entered by the calling thread only, around
-    work whose helper threads it waits for; nested entries cost nothing).
-
-    The spectral evaluation's products are a few milliseconds each; OpenBLAS's own threads, on a
-    machine shared with other work, then wait for a core more than they compute (measured: a 512
-    sweep at window 0.5 took 30 s with them and 12 s without). Work is shared by our threads instead."""
-    global _BLAS, _BLAS_DEPTH
-    if _BLAS_DEPTH:
-        _BLAS_DEPTH += 1
-        try:
-            yield
-        finally:
-            _BLAS_DEPTH -= 1
-        return
-    if _BLAS is None:
-        _BLAS = ThreadpoolController()
-    with _BLAS.limit(limits=1, user_api="blas"):
-        _BLAS_DEPTH = 1
-        try:
-            yield
-        finally:
-            _BLAS_DEPTH = 0
-
-
-def _executor(threads: int) -> ThreadPoolExecutor:
-    """Shared thread pool of ``threads`` workers (numpy and scipy.fft release the GIL)."""
-    if threads not in _EXECUTORS:
-        _EXECUTORS[threads] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="symmetry")
-    return _EXECUTORS[threads]
 
 
 def _run_chunks(chunk, jobs: list[tuple[int, int]], threads: int) -> None:
     """``chunk(lo, hi)`` for every ``(lo, hi)`` of ``jobs``, shared by ``threads`` threads (in
     order in this thread when ``threads`` is 1)."""
     if threads > 1:
-        list(_executor(threads).map(lambda job: chunk(*job), jobs))
+        list(thread_pool("symmetry", threads).map(lambda job: chunk(*job), jobs))
     else:
         for job in jobs:
             chunk(*job)

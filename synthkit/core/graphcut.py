@@ -24,7 +24,8 @@ import maxflow
 import numba
 import numpy as np
 
-from synthkit.core.flow import NUMBA_CACHE, ResidualGraph, bk_max_flow, saturate_greedy, update_residual
+from synthkit.core.flow import ResidualGraph, bk_max_flow, saturate_greedy, update_residual
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 INF = 1e12
 """Costs at or above this value are treated as infinite (forbidden), exactly like ``np.inf``."""

@@ -28,7 +28,7 @@ import numba
 import numpy as np
 import scipy.fft as sfft
 
-from synthkit.core.flow import NUMBA_CACHE
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 __all__ = [
     "tile_grid",

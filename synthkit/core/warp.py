@@ -28,8 +28,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
-from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.lsq import LeastSquares
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 __all__ = [
     "ARAP2D",

@@ -782,7 +782,7 @@ def test_region_meshes_invent_no_material(samples, tmp_path, mtl):
 
 
 def test_lod_kernel_takes_the_shared_numba_cache_path():
-    """lod's kernel caches exactly when synthkit.core's do (flow.NUMBA_CACHE, with its read-only
+    """lod's kernel caches exactly when synthkit.core's do (numba_cache.NUMBA_CACHE, with its read-only
     fallback), never with its own cache=True."""
     import inspect
 

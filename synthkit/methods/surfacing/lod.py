@@ -14,8 +14,8 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.mesh import remove_unreferenced
+from synthkit.core.numba_cache import NUMBA_CACHE
 from synthkit.methods.surfacing.graph import face_labels_from_vertices
 
 __all__ = ["collapse", "lod_maps", "level_sizes"]

@@ -22,16 +22,19 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from synthkit.core import symmetry as sy
+from synthkit.core.threads import thread_pool
 from synthkit.core.warp import ARAP2D, MeshSampler, displacement_gradient, triangle_stretch
 from synthkit.methods.symtex.options import DeformOptions, TileOptions
 from synthkit.methods.symtex.tile import SHARPNESS_MIN, high_frequency_energy, tile_crop
+
+PROBE_THREADS = min(2, os.cpu_count() or 1)
+"""Threads shared by every optimizer's gradient probes (one on a one-core machine)."""
 
 log = logging.getLogger("synthkit")
 
@@ -90,17 +93,6 @@ def farthest_order(P: np.ndarray) -> np.ndarray:
         order.append(nxt)
         dist = np.minimum(dist, np.hypot(*(P - P[nxt]).T))
     return np.array(order, dtype=np.int64)
-
-
-_PROBE_POOL: ThreadPoolExecutor | None = None
-
-
-def _probe_pool() -> ThreadPoolExecutor:
-    """Two threads shared by every optimizer's gradient probes (one on a one-core machine)."""
-    global _PROBE_POOL
-    if _PROBE_POOL is None:
-        _PROBE_POOL = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
-    return _PROBE_POOL
 
 
 class DeformOptimizer:
@@ -206,7 +198,8 @@ class DeformOptimizer:
                 trial = Hpos.copy()
                 trial[h, axis] += sgn * step
                 trials.append(trial)
-        vals = list(_probe_pool().map(lambda t: self.loss(self.render(solver.solve(t))), trials))
+        pool = thread_pool("symtex-probes", PROBE_THREADS)
+        vals = list(pool.map(lambda t: self.loss(self.render(solver.solve(t))), trials))
         self.evaluations += len(trials)
         return np.array([vals[0] - vals[1], vals[2] - vals[3]]) / (2 * step)
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 
@@ -38,17 +37,9 @@ import numpy as np
 
 from synthkit.core import quilting as q
 from synthkit.core import symmetry as sy
-from synthkit.core.autocorrelation import IncrementalAutocorrelation, one_blas_thread
-from synthkit.core.flow import NUMBA_CACHE
-
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-
-
-def _executor(threads: int) -> ThreadPoolExecutor:
-    """The walk's pool of ``threads`` workers, which share the tiles of a batch."""
-    if threads not in _POOLS:
-        _POOLS[threads] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="symtex-walk")
-    return _POOLS[threads]
+from synthkit.core.autocorrelation import IncrementalAutocorrelation
+from synthkit.core.numba_cache import NUMBA_CACHE
+from synthkit.core.threads import one_blas_thread, thread_pool
 
 
 @dataclass
@@ -196,7 +187,7 @@ def _walk(result, value, src, matcher, grid, states, targets, full_value, curren
     H, W = canvas.shape[:2]
     ys, xs = grid
     batches = tile_batches(ys, xs, patch, (H, W))
-    pool = _executor(workers) if workers > 1 else None
+    pool = thread_pool("symtex-walk", workers) if workers > 1 else None
 
     def evaluate(tile, value, share):
         i, j = tile

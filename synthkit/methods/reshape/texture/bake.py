@@ -28,7 +28,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from synthkit.core.flow import NUMBA_CACHE
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 __all__ = ["DistortionMap", "distortion_map", "triangle_jacobians", "triangle_stretch", "bake", "remap",
            "laplacian_energy"]

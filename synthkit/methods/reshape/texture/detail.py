@@ -37,8 +37,8 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from synthkit.core.flow import NUMBA_CACHE
 from synthkit.core.graphcut import grid_mincut
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 __all__ = ["segment_rigid", "split_regions", "grow_tile", "largest_rectangle", "tile_map", "base_detail"]
 

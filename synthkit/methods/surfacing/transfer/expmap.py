@@ -25,7 +25,7 @@ import heapq
 import numba
 import numpy as np
 
-from synthkit.core.flow import NUMBA_CACHE
+from synthkit.core.numba_cache import NUMBA_CACHE
 
 __all__ = ["vertex_graph", "exp_map"]
 

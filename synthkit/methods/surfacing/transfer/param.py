@@ -36,7 +36,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from synthkit.core.flow import NUMBA_CACHE
+from synthkit.core.numba_cache import NUMBA_CACHE
 from synthkit.methods.surfacing.transfer.surface import Surface
 
 __all__ = ["Locator", "Patch", "distortion", "jacobians", "mutual_patch", "rotation", "singular_values_2x2", "up_error",

@@ -293,13 +293,16 @@ def test_every_option_default_is_the_configs(name):
     assert [r for r in rows if r[2] != r[3]] == []
 
 
+SHARED_GEOMETRY = ("vertex_normals", "child_uvs", "consistent_winding")
+
+
 def test_barycentric_coordinates_and_normals_are_defined_once():
-    """Barycentric coordinates and vertex normals have one definition, in ``core/mesh.py`` (one rule
-    for degenerate triangles)."""
+    """Barycentric coordinates, vertex normals, child UVs and consistent winding have one definition,
+    in ``core/mesh.py`` (one rule for degenerate triangles)."""
     found = sorted(
         f"{path.relative_to(PACKAGE)}:{node.name}"
         for path in MODULES
         for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.FunctionDef) and (node.name.startswith("barycentric") or node.name == "vertex_normals")
+        if isinstance(node, ast.FunctionDef) and (node.name.startswith("barycentric") or node.name in SHARED_GEOMETRY)
     )
-    assert found == ["core/mesh.py:barycentric", "core/mesh.py:vertex_normals"]
+    assert found == sorted(f"core/mesh.py:{name}" for name in ("barycentric", *SHARED_GEOMETRY))

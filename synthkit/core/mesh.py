@@ -23,6 +23,8 @@ __all__ = [
     "face_normals",
     "vertex_normals",
     "barycentric",
+    "child_uvs",
+    "consistent_winding",
     "face_areas",
     "vertex_areas",
     "edge_lengths",
@@ -149,6 +151,24 @@ def barycentric(T, P) -> np.ndarray:
         return B
     nearest = np.argmin(np.linalg.norm(P[:, :, None] - T[:, None], axis=-1), axis=-1)
     return np.where(ok[:, None, None], B, np.eye(3)[nearest])
+
+
+def consistent_winding(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """``F (#F, 3)`` with faces flipped so each connected piece winds one way (trimesh's
+    ``fix_winding``) and the ``(#F,) bool`` mask of flipped faces."""
+    import trimesh
+
+    m = trimesh.Trimesh(V, F, process=False)
+    trimesh.repair.fix_winding(m)
+    G = np.asarray(m.faces, np.int64)
+    return G, (G != F).any(axis=1)
+
+
+def child_uvs(P: np.ndarray, uv: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Corner UVs ``(n, 3, 2)`` of child triangles ``C (n, 3, 3)`` lying in their parents ``P (n, 3, 3)``
+    whose corner UVs are ``uv (n, 3, 2)``: each corner's :func:`barycentric` coordinates in its parent
+    (exact for midpoint subdivision), so a subdivided mesh keeps its texture (UVs are per corner)."""
+    return np.einsum("nkj,njd->nkd", barycentric(P, C), uv)
 
 
 def face_areas(V, F) -> np.ndarray:

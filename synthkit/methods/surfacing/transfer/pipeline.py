@@ -16,13 +16,12 @@ are input errors (exit 3).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
-from types import SimpleNamespace
+from dataclasses import replace
 
 import numpy as np
 import trimesh
 
-from synthkit.core.mesh import barycentric, face_areas, face_normals, weld
+from synthkit.core.mesh import child_uvs, consistent_winding, weld
 from synthkit.core.quality import mesh_quality
 from synthkit.errors import ConfigError, KeyedError, user_error
 from synthkit.io.inputs import Inputs
@@ -30,28 +29,30 @@ from synthkit.io.signals import image_grid, read_face_labels, texture_of, vertex
 from synthkit.methods.surfacing import prepare
 from synthkit.methods.surfacing.options import options_of
 from synthkit.methods.surfacing.transfer import refine
-from synthkit.methods.surfacing.transfer.bake import (
-    bake,
-    feathered,
-    texture_seam_visibility,
+from synthkit.methods.surfacing.transfer.extract import displacement_field
+from synthkit.methods.surfacing.transfer.extraction import (
+    Extracted,
+    Layout,
+    Prepared,
+    WorkMesh,
+    extract,
+    face_errors,
+    layout_of,
 )
-from synthkit.methods.surfacing.transfer.extract import (
-    corner_sources,
-    corner_values,
-    displacement_field,
-    seam_visibility,
-    transfer_displacement,
-    vertex_values,
+from synthkit.methods.surfacing.transfer.figures import (
+    STEP_KINDS,
+    pair_metrics,
+    patch_domains,
+    seam_field,
+    seam_figures,
 )
 from synthkit.methods.surfacing.transfer.outputs import TransferResult
-from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface
+from synthkit.methods.surfacing.transfer.surface import Signal, Surface, make_surface, mean_edge, prefiltered
 from synthkit.methods.surfacing.transfer.synth import Result as Synthesized
 from synthkit.methods.surfacing.transfer.synth import Synthesis
-from synthkit.methods.surfacing.transfer.trim import seam_costs
 from synthkit.result import result_fields
 
-__all__ = ["compute", "texel_size", "Prepared", "WorkMesh", "Extracted", "Layout", "prefiltered", "STEP_KINDS",
-           "BYTES_PER_FACE"]
+__all__ = ["compute", "BYTES_PER_FACE"]
 
 log = logging.getLogger("synthkit")
 
@@ -59,20 +60,6 @@ BYTES_PER_FACE = 18000
 """Peak bytes per target face of a whole transfer (docs/findings/surface-by-numbers.md)."""
 MIN_PATCH_EDGES = 3.0
 """The automatic patch radius spans at least this many mean target edge lengths."""
-
-
-@dataclass
-class Prepared:
-    """One pair ready to synthesize: surfaces, compared channels, patch radius, config key, the
-    source's unfiltered texture and the scale (target units per source unit)."""
-
-    target: Surface
-    source: Surface
-    channels: list[int] | None
-    radius: float
-    key: str
-    texture: np.ndarray | None = None
-    scale: float = 1.0
 
 
 def _segmentation(cfg, ctx, mesh, inputs: Inputs) -> np.ndarray:
@@ -180,35 +167,6 @@ def _source(cfg, ctx, k: int, target_mesh, target_labels, margin: float,
     return surface, channels
 
 
-def _mean_edge(surface: Surface) -> float:
-    return float(np.linalg.norm(surface.V[surface.edges[:, 0]] - surface.V[surface.edges[:, 1]], axis=1).mean())
-
-
-def texel_size(source: Surface) -> float:
-    """The size of a texel of the source's texture on its surface (source units):
-    ``sqrt(surface area / texture area covered, in texels)``."""
-    sig = source.signal
-    H, W = sig.texture.shape[:2]
-    uv = sig.uv * [W, H]
-    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
-    uv_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    return float(np.sqrt(source.area / max(uv_area, 1e-300)))
-
-
-def prefiltered(source: Surface, spacing: float) -> Signal:
-    """The source's texture blurred to the target's sampling: a Gaussian of ``spacing / 2``
-    (source units) in texels (:func:`texel_size`), so vertex samples read the texture's local mean,
-    not aliased texels."""
-    sig = source.signal
-    sigma = 0.5 * spacing / texel_size(source)
-    if sigma < 0.5:
-        return sig
-    import cv2
-
-    blurred = cv2.GaussianBlur(sig.texture.astype(np.float32), (0, 0), sigmaX=float(sigma))
-    return Signal(sig.kind, uv=sig.uv, texture=blurred.astype(np.float64))
-
-
 def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
     """The patch radius: ``synthesis.patch_radius``, or ``0.3 sqrt(min(source, target area))``
     clipped to ``[3 target edges, 0.9 sqrt(source area / pi)]``. ConfigError when the source region
@@ -216,7 +174,7 @@ def _radius(cfg, k: int, target: Surface, source: Surface) -> float:
     one mean target edge."""
     pair, syn = cfg.transfer.pairs[k], cfg.transfer.synthesis
     src_area = source.area * pair.scale**2
-    edge = _mean_edge(target)
+    edge = mean_edge(target)
     fits = 0.9 * np.sqrt(src_area / np.pi)
     radius = syn.patch_radius or min(max(0.3 * np.sqrt(min(src_area, target.area)), MIN_PATCH_EDGES * edge), fits)
     if src_area < np.pi * radius**2 or (not syn.patch_radius and radius < edge):
@@ -234,45 +192,6 @@ def _margin(cfg, k: int, mesh) -> float:
     return 2.0 * r if r else 0.2 * float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
 
 
-@dataclass
-class WorkMesh:
-    """The target as the transfer works on it: texture seams welded (face order kept) and faces
-    wound consistently, refined by
-    ``extraction.subdivide`` midpoint steps. ``parent (#F,)`` is each face's face in the input,
-    ``colors (#V, 3)`` the input's colours (vertex colours or the texture at the vertices) or None."""
-
-    mesh: trimesh.Trimesh
-    parent: np.ndarray
-    colors: np.ndarray | None
-    original: np.ndarray | None = None
-    texture: np.ndarray | None = None
-
-
-def _consistent_winding(V, F) -> tuple[np.ndarray, np.ndarray]:
-    """``F`` with faces flipped so each connected piece winds one way (trimesh's ``fix_winding``;
-    log maps need it) and the mask of flipped faces."""
-    m = trimesh.Trimesh(V, F, process=False)
-    trimesh.repair.fix_winding(m)
-    G = np.asarray(m.faces, np.int64)
-    return G, (G != F).any(axis=1)
-
-
-def _child_uvs(P: np.ndarray, uv: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """Corner UVs ``(n, 3, 2)`` of child triangles ``C (n, 3, 3)`` lying in their parents ``P (n, 3, 3)``
-    whose corner UVs are ``uv (n, 3, 2)``: each corner's barycentric coordinates in its parent (exact
-    for midpoint subdivision), so a subdivided target keeps its texture (seams included, UVs are per
-    corner)."""
-    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    den = np.where(np.abs(d11 * d22 - d12 * d12) > 1e-300, d11 * d22 - d12 * d12, 1e-300)
-    r = C - P[:, :1]
-    r1, r2 = np.einsum("nkd,nd->nk", r, e1), np.einsum("nkd,nd->nk", r, e2)
-    b1 = (d22[:, None] * r1 - d12[:, None] * r2) / den[:, None]
-    b2 = (d11[:, None] * r2 - d12[:, None] * r1) / den[:, None]
-    bary = np.stack([1 - b1 - b2, b1, b2], axis=2)  # (n, 3 child corners, 3 parent corners)
-    return np.einsum("nkj,njd->nkd", bary, uv)
-
-
 def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
     colors = prepare.mesh_colors(mesh)
     V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
@@ -283,7 +202,7 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
         _, first = np.unique(o2n, return_index=True)
         V, F = V[first], o2n[F]
         colors = None if colors is None else colors[first]
-        F, flipped = _consistent_winding(V, F)
+        F, flipped = consistent_winding(V, F)
         if original is not None:
             original[flipped] = original[flipped][:, ::-1]
     parent = np.arange(len(F))
@@ -295,7 +214,7 @@ def _work_mesh(cfg, mesh: trimesh.Trimesh) -> WorkMesh:
         for old, new in children.items():
             step[new] = old
         if original is not None:
-            original = _child_uvs(V[F[step]], original[step], V2[F2])
+            original = child_uvs(V[F[step]], original[step], V2[F2])
         V, F, parent = V2, F2, parent[step]
     return WorkMesh(trimesh.Trimesh(V, F, process=False), parent, colors, original, texture)
 
@@ -321,16 +240,13 @@ def _prepare(cfg, ctx, mesh, work: WorkMesh, inputs: Inputs) -> list[Prepared]:
             source, channels = _source(cfg, ctx, k, mesh, labels, margin, inputs)
             sharp = source.signal.texture
             if source.signal.texture is not None and cfg.transfer.extraction.sampling == "linear":
-                source.signal = prefiltered(source, _mean_edge(target) / pair.scale)
+                source.signal = prefiltered(source, mean_edge(target) / pair.scale)
             if cfg.transfer.synthesis.orientation == "up":
                 target.orient(cfg.transfer.synthesis.up)
                 source.orient(pair.source.up)
             out.append(Prepared(target, source, channels, _radius(cfg, k, target, source), key, sharp,
                                 pair.scale))
     return out
-
-
-STEP_KINDS = ("precompute", "precompute_fans", "position", "match", "parameterize", "trim")
 
 
 def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Synthesized, Synthesized | None]]:
@@ -354,84 +270,13 @@ def _synthesize(cfg, ctx, preps: list[Prepared]) -> list[tuple[Synthesized, Synt
     return out
 
 
-def _border_vertices(F_full: np.ndarray, region_faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """``(#V,) bool``: vertices of the region that faces outside it use too."""
-    inside = np.zeros(len(F_full), bool)
-    inside[region_faces] = True
-    used_in, used_out = np.zeros(n_vertices, bool), np.zeros(n_vertices, bool)
-    used_in[F_full[inside].ravel()] = True
-    used_out[F_full[~inside].ravel()] = True
-    return used_in & used_out
-
-
-@dataclass
-class Extracted:
-    """The target mesh's new ``positions (#V, 3)``, ``colors (#V, 3)`` in [0, 1], ``attributes`` and
-    the patch id per face ``patch_ids (#F,)`` (-1 outside the target regions); for texture pairs the
-    corner ``uv (#F, 3, 2)``, the ``material (#F,)`` and, when blended, the baked atlas image of
-    pair k in ``atlases[k]``."""
-
-    positions: np.ndarray
-    colors: np.ndarray
-    attributes: dict
-    patch_ids: np.ndarray
-    uv: np.ndarray | None = None
-    material: np.ndarray | None = None
-    atlases: dict = field(default_factory=dict)
-
-
-@dataclass
-class Layout:
-    """Per face of the work mesh: its ``pair (#F,)`` (-1 outside every target region), ``patch
-    (#F,)`` (-1 uncovered), corner domain coordinates ``uv (#F, 3, 2)`` and the face of the
-    synthesis mesh it was refined from, ``origin (#F,)``."""
-
-    pair: np.ndarray
-    patch: np.ndarray
-    uv: np.ndarray
-    origin: np.ndarray
-
-    def result(self, k: int, res: Synthesized) -> SimpleNamespace:
-        """Pair ``k``'s patches over the whole work mesh, in the form the extract stages read."""
-        return SimpleNamespace(patch_of=np.where(self.pair == k, self.patch, -1), corner_uv=self.uv,
-                               patches=res.patches)
-
-
-def _layout(work: WorkMesh, preps, results) -> Layout:
-    nF = len(work.mesh.faces)
-    out = Layout(np.full(nF, -1, np.int64), np.full(nF, -1, np.int64), np.zeros((nF, 3, 2)), np.arange(nF))
-    for k, (prep, (res, _)) in enumerate(zip(preps, results, strict=True)):
-        f = prep.target.face_ids
-        out.pair[f], out.patch[f], out.uv[f] = k, res.patch_of, res.corner_uv
-    return out
-
-
-def _face_errors(layout: Layout, preps, results) -> tuple[np.ndarray, np.ndarray]:
-    """Signal error of the linear reconstruction at edge midpoints ``(#F, 3)`` and centres ``(#F,)``
-    (NaN where not covered), in the channels the pair compares."""
-    nF = len(layout.pair)
-    mid, centre = np.full((nF, 3), np.nan), np.full(nF, np.nan)
-    for k, (prep, (res, _)) in enumerate(zip(preps, results, strict=True)):
-        for p in np.unique(layout.patch[(layout.pair == k) & (layout.patch >= 0)]):
-            faces = np.flatnonzero((layout.pair == k) & (layout.patch == p))
-            Q = layout.uv[faces]
-            probes = np.concatenate([Q, 0.5 * (Q + np.roll(Q, -1, axis=1)), Q.mean(axis=1, keepdims=True)], axis=1)
-            f, b, _ = res.patches[p].to_source(probes.reshape(-1, 2))
-            v = prep.source.signal.sample(f, b).reshape(len(faces), 7, -1)
-            v = v if prep.channels is None else v[..., prep.channels]
-            linear = 0.5 * (v[:, :3] + np.roll(v[:, :3], -1, axis=1))
-            mid[faces] = np.linalg.norm(v[:, 3:6] - linear, axis=2)
-            centre[faces] = np.linalg.norm(v[:, 6] - v[:, :3].mean(axis=1), axis=1)
-    return mid, centre
-
-
 def _refine(cfg, ctx, work: WorkMesh, layout: Layout, preps, results) -> tuple[WorkMesh, Layout]:
     """Adaptive refinement (:mod:`.refine`) until no edge is marked or ``refine_levels`` steps."""
     ex = cfg.transfer.extraction
     for _ in range(ex.refine_levels if ex.refine_tolerance else 0):
         V, F = np.asarray(work.mesh.vertices), np.asarray(work.mesh.faces)
         edge, edges = refine.edge_index(F)
-        marked = refine.mark_edges(V, F, edge, len(edges), *_face_errors(layout, preps, results), ex.refine_tolerance)
+        marked = refine.mark_edges(V, F, edge, len(edges), *face_errors(layout, preps, results), ex.refine_tolerance)
         if not marked.any():
             break
         F2, parent, W, new = refine.split_faces(F, edge, marked, len(V))
@@ -446,155 +291,9 @@ def _refine(cfg, ctx, work: WorkMesh, layout: Layout, preps, results) -> tuple[W
     return work, layout
 
 
-def _texture_corners(ext: Extracted, work: WorkMesh, k: int, prep: Prepared, res) -> None:
-    """Corner UVs into pair ``k``'s source texture (material ``k + 1``) on its covered faces."""
-    nF = len(work.mesh.faces)
-    if ext.uv is None:
-        ext.uv, ext.material = np.full((nF, 3, 2), np.nan), np.zeros(nF, np.int64)
-        if work.original is not None:
-            ext.uv[:] = work.original
-    src, bary = corner_sources(res, nF)
-    faces = np.flatnonzero((src >= 0).all(axis=1))
-    ext.uv[faces] = prep.source.signal.uv_at(src[faces].ravel(), bary[faces].reshape(-1, 3)).reshape(-1, 3, 2)
-    ext.material[faces] = k + 1
-
-
-def _texture_blend(prep: Prepared, r: Synthesized, ex, *, blend: str | None = None):
-    """The :class:`.bake.Blend` of the texture of ``r`` on ``prep.target``: the full-resolution source
-    texture through the patches, feathered over ``ex.feather`` patch radii and corrected to the
-    vertex values of ``blend`` (default ``ex.blend``; none: neither)."""
-    blend = ex.blend if blend is None else blend
-    nearest = ex.sampling == "nearest"
-    t = prep.target
-    sharp = Signal("texture", uv=prep.source.signal.uv, texture=prep.texture)
-    read = lambda f, b: sharp.sample(f, b, nearest=nearest)  # noqa: E731
-    if blend == "none":
-        return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, 0.0, read)
-    corner = corner_values(r, prep.source, len(t.F))
-    vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=blend, V=t.V)
-    return feathered(t.V, t.F, r.patch_of, r.corner_uv, r.patches, ex.feather * prep.radius, read,
-                     smooth=prep.source.signal.sample, blended=vals)
-
-
-def _bake_texture(ext: Extracted, k: int, prep: Prepared, res: Synthesized, layout: Layout, ex) -> None:
-    """Pair ``k``'s blended texture (:func:`_texture_blend`) baked into an atlas over the work mesh's
-    faces (refined faces read through the synthesis face they came from)."""
-    tex = _texture_blend(prep, res, ex)
-    local = np.full(int(layout.origin.max()) + 1, -1, np.int64)
-    local[prep.target.face_ids] = np.arange(len(prep.target.face_ids))
-    mine = layout.result(k, res)
-
-    def colour(faces, bary):
-        s = local[layout.origin[faces]]
-        uv = np.einsum("nk,nkc->nc", bary, layout.uv[faces])
-        return tex.colour(s, barycentric(res.corner_uv[s], uv[:, None])[:, 0])
-
-    atlas = bake(mine.corner_uv, mine.patch_of, colour, texel_size(prep.source) * prep.scale)
-    faces = np.flatnonzero(mine.patch_of >= 0)
-    ext.uv[faces] = atlas.uv[faces]
-    ext.atlases[k] = atlas.image
-
-
-def _extract(cfg, work: WorkMesh, layout: Layout, preps, results) -> Extracted:
-    mesh = work.mesh
-    V, F = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
-    nV, original = len(V), work.colors
-    ext = Extracted(V.copy(), np.full((nV, 3), 0.75) if original is None else original.copy(), {},
-                    np.full(len(F), -1, np.int64))
-    ex, areas, offset = cfg.transfer.extraction, face_areas(V, F), 0
-    for k, (pair, prep, (res, _)) in enumerate(zip(cfg.transfer.pairs, preps, results, strict=True)):
-        mine = layout.result(k, res)
-        cov = mine.patch_of >= 0
-        ext.patch_ids[cov] = mine.patch_of[cov] + offset
-        offset += len(res.patches)
-        if pair.signal == "texture":
-            _texture_corners(ext, work, k, prep, mine)
-        if pair.signal == "displacement":
-            frame = SimpleNamespace(V=V, F=F, N=face_normals(V, F))
-            corner = transfer_displacement(mine, frame, prep.source, prep.source.signal.values[..., :3],
-                                           scale=pair.scale)
-        else:
-            corner = corner_values(mine, prep.source, len(F), nearest=ex.sampling == "nearest")
-        vals = vertex_values(F, corner, areas, nV, blend=ex.blend, V=V)
-        ids = np.flatnonzero(np.isfinite(vals[:, 0]))
-        if pair.signal == "displacement":
-            ext.positions[ids] += vals[ids]
-        elif pair.signal == "attribute":
-            ext.attributes.setdefault(pair.attribute, np.zeros((nV, vals.shape[1])))[ids] = vals[ids]
-        else:
-            new = np.clip(vals[ids], 0, 1)
-            if original is not None and ex.blend != "none":
-                border = _border_vertices(F, np.flatnonzero(layout.pair == k), nV)[ids]
-                new[border] = 0.5 * (new[border] + original[ids[border]])
-            ext.colors[ids] = new
-            if pair.signal == "texture" and ex.blend != "none":
-                _bake_texture(ext, k, prep, res, layout, ex)
-    return ext
-
-
-def _seam_figures(prep: Prepared, res: Synthesized, base: Synthesized | None, ex) -> dict:
-    """``seam_visibility`` of the pair's vertex values (:func:`seam_visibility`, with ``ex.blend``) and,
-    with a baseline, ``baseline_seam_visibility`` (the random/no-trim baseline, the same blend);
-    colour, texture and attribute signals; texture pairs add the same of their texture
-    (:func:`_texture_seam_figures`)."""
-    if prep.source.signal.kind == "displacement":
-        return {}
-    t = prep.target
-    out = {}
-    for key, r in (("seam_visibility", res), ("baseline_seam_visibility", base)):
-        if r is None:
-            continue
-        corner = corner_values(r, prep.source, len(t.F))
-        vals = vertex_values(t.F, corner, t.areas, len(t.V), blend=ex.blend, V=t.V)
-        out[key] = _finite(seam_visibility(t.V, t.F, r.patch_of, vals))
-        if prep.source.signal.kind == "texture":
-            out |= _texture_seam_figures(key, prep, r, ex)
-    return out
-
-
-def _finite(x: float) -> float | None:
-    return None if not np.isfinite(x) else float(x)
-
-
-def _texture_seam_figures(key: str, prep: Prepared, r: Synthesized, ex) -> dict:
-    """``<key>_texture`` (and ``..._unblended``): :func:`.bake.texture_seam_visibility` of the texture
-    the output shows (:func:`_texture_blend` with ``blend``) and of the source texture read through
-    each face's own patch alone, at a step of two source texels."""
-    t, step = prep.target, 2.0 * texel_size(prep.source) * prep.scale
-    texture = key.replace("seam_visibility", "texture_seam_visibility")
-    figure = {}
-    for name, how in ((texture, ex.blend), (f"{texture}_unblended", "none")):
-        if name == texture or ex.blend != "none":
-            tex = _texture_blend(prep, r, ex, blend=how)
-            figure[name] = _finite(texture_seam_visibility(t.V, t.F, r.patch_of, tex.colour, step))
-    return figure
-
-
-def _pair_metrics(prep: Prepared, res: Synthesized, base: Synthesized | None) -> dict:
-    cov = res.patch_of >= 0
-    used = np.unique(res.patch_of[cov])
-    src_max = max((float(res.patches[p].src_distortion.max()) for p in used), default=0.0)
-    final = float(res.seam_cost[-1]) if res.seam_cost else 0.0
-    out = {
-        "target_faces": int(len(prep.target.F)), "source_faces": int(len(prep.source.F)),
-        "patch_radius": prep.radius, "patches": int(len(res.patches)), "patches_visible": int(len(used)),
-        "iterations": res.iterations, "coverage": float(cov.mean()),
-        "uncovered_faces": prep.target.face_ids[~cov].tolist(),
-        "seam_cost": {"per_iteration": [float(c) for c in res.seam_cost], "final": final},
-        "distortion_mean": float(res.distortion[cov].mean()) if cov.any() else 0.0,
-        "distortion_max": max(float(res.distortion[cov].max()) if cov.any() else 0.0, src_max),
-        "seconds": {k: float(res.timings[k]) for k in STEP_KINDS},
-    }
-    if base is not None:
-        out["baseline_seam_cost"] = float(base.seam_cost[-1]) if base.seam_cost else 0.0
-        out["baseline_patches"] = int(len(base.patches))
-        out["baseline_coverage"] = float((base.patch_of >= 0).mean())
-    return out
-
-
 def _metrics(cfg, ctx, preps, results) -> None:
     ex = cfg.transfer.extraction
-    pairs = [{**_pair_metrics(p, r, b), **_seam_figures(p, r, b, ex)}
+    pairs = [{**pair_metrics(p, r, b), **seam_figures(p, r, b, ex)}
              for p, (r, b) in zip(preps, results, strict=True)]
     n = sum(m["target_faces"] for m in pairs)
     m = {
@@ -618,23 +317,6 @@ def _metrics(cfg, ctx, preps, results) -> None:
         log.warning("%d target faces stayed uncovered (report.json metrics.uncovered_faces)", len(m["uncovered_faces"]))
 
 
-def _seam_field(preps, results, n_faces: int) -> np.ndarray:
-    """Seam cost per face of the full mesh (half of each incident seam), NaN outside the regions."""
-    out = np.full(n_faces, np.nan)
-    for prep, (res, _) in zip(preps, results, strict=True):
-        t = prep.target
-        a, b = res.patch_of[t.pairs[:, 0]], res.patch_of[t.pairs[:, 1]]
-        on = (a >= 0) & (b >= 0) & (a != b)
-        lengths = np.linalg.norm(t.V[t.edges[:, 0]] - t.V[t.edges[:, 1]], axis=1)
-        cost = np.zeros(len(a))
-        cost[on] = seam_costs(res.samples[on, 0], res.samples[on, 1], lengths[on])
-        per = np.zeros(len(t.F))
-        np.add.at(per, t.pairs[:, 0], 0.5 * cost)
-        np.add.at(per, t.pairs[:, 1], 0.5 * cost)
-        out[t.face_ids] = per
-    return out
-
-
 def _check_quality(cfg, ctx, mesh: trimesh.Trimesh, work: WorkMesh, ext: Extracted) -> None:
     """``ctx.check_quality`` of the transferred mesh against the target as read. Its faces are the
     target's, refined: on a clean mesh each subdivision or refinement step at most doubles the open
@@ -654,13 +336,6 @@ def _check_quality(cfg, ctx, mesh: trimesh.Trimesh, work: WorkMesh, ext: Extract
     ctx.check_quality("transferred", before, after, limits)
 
 
-
-def _patch_domains(results) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Fig. 4: the source domain ``(n, 3, 2)`` and target domain ``(m, 3, 2)`` of the first patches
-    of the first pair."""
-    return [(patch.locator.T, patch.corner_uv) for patch in results[0][0].patches[:3]]
-
-
 def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
     with ctx.stage("load"):
         mesh = inputs.mesh(cfg.input)
@@ -670,9 +345,9 @@ def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
     preps = _prepare(cfg, ctx, mesh, work, inputs)
     results = _synthesize(cfg, ctx, preps)
     with ctx.stage("extract"):
-        layout = _layout(work, preps, results)
+        layout = layout_of(work, preps, results)
         work, layout = _refine(cfg, ctx, work, layout, preps, results)
-        ext = _extract(cfg, work, layout, preps, results)
+        ext = extract(cfg.transfer.pairs, cfg.transfer.extraction, work, layout, preps, results)
     _metrics(cfg, ctx, preps, results)
     _check_quality(cfg, ctx, mesh, work, ext)
     textures = [work.texture] + [ext.atlases.get(k, prep.texture) if pair.signal == "texture" else None
@@ -683,8 +358,8 @@ def _transfer(cfg, inputs: Inputs, ctx) -> TransferResult:
         face_material=ext.material, textures=textures, baked=sorted(ext.atlases),
         input_suffix="" if inputs.is_memory(cfg.input) else cfg.input.suffix.lower(),
         before_positions=np.asarray(work.mesh.vertices), before_colors=work.colors,
-        seam_field=_seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin],
-        patch_domains=_patch_domains(results),
+        seam_field=seam_field(preps, results, int(layout.origin.max()) + 1)[layout.origin],
+        patch_domains=patch_domains(results),
     )
 
 

@@ -21,7 +21,8 @@ from scipy.spatial import cKDTree
 from synthkit.core.mesh import face_adjacency, face_areas, face_normals, remove_unreferenced, vertex_normals
 from synthkit.methods.surfacing.transfer.expmap import exp_map, vertex_faces, vertex_graph
 
-__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE"]
+__all__ = ["Signal", "Surface", "make_surface", "bilinear", "split_nonmanifold", "LOG_MAP_CACHE", "mean_edge",
+           "texel_size", "prefiltered"]
 
 LOG_MAP_CACHE = 32 * 2**20
 """Bytes of log maps a surface keeps (at least the latest): 200 maps of a 10k-vertex surface."""
@@ -342,3 +343,33 @@ def _largest_piece(n: int, pairs: np.ndarray) -> np.ndarray:
     A = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, comp = connected_components(A, directed=False)
     return np.flatnonzero(comp == np.bincount(comp).argmax())
+
+
+def mean_edge(surface: Surface) -> float:
+    """Mean edge length of ``surface``."""
+    return float(np.linalg.norm(surface.V[surface.edges[:, 0]] - surface.V[surface.edges[:, 1]], axis=1).mean())
+
+
+def texel_size(source: Surface) -> float:
+    """The size of a texel of the source's texture on its surface (source units):
+    ``sqrt(surface area / texture area covered, in texels)``."""
+    sig = source.signal
+    H, W = sig.texture.shape[:2]
+    uv = sig.uv * [W, H]
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    uv_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
+    return float(np.sqrt(source.area / max(uv_area, 1e-300)))
+
+
+def prefiltered(source: Surface, spacing: float) -> Signal:
+    """The source's texture blurred to the target's sampling: a Gaussian of ``spacing / 2``
+    (source units) in texels (:func:`texel_size`), so vertex samples read the texture's local mean,
+    not aliased texels."""
+    sig = source.signal
+    sigma = 0.5 * spacing / texel_size(source)
+    if sigma < 0.5:
+        return sig
+    import cv2
+
+    blurred = cv2.GaussianBlur(sig.texture.astype(np.float32), (0, 0), sigmaX=float(sigma))
+    return Signal(sig.kind, uv=sig.uv, texture=blurred.astype(np.float64))

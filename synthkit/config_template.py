@@ -15,6 +15,7 @@ spec's ``init_required``) are ``null`` marked ``REQUIRED``.
 from __future__ import annotations
 
 import json
+import math
 import types
 import typing
 from typing import Any
@@ -44,7 +45,10 @@ def config_template(
     return "\n".join(lines) + "\n"
 
 
-def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: int, method: str) -> list[str]:
+def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: int, method: str,
+                 defaults: dict | None = None) -> list[str]:
+    """The lines of ``model``'s keys; ``defaults`` are the values of the section's own default (a
+    section whose default is not its keys' defaults, such as retarget's ``target``), by key."""
     lines: list[str] = []
     for name, field in model.model_fields.items():
         key = field.alias or name
@@ -66,8 +70,10 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
             lines.append(f"{pad}{key}: {_flow(values[dotted])}  # example value; {_comment(field)}")
         elif sub is not None and (field.is_required() or field.default_factory is not None
                                   or any(k.startswith(dotted + ".") for k in values)):
+            own = field.get_default(call_default_factory=True) if field.default_factory is not None else None
             lines.append(f"{pad}{key}:  # {_comment(field, sub)}")
-            lines += _model_lines(sub, values, prefix=dotted + ".", depth=depth + 1, method=method)
+            lines += _model_lines(sub, values, prefix=dotted + ".", depth=depth + 1, method=method,
+                                  defaults=own.model_dump(mode="json") if isinstance(own, BaseModel) else None)
         elif sub is not None:
             lines.append(f"{pad}{key}: null  # {_comment(field, sub)}; null: off. Its keys, to uncomment:")
             lines.append(f"{pad}# {key}:")
@@ -81,7 +87,7 @@ def _model_lines(model: type[BaseModel], values: dict, *, prefix: str, depth: in
         elif field.is_required():
             lines.append(f"{pad}{key}: null  # REQUIRED: {_comment(field)}")
         else:
-            default = field.get_default(call_default_factory=True)
+            default = defaults[name] if defaults and name in defaults else field.get_default(call_default_factory=True)
             if isinstance(default, BaseModel):
                 default = default.model_dump(mode="json")
             lines.append(f"{pad}{key}: {_flow(default)}  # {_comment(field)}")
@@ -108,9 +114,18 @@ def _sub_model(annotation: Any) -> type[BaseModel] | None:
 
 
 def _flow(value: Any) -> str:
-    """``value`` as one line of YAML flow style (JSON is valid YAML)."""
+    """``value`` as one line of YAML flow style (JSON, which is valid YAML, but for floats written
+    with a point before their exponent: YAML 1.1 readers, PyYAML's among them, read ``1e-06`` as a
+    string and ``1.0e-06`` as a number)."""
     if hasattr(value, "__fspath__"):
         value = str(value)
+    if isinstance(value, float) and math.isfinite(value):
+        mantissa, e, exponent = repr(value).partition("e")
+        return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_flow(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{json.dumps(str(k))}: {_flow(v)}" for k, v in value.items()) + "}"
     return json.dumps(value, default=str)
 
 

@@ -19,6 +19,7 @@ import yaml
 from scipy.spatial import cKDTree
 
 from synthkit.io.assets import load_asset
+from synthkit.methods import available_methods
 
 from ..conftest import SHARED_DATA
 
@@ -31,7 +32,6 @@ MESH_SUFFIXES = (".obj", ".glb", ".ply", ".usdc", ".usda")
 CORNER_TOL = 1e-5
 """Largest distance between a Blender corner (position, UV; float32) and the nearest corner our reader sees."""
 
-METHODS_WITH_MESHES = ("retarget", "petri-synth", "reshape", "surface-by-numbers")
 REAL = {
     "reshape-house1-wider": {"method": "reshape", "input": "architecture/houses/house1_baked.obj",
                              "scale": {"x": 1.3}},
@@ -77,11 +77,11 @@ def _real_config(folder: Path, name: str, spec: dict) -> Path:
 
 @pytest.fixture(scope="session")
 def runs(tmp_path_factory) -> dict[str, Path]:
-    """Run name -> output folder: every bundled config of a method that writes meshes, and the
+    """Run name -> output folder: every bundled config of every registered method, and the
     real assets (where ../shared/data is present); ``synthkit run`` with two workers, as a batch
     job runs them. A refused run writes no mesh (nothing for a client to open) and is left out."""
     root = tmp_path_factory.mktemp("clients")
-    configs = [p for m in METHODS_WITH_MESHES for p in sorted((ROOT / "configs" / m).glob("*.yaml"))]
+    configs = [p for m in available_methods() for p in sorted((ROOT / "configs" / m).glob("*.yaml"))]
     if SHARED_DATA.is_dir():
         configs += [_real_config(root, name, spec) for name, spec in REAL.items()]
     proc = subprocess.run([*SYNTHKIT, "run", *map(str, configs), "--out-root", str(root / "out"), "--workers", "2",

@@ -63,7 +63,7 @@ class TargetSection(StrictModel):
     steps: list[int] | None = Field(
         None, min_length=1, max_length=3,
         description="Integer steps per principal offset, in report order; null (with axis_steps and scale null "
-        "too): one step along each principal offset."
+        "too): one step along the first principal offset."
     )
     axis_steps: dict[Literal["x", "y", "z"], int] | None = Field(
         None, description="Steps along the principal offset closest to each named world axis, e.g. {x: 2}; null: "

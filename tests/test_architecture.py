@@ -306,3 +306,17 @@ def test_barycentric_coordinates_and_normals_are_defined_once():
         if isinstance(node, ast.FunctionDef) and (node.name.startswith("barycentric") or node.name in SHARED_GEOMETRY)
     )
     assert found == sorted(f"core/mesh.py:{name}" for name in ("barycentric", *SHARED_GEOMETRY))
+
+
+def test_the_core_reads_its_tolerances_from_one_object():
+    """No core module writes a tolerance of its own (a name ending in TOL or EPS bound to a number):
+    they are :data:`synthkit.core.tol.tol`'s."""
+    own = sorted(
+        f"{path.name}:{target.id}"
+        for path in sorted((PACKAGE / "core").glob("*.py"))
+        for node in ast.parse(path.read_text()).body if isinstance(node, ast.Assign)
+        for target in node.targets
+        if isinstance(target, ast.Name) and target.id.rstrip("_").endswith(("TOL", "EPS"))
+        and isinstance(node.value, ast.Constant)
+    )
+    assert own == []

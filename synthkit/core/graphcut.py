@@ -26,13 +26,13 @@ import numpy as np
 
 from synthkit.core.flow import ResidualGraph, bk_max_flow, saturate_greedy, update_residual
 from synthkit.core.numba_cache import NUMBA_CACHE
+from synthkit.core.tol import tol
 
 INF = 1e12
 """Costs at or above this value are treated as infinite (forbidden), exactly like ``np.inf``."""
 
 PairwiseFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
-_REL_TOL = 1e-12
 _KEPT_EDGES = 3 << 20  # edges kept across moves, summed over labels: ~104 bytes each with graph, 330 MB at most
 
 
@@ -458,7 +458,7 @@ class _Expansion:
             alpha, self.step, act, self.lab, self.un, self.uT[alpha], self.pv, self.changed_at,
             kept.idx, kept.gp, kept.gq, kept.v01, kept.v10, kept.v11, self.loc, kept.slot, kept.big,
             g.first, g.head, g.sister, g.rcap, g.tr, g.arc_pq, g.arc_qp, g.p, g.q, g.cap_pq, g.term,
-            _REL_TOL)
+            tol.energy)
         self.n_inf += d_inf
         return status == 1
 

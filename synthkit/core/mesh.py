@@ -14,6 +14,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from synthkit.core.tol import tol
+
 __all__ = [
     "TOL",
     "checked_plane_args",
@@ -44,8 +46,9 @@ __all__ = [
     "cap_plane",
 ]
 
-TOL = 1e-12
-"""Relative tolerance (times the bounding-box diagonal) for a vertex to count as on a clipping plane."""
+TOL = tol.plane
+"""Relative tolerance (times the bounding-box diagonal) for a vertex to count as on a clipping plane
+(:attr:`~synthkit.core.tol.Tolerances.plane`)."""
 
 
 def as_mesh_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
@@ -126,21 +129,16 @@ def vertex_normals(V, F, *, weights: str = "area") -> np.ndarray:
     return np.divide(acc, n, out=np.zeros_like(acc), where=n > 0)
 
 
-DEGENERATE = 1e-30
-"""A triangle is degenerate when its Gram determinant is below this share of the product of its
-squared edge lengths (zero area up to rounding)."""
-
-
 def barycentric(T, P) -> np.ndarray:
     """Barycentric weights ``(m, k, 3)`` of the points ``P (m, k, d)`` in the triangles
     ``T (m, 3, d)``, d = 2 or 3: least squares in the triangle's plane (a point off the plane is
-    projected, one outside extrapolated). A degenerate triangle (:data:`DEGENERATE`) gives each
+    projected, one outside extrapolated). A degenerate triangle (``tol.degenerate_gram``) gives each
     point the weights of its nearest corner, so a value read through them is a corner's."""
     T, P = np.asarray(T, np.float64), np.asarray(P, np.float64)
     e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     d11, d12, d22 = (e1 * e1).sum(-1), (e1 * e2).sum(-1), (e2 * e2).sum(-1)
     den = d11 * d22 - d12 * d12
-    ok = den > DEGENERATE * np.maximum(d11 * d22, 1e-300)
+    ok = den > tol.degenerate_gram * np.maximum(d11 * d22, 1e-300)
     Q = P - T[:, None, 0]
     q1, q2 = (Q * e1[:, None]).sum(-1), (Q * e2[:, None]).sum(-1)
     safe = np.where(ok, den, 1.0)[:, None]
@@ -745,10 +743,6 @@ def triangulate_polygons(P2, loops: list[np.ndarray], *, best_ear: bool = False)
     return np.asarray(tris, np.int64).reshape(-1, 3)
 
 
-EAR_AREA_TOL = 1e-12
-"""Relative twice-area (times the polygon's squared extent) below which an ear counts as flat."""
-
-
 def _triangle_min_angles(A, B, C) -> np.ndarray:
     """Smallest interior angle (radians) of each triangle ``A, B, C (k, 2)``."""
     out = np.full(len(A), np.pi)
@@ -763,12 +757,12 @@ def _triangle_min_angles(A, B, C) -> np.ndarray:
 def _best_ear_clip(P2: np.ndarray, poly: list[int]) -> list[list[int]]:
     """Ear clipping of the simple polygon ``poly`` (counter-clockwise) that clips, each time, the
     ear whose triangle has the largest smallest angle; ears with twice-area below
-    ``EAR_AREA_TOL`` times the squared extent (three collinear corners) are never clipped, so a
+    ``tol.ear_area`` times the squared extent (three collinear corners) are never clipped, so a
     straight side's vertices end up in fans from across the polygon rather than in slivers of
     zero area. [] when it gets stuck."""
     Q = P2[poly]
     n = len(poly)
-    flat = EAR_AREA_TOL * float(np.ptp(Q, axis=0).max()) ** 2 if n else 0.0
+    flat = tol.ear_area * float(np.ptp(Q, axis=0).max()) ** 2 if n else 0.0
     alive = list(range(n))
     out: list[list[int]] = []
     while len(alive) > 3:

@@ -14,13 +14,14 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from synthkit.core.mesh import as_mesh_arrays, weld
+from synthkit.core.tol import tol
 
 __all__ = ["mesh_quality", "degenerate_faces", "QUALITY_FIGURES", "WELD_REL_TOL", "DEGENERATE_REL_TOL"]
 
-WELD_REL_TOL = 1e-6
+WELD_REL_TOL = tol.weld
 """Positions closer than this fraction of the bounding-box diagonal are one vertex for the figures."""
 
-DEGENERATE_REL_TOL = 1e-9
+DEGENERATE_REL_TOL = tol.degenerate_face
 """An edge or a height shorter than this fraction of the bounding-box diagonal makes a face degenerate."""
 
 QUALITY_FIGURES = ("faces", "open_edges", "nonmanifold_edges", "degenerate_faces", "duplicate_faces", "components",

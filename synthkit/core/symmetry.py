@@ -33,6 +33,8 @@ import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage
 
+from synthkit.core.tol import tol
+
 __all__ = [
     "f_lum",
     "f_inv_lum",
@@ -57,7 +59,6 @@ __all__ = [
 LUMA = np.array([0.299, 0.587, 0.114])
 """Rec. 601 luma weights used by :func:`f_lum`."""
 
-_EPS = 1e-12
 
 
 # ---------------------------------------------------------------------------------------------
@@ -119,7 +120,7 @@ def check_signal(f: np.ndarray) -> np.ndarray:
         raise ValueError(f"signal must be a 2-D array of at least 2x2, got shape {f.shape}")
     if not np.all(np.isfinite(f)):
         raise ValueError("signal holds NaN or infinite values")
-    if float(np.ptp(f)) <= _EPS:
+    if float(np.ptp(f)) <= tol.constant:
         raise ValueError("signal is constant: its symmetry representation is undefined")
     return f
 
@@ -129,7 +130,7 @@ def standardize(S: np.ndarray) -> np.ndarray:
     S = np.asarray(S)
     mu = S.mean()
     sd = S.std()
-    if not sd > _EPS * max(1.0, abs(float(mu))):
+    if not sd > tol.constant * max(1.0, abs(float(mu))):
         raise ValueError("symmetry representation is constant: cannot standardize")
     return (S - mu) / sd
 
@@ -305,7 +306,7 @@ def _polar_descriptor(f, kind, *, center, n_angles, n_radii, standardize):
         prod = spec * spec
     per_radius = sfft.irfft(prod, n=n_angles, axis=1)
     norm = float((r[:, None] * P**2).sum())
-    if norm <= _EPS:
+    if norm <= tol.constant:
         raise ValueError("signal is zero on the polar grid: its symmetry descriptor is undefined")
     S = (r[:, None] * per_radius).sum(axis=0) / norm
     if standardize:
@@ -449,7 +450,7 @@ def contrast(S: np.ndarray, amount: float) -> np.ndarray:
         raise ValueError(f"amount must be positive, got {amount}")
     S = np.asarray(S, dtype=np.float64)
     lo, hi = S.min(), S.max()
-    if hi - lo <= _EPS:
+    if hi - lo <= tol.constant:
         raise ValueError("symmetry representation is constant: contrast is undefined")
     x = (S - lo) / (hi - lo)
     a = x**amount

@@ -38,7 +38,7 @@ from synthkit.methods.retarget.config import RetargetConfig
 from synthkit.methods.retarget.corners import carry, pack, unpack
 from synthkit.methods.retarget.options import Target, options_of
 from synthkit.methods.retarget.outputs import label_colours
-from synthkit.methods.retarget.problem import resolve_steps
+from synthkit.methods.retarget.problem import offsets_found, resolve_steps
 from synthkit.methods.retarget.synthesis import (
     RetargetProblem,
     collapse_short_seam_edges,
@@ -697,6 +697,16 @@ def test_resolve_steps_names_the_target_entry():
     assert isinstance(info.value, ValueError) and info.value.key == "target.steps[1]=1"
     with pytest.raises(KeyedError, match=r"^target.axis_steps.y=1: no principal offset was found"):
         resolve_steps(Target(None, {"y": 1}, None), SimpleNamespace(n_principal=0, basis=np.eye(3)), Vn)
+    with pytest.raises(KeyedError, match=r"^target.axis_steps.z=1: no principal offset runs along z \(the nearest, "
+                                         r"#0, is 90 degrees off it\)$"):
+        resolve_steps(Target(None, {"z": 1}, None), an, Vn)
+
+
+def test_offsets_found_names_each_offsets_length_and_axis():
+    basis = np.array([[0.4, 0.0, 0.0], [0.0, 0.3, 0.0], [0.0, 0.1, 1.0]])  # columns: x, tilted y, z
+    found = offsets_found(SimpleNamespace(n_principal=2, basis=basis))
+    assert found == ("the model repeats by 2 principal offset(s) (#0 0.4 along x, #1 0.316 along y (18 degrees off); "
+                     "normalised units)")
 
 
 def test_options_map_every_analysis_key(tmp_path):
@@ -969,6 +979,8 @@ def test_kenney_other_pieces_statistics_and_refusals(tmp_path):
         assert result.exit_code == 3 and "Traceback" not in result.stderr, (name, result.stderr)
         found[name] = result.stderr.strip()
     assert "no seamless retargeting for steps [1, 0, 0]" in found["building-small-b"], found
+    assert "; the model repeats by 1 principal offset(s) (#0 0.492 along y; normalised units); one step along any of " \
+           "them, or back, has no seamless labeling either" in found["building-small-b"], found
     for road in ("road-straight", "road-corner"):
         assert "no repetition found" in found[road], found
         rep = json.loads((tmp_path / road / "report.json").read_text())
@@ -994,3 +1006,17 @@ def test_natural_shape_is_refused_with_less_sparse_statistics(tmp_path):
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     # the paper's natural objects: 40% in the top 7% against 80% for man-made ones
     assert report["metrics"]["sparsity_top7"] < min(_analysed(n)[0].top7 for n in ("railing", "bookshelf"))
+
+
+def test_working_steps_is_the_nearest_seamless_request():
+    """On the bookshelf (two principal offsets, both repeat seamlessly) the nearest request after a
+    refused one is one step along the first offset, or the second when the first was the one tried."""
+    from synthkit.methods.retarget.problem import working_steps
+
+    an, _, _ = _analysed("bookshelf")
+    V, F, _ = samples.SAMPLES["bookshelf"][0]()
+    Vn = normalize_unit(V)[0]
+    _, opt, _ = options_of(RetargetConfig.model_construct())
+    assert an.n_principal == 2
+    assert working_steps(Vn, F, an, opt, np.random.default_rng(0), np.zeros(3)).tolist() == [1, 0, 0]
+    assert working_steps(Vn, F, an, opt, np.random.default_rng(0), np.array([1, 0, 0])).tolist() == [0, 1, 0]

@@ -45,7 +45,7 @@ from synthkit.methods.retarget.figures import (
 )
 from synthkit.methods.retarget.options import SynthesisOptions, Target, options_of
 from synthkit.methods.retarget.outputs import RetargetedMesh, RetargetResult
-from synthkit.methods.retarget.problem import build_problem, resolve_steps
+from synthkit.methods.retarget.problem import build_problem, offsets_found, resolve_steps, working_steps
 from synthkit.methods.retarget.seams import Retargeted, stitch
 from synthkit.result import result_fields
 
@@ -156,12 +156,22 @@ def _synthesize(Vn, F, an: Analysis, basis, steps, opt: SynthesisOptions, ctx, *
         except ValueError as exc:
             raise InputError(f"{src}: no valid labeling: {exc}") from None
     if not np.isfinite(result.energy) and not regular:
-        raise InputError(
+        raise InputError(_with_hint(
             f"{src}: no seamless retargeting for steps {np.asarray(steps).tolist()}: every labeling joins an empty "
-            "voxel to a non-empty one (try other steps)"
-        )
+            "voxel to a non-empty one", Vn, F, an, opt, ctx, steps))
     with ctx.stage(f"{prefix}assemble"):
         return stitch(Vn, F, attr, grid, problem, result, weld_tol=opt.weld_tolerance, dense_radius=opt.dense_radius)
+
+
+def _with_hint(message: str, Vn, F, an: Analysis, opt: SynthesisOptions, ctx, tried) -> str:
+    """A refusal's ``message`` with what the model repeats (:func:`offsets_found`) and the nearest
+    request that works (:func:`working_steps`, a graph cut per candidate, seeded by the run's seed)."""
+    steps = working_steps(Vn, F, an, opt, np.random.default_rng(ctx.seed), np.asarray(tried))
+    if steps is None:
+        hint = "one step along any of them, or back, has no seamless labeling either"
+    else:
+        hint = f"nearest request that works: target: {{steps: {steps[:an.n_principal].tolist()}}}"
+    return f"{message}; {offsets_found(an)}; {hint}"
 
 
 def _retarget_all(cfg, opt: SynthesisOptions, target: Target, an: Analysis, Vn, F, attr, ctx,
@@ -173,7 +183,7 @@ def _retarget_all(cfg, opt: SynthesisOptions, target: Target, an: Analysis, Vn, 
     try:
         steps = resolve_steps(target, an, Vn, keys=step_keys)
     except KeyedError as exc:
-        raise user_error(exc, f"{src}: ", keyed=InputError) from None
+        raise InputError(_with_hint(str(user_error(exc, f"{src}: ")), Vn, F, an, opt, ctx, np.zeros(3))) from None
     results = []
     if cfg.offsets == "statistics":
         res = _synthesize(Vn, F, an, an.basis, steps, opt, ctx, src=src, prefix="", step_keys=step_keys, attr=attr)

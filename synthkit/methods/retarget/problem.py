@@ -14,7 +14,11 @@ from synthkit.methods.retarget.analysis import Analysis, describe
 from synthkit.methods.retarget.options import SynthesisOptions, Target
 from synthkit.methods.retarget.synthesis import RetargetProblem, VoxelGrid, make_grid
 
-__all__ = ["resolve_steps", "voxel_sets", "build_problem"]
+__all__ = ["resolve_steps", "voxel_sets", "build_problem", "offsets_found", "working_steps", "AXIS_ANGLE_MAX"]
+
+AXIS_ANGLE_MAX = 45.0
+"""Degrees: ``axis_steps`` along a world axis take the principal offset nearest it, if it is at most
+this far off (farther, the model does not repeat along that axis)."""
 
 
 def resolve_steps(target: Target, an: Analysis, Vn, *, keys: dict | None = None) -> np.ndarray:
@@ -40,6 +44,10 @@ def resolve_steps(target: Target, an: Analysis, Vn, *, keys: dict | None = None)
             P = an.basis[:, :k].T
             cos = np.abs(P @ axis) / np.linalg.norm(P, axis=1)
             i = int(np.argmax(cos))
+            off = float(np.degrees(np.arccos(min(cos[i], 1.0))))
+            if s and off > AXIS_ANGLE_MAX:
+                raise KeyedError(f"target.axis_steps.{name}={s}", f"no principal offset runs along {name} (the "
+                                 f"nearest, #{i}, is {off:.0f} degrees off it)")
             if i in used and s:
                 raise KeyedError("target.axis_steps", f"{used[i]} and {name} both map to principal offset {i}")
             if s:
@@ -116,3 +124,36 @@ def build_problem(Vn, F, an: Analysis, basis, steps, opt: SynthesisOptions, *, r
     except ValueError as exc:
         raise KeyedError("pins", str(exc)) from None
     return grid, problem
+
+
+def _along(v: np.ndarray) -> str:
+    """``v (3,)``'s length and the world axis it runs along (with its angle to it when not along it)."""
+    i = int(np.argmax(np.abs(v)))
+    off = float(np.degrees(np.arccos(min(abs(v[i]) / np.linalg.norm(v), 1.0))))
+    return f"{np.linalg.norm(v):.3g} along {'xyz'[i]}" + (f" ({off:.0f} degrees off)" if off >= 5 else "")
+
+
+def offsets_found(an: Analysis) -> str:
+    """What the model repeats, in one phrase: each principal offset's length (normalised units) and axis."""
+    k = an.n_principal
+    found = ", ".join(f"#{i} {_along(an.basis[:, i])}" for i in range(k))
+    return f"the model repeats by {k} principal offset(s) ({found}; normalised units)"
+
+
+def working_steps(Vn, F, an: Analysis, opt: SynthesisOptions, rng, tried) -> np.ndarray | None:
+    """Steps ``(3,)`` of the nearest request that retargets ``Vn``, ``F`` seamlessly: one step, then
+    one step back, along each principal offset in turn (``tried`` left out); None when none does.
+    Each candidate is one graph cut."""
+    for sign in (1, -1):
+        for i in range(an.n_principal):
+            steps = np.zeros(3, np.int64)
+            steps[i] = sign
+            if np.array_equal(steps, tried):
+                continue
+            try:
+                _, problem = build_problem(Vn, F, an, an.basis, steps, opt)
+            except KeyedError:
+                continue
+            if np.isfinite(problem.solve(rng=rng, max_cycles=opt.max_cycles).energy):
+                return steps
+    return None

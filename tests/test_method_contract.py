@@ -53,9 +53,8 @@ def test_the_init_template_holds_the_schemas_defaults(name, tmp_path):
     _, cfg, _ = load_method_config(path)
     examples = {key.split(".")[0] for key in (*spec(name).init_values, *spec(name).init_required)}
     written = yaml.safe_load(path.read_text())
-    fields = type(cfg).model_fields
-    defaults = {k: type(cfg).model_construct().model_dump(mode="json")[k] for k, f in fields.items()
-                if not f.is_required() and k not in examples}
+    schema = type(cfg).model_construct().model_dump(mode="json")
+    defaults = {k: schema[k] for k, f in type(cfg).model_fields.items() if not f.is_required() and k not in examples}
     assert defaults and {k: written[k] for k in defaults} == defaults
 
 
